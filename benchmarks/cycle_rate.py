@@ -1,0 +1,101 @@
+"""Cycle rate of the FCI controller against bare MuJoCo, in one run.
+
+    python benchmarks/cycle_rate.py [--seconds S]
+
+Rows: bare mj_step of the world (n = 1 and n = 16 arms), the controller idle
+(idle hold), and during a joint-position motion (one q_c per arm per cycle,
+delivered in-process). Each row reports cycles/s, arm-cycles/s and the ratio
+to bare mj_step of the same world. One core, nothing else running.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import mujoco
+import numpy as np
+
+from franka_sim_gym.fci.config import ControllerConfig
+from franka_sim_gym.fci.controller import FciController
+from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
+from franka_sim_gym.sim.arm import ArmPhysics
+
+IMPEDANCE = MoveControllerMode.kJointImpedance
+JOINT_POSITION = MoveMotionGeneratorMode.kJointPosition
+
+
+def rate(fn, seconds: float) -> float:
+    """Calls of ``fn`` per second over about ``seconds`` (after a short warm-up)."""
+    for _ in range(50):
+        fn()
+    calls, start = 0, time.perf_counter()
+    while True:
+        for _ in range(100):
+            fn()
+        calls += 100
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return calls / elapsed
+
+
+def bare_step_rate(n: int, seconds: float) -> float:
+    physics = ArmPhysics(n_arms=n)
+    model, data = physics.model, physics.data
+    return rate(lambda: mujoco.mj_step(model, data), seconds)
+
+
+def idle_rate(n: int, seconds: float) -> float:
+    ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
+    return rate(ctrl.step, seconds)
+
+
+def motion_rate(n: int, seconds: float) -> float:
+    ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
+    for i in range(n):
+        ctrl.move(i, int(IMPEDANCE), int(JOINT_POSITION))
+    for _ in range(2):
+        ctrl.step()
+    q0 = ctrl.states["q_d"].astype(np.float64)
+    commands = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
+    mask = np.ones(n, dtype=bool)
+    k = [0]
+
+    def cycle() -> None:
+        k[0] += 1
+        t = k[0] * 1e-3
+        delta = 0.1 * (1 - math.cos(2 * math.pi * t / 4.0))
+        commands["q_c"] = q0
+        commands["q_c"][:, 3] += delta
+        commands["message_id"] = ctrl.states["message_id"]
+        ctrl.receive(commands, mask)
+        ctrl.step()
+
+    return rate(cycle, seconds)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="measuring time per row")
+    args = parser.parse_args()
+    rows = []
+    bare = {}
+    for n in (1, 16):
+        bare[n] = bare_step_rate(n, args.seconds)
+        rows.append((f"bare mj_step, n={n}", n, bare[n]))
+        rows.append((f"controller idle, n={n}", n, idle_rate(n, args.seconds)))
+        rows.append((f"controller joint-position motion, n={n}", n, motion_rate(n, args.seconds)))
+    print(f"{'row':<42}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
+    for name, n, cycles in rows:
+        print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
+    n1 = rows[2][2]
+    n16 = rows[5][2] * 16
+    print(
+        f"summary: mj_step_per_s={bare[1]:.0f} n1_cycles_per_s={n1:.0f} "
+        f"n16_arm_cycles_per_s={n16:.0f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

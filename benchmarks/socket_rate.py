@@ -1,0 +1,86 @@
+"""What a real pylibfranka client gets from `franka-sim-gym serve` over loopback.
+
+    python benchmarks/socket_rate.py [--seconds S]
+
+Starts the server on a loopback address, then a pylibfranka client that
+(1) reads states with read_once for S seconds and (2) runs a readOnce/writeOnce
+joint-position loop for S seconds. Reports states/s received, the loop's
+control_command_success_rate, and the server process's CPU share of one core
+(from /proc, user + system time over wall time) in each phase.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+CLIENT = ROOT / "tests" / "clients" / "pylibfranka_client.py"
+HOST = "127.0.0.91"
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=10.0)
+    args = parser.parse_args()
+    server = subprocess.Popen(
+        [sys.executable, "-m", "franka_sim_gym.server", "--host", HOST, "--log-level", "WARNING"],
+        cwd=ROOT,
+    )
+    try:
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                socket.create_connection((HOST, 1337), timeout=0.2).close()
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise SystemExit("server did not start") from None
+                time.sleep(0.05)
+        time.sleep(0.5)
+        idle_cpu0, idle_t0 = cpu_seconds(server.pid), time.monotonic()
+        time.sleep(2.0)
+        idle_share = (cpu_seconds(server.pid) - idle_cpu0) / (time.monotonic() - idle_t0)
+        cpu0, t0 = cpu_seconds(server.pid), time.monotonic()
+        out = subprocess.run(
+            [sys.executable, str(CLIENT), "rate", HOST],
+            capture_output=True, text=True, timeout=4 * args.seconds + 60,
+            env={**os.environ, "RATE_SECONDS": str(args.seconds)},
+        ).stdout
+        share = (cpu_seconds(server.pid) - cpu0) / (time.monotonic() - t0)
+        result = json.loads(out.strip().splitlines()[-1])
+    finally:
+        server.send_signal(signal.SIGINT)
+        server.wait(timeout=10)
+    rows = [
+        ("states/s received by pylibfranka read_once", f"{result['states_per_s']:.1f}", "1000"),
+        ("server CPU share of one core, no client", f"{idle_share:.1%}", ""),
+        ("server CPU share of one core, client reading + 1 kHz loop", f"{share:.1%}", "<= 10%"),
+        ("readOnce/writeOnce loop success rate (mean)",
+         f"{result['loop_success_rate_mean']:.3f}", ""),
+        ("readOnce/writeOnce loop success rate (min)",
+         f"{result['loop_success_rate_min']:.3f}", ""),
+    ]
+    print(f"{'quantity':<60}{'value':>10}{'target':>10}")
+    for name, value, target in rows:
+        print(f"{name:<60}{value:>10}{target:>10}")
+    print(
+        f"summary: states_per_s={result['states_per_s']:.1f} server_cpu_share={share:.3f} "
+        f"loop_success_rate={result['loop_success_rate_mean']:.3f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

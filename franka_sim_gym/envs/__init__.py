@@ -1,0 +1,1 @@
+"""Gymnasium environments (see the env issue); drives franka_sim_gym.fci in-process."""

@@ -1,0 +1,1 @@
+"""The simulated FCI controller: wire layouts, robot rules, the cycle."""

@@ -1,0 +1,30 @@
+"""What a cycle or a request tells the way in (server or env) to answer.
+
+The controller never replies to anyone itself: it returns events, and the
+socket server turns them into TCP replies after the state that explains them
+has been sent (seed "Enabling the violation": the state carrying a reflex
+reaches the wire before the kReflexAborted reply).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+
+class EventKind(Enum):
+    """The deferred answers the controller produces."""
+
+    #: The running Move ended; ``status`` is its final MoveStatus.
+    MOVE_FINISHED = "move_finished"
+    #: AutomaticErrorRecovery completed; ``status`` is its AutomaticErrorRecoveryStatus.
+    RECOVERY_FINISHED = "recovery_finished"
+
+
+@dataclass(frozen=True)
+class Event:
+    """One deferred answer for robot ``robot``."""
+
+    robot: int
+    kind: EventKind
+    status: int

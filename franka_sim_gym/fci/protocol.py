@@ -1,0 +1,579 @@
+"""TCP messages of robot server v10 (port 1337): framing, requests, replies.
+
+Spec: fci-wire-protocol.md §2 (framing), §3 (commands, status enums, payloads),
+§4 (Connect), §5.1 (Move), §6 (GetRobotModel). Everything is little-endian and
+packed. This module only knows layouts: it never judges values (range checks,
+NaN, version mismatch are the controller's business).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import astuple, dataclass, fields
+from enum import IntEnum
+from typing import ClassVar
+
+__all__ = [
+    "VERSION",
+    "COMMAND_PORT",
+    "HEADER",
+    "MAX_MESSAGE_SIZE",
+    "DEFAULT_DEVIATION",
+    "Command",
+    "ConnectStatus",
+    "MoveStatus",
+    "StopMoveStatus",
+    "SetterStatus",
+    "GetterStatus",
+    "AutomaticErrorRecoveryStatus",
+    "REQUEST_SIZE",
+    "ProtocolError",
+    "ConnectRequest",
+    "MoveRequest",
+    "StopMoveRequest",
+    "SetCollisionBehaviorRequest",
+    "SetJointImpedanceRequest",
+    "SetCartesianImpedanceRequest",
+    "SetGuidingModeRequest",
+    "SetEEToKRequest",
+    "SetNEToEERequest",
+    "SetLoadRequest",
+    "AutomaticErrorRecoveryRequest",
+    "GetRobotModelRequest",
+    "Request",
+    "decode_request",
+    "encode_request",
+    "encode_message",
+    "encode_connect_request",
+    "encode_move_request",
+    "encode_reply",
+    "encode_connect_reply",
+    "encode_robot_model_reply",
+    "decode_reply",
+    "decode_connect_reply",
+    "Frame",
+    "FramingError",
+    "FrameDecoder",
+]
+
+VERSION = 10
+COMMAND_PORT = 1337
+# §2.1 CommandHeader: command u32, command_id u32, size u32 (total, header included).
+HEADER = struct.Struct("<III")
+# Our bound on one message read from the wire (the largest real one is the
+# ~15 kB GetRobotModel reply; requests are at most 428 bytes).
+MAX_MESSAGE_SIZE = 1 << 20
+# §5.1: libfranka always sends {translation 10.0 m, rotation 3.12 rad, elbow 2 pi}.
+DEFAULT_DEVIATION: tuple[float, float, float] = (10.0, 3.12, 2.0 * math.pi)
+
+_STATUS = struct.Struct("<B")
+_U16 = struct.Struct("<H")
+
+
+class Command(IntEnum):
+    """§3: command ids of robot server v10."""
+
+    kConnect = 0
+    kMove = 1
+    kStopMove = 2
+    kSetCollisionBehavior = 3
+    kSetJointImpedance = 4
+    kSetCartesianImpedance = 5
+    kSetGuidingMode = 6
+    kSetEEToK = 7
+    kSetNEToEE = 8
+    kSetLoad = 9
+    kAutomaticErrorRecovery = 10
+    kGetRobotModel = 11
+
+
+# §3.1 status enums (all u8; 0 = success everywhere).
+class ConnectStatus(IntEnum):
+    """§3.1 C: Connect reply status."""
+
+    kSuccess = 0
+    kIncompatibleLibraryVersion = 1
+
+
+class MoveStatus(IntEnum):
+    """§3.1 D: Move reply status (sent twice: kMotionStarted, then the final status)."""
+
+    kSuccess = 0
+    kMotionStarted = 1
+    kPreempted = 2
+    kPreemptedDueToActivatedSafetyFunctions = 3
+    kCommandRejectedDueToActivatedSafetyFunctions = 4
+    kCommandNotPossibleRejected = 5
+    kStartAtSingularPoseRejected = 6
+    kInvalidArgumentRejected = 7
+    kReflexAborted = 8
+    kEmergencyAborted = 9
+    kInputErrorAborted = 10
+    kAborted = 11
+
+
+class StopMoveStatus(IntEnum):
+    """§3.1 E: StopMove reply status."""
+
+    kSuccess = 0
+    kCommandNotPossibleRejected = 1
+    kCommandRejectedDueToActivatedSafetyFunctions = 2
+    kEmergencyAborted = 3
+    kReflexAborted = 4
+    kAborted = 5
+
+
+class SetterStatus(IntEnum):
+    """§3.1 B: status of the setters (ids 3-9)."""
+
+    kSuccess = 0
+    kCommandNotPossibleRejected = 1
+    kInvalidArgumentRejected = 2
+    kCommandRejectedDueToActivatedSafetyFunctions = 3
+
+
+class GetterStatus(IntEnum):
+    """§3.1 A: the Basic status enum, used by GetRobotModel."""
+
+    kSuccess = 0
+    kCommandNotPossibleRejected = 1
+    kCommandRejectedDueToActivatedSafetyFunctions = 2
+
+
+class AutomaticErrorRecoveryStatus(IntEnum):
+    """§3.1 F: AutomaticErrorRecovery reply status."""
+
+    kSuccess = 0
+    kCommandNotPossibleRejected = 1
+    kCommandRejectedDueToActivatedSafetyFunctions = 2
+    kManualErrorRecoveryRequiredRejected = 3
+    kReflexAborted = 4
+    kEmergencyAborted = 5
+    kAborted = 6
+
+
+# §3: total request sizes, header included.
+REQUEST_SIZE: dict[Command, int] = {
+    Command.kConnect: 16,
+    Command.kMove: 125,
+    Command.kStopMove: 12,
+    Command.kSetCollisionBehavior: 428,
+    Command.kSetJointImpedance: 68,
+    Command.kSetCartesianImpedance: 60,
+    Command.kSetGuidingMode: 19,
+    Command.kSetEEToK: 140,
+    Command.kSetNEToEE: 140,
+    Command.kSetLoad: 116,
+    Command.kAutomaticErrorRecovery: 12,
+    Command.kGetRobotModel: 12,
+}
+
+
+class ProtocolError(Exception):
+    """A message that does not fit the v10 layout; ``reason`` says what is wrong."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+def _name(command: Command) -> str:
+    """``Command.kSetLoad`` -> ``"SetLoad"`` for messages."""
+    return command.name[1:]
+
+
+# ---------------------------------------------------------------------------
+# Request payloads (§3.2, §4, §5.1). Each class declares its wire layout as
+# ``_LAYOUT``: one (struct code, count) per dataclass field, in field order;
+# count None = scalar field, otherwise a tuple of that many values.
+# ---------------------------------------------------------------------------
+
+
+class _Payload:
+    """Layout-driven encode/decode shared by the request dataclasses."""
+
+    COMMAND: ClassVar[Command]
+    _LAYOUT: ClassVar[tuple[tuple[str, int | None], ...]] = ()
+    _STRUCT: ClassVar[struct.Struct]
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        codes = "".join(f"{count or ''}{code}" for code, count in cls._LAYOUT)
+        cls._STRUCT = struct.Struct("<" + codes)
+        assert cls._STRUCT.size == REQUEST_SIZE[cls.COMMAND] - HEADER.size, cls
+
+    def payload(self) -> bytes:
+        """The payload bytes (without header) of this request."""
+        flat: list[object] = []
+        for f, (_, count), value in zip(fields(self), self._LAYOUT, astuple(self), strict=True):
+            if count is None:
+                flat.append(value)
+                continue
+            value = tuple(value)
+            if len(value) != count:
+                raise ValueError(
+                    f"{type(self).__name__}.{f.name}: expected {count} values, got {len(value)}"
+                )
+            flat.extend(value)
+        try:
+            return self._STRUCT.pack(*flat)
+        except struct.error as exc:
+            raise ValueError(f"{type(self).__name__}: {exc}") from exc
+
+    @classmethod
+    def _decode(cls, payload: bytes) -> _Payload:
+        values = cls._STRUCT.unpack(payload)
+        kwargs: dict[str, object] = {}
+        i = 0
+        for f, (_, count) in zip(fields(cls), cls._LAYOUT, strict=True):  # type: ignore[arg-type]
+            if count is None:
+                kwargs[f.name] = values[i]
+                i += 1
+            else:
+                kwargs[f.name] = tuple(values[i : i + count])
+                i += count
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class ConnectRequest(_Payload):
+    """§4: abs 12 version u16, abs 14 udp_port u16."""
+
+    COMMAND: ClassVar[Command] = Command.kConnect
+    _LAYOUT: ClassVar = (("H", None), ("H", None))
+    version: int
+    udp_port: int
+
+
+@dataclass(frozen=True)
+class MoveRequest(_Payload):
+    """§5.1: Move. Modes are raw request numbers (``wire.MoveControllerMode`` etc.)."""
+
+    COMMAND: ClassVar[Command] = Command.kMove
+    _LAYOUT: ClassVar = (("I", None), ("I", None), ("d", 3), ("d", 3), ("?", None), ("d", 7))
+    controller_mode: int
+    motion_generator_mode: int
+    maximum_path_deviation: tuple[float, ...]  # translation m, rotation rad, elbow rad
+    maximum_goal_pose_deviation: tuple[float, ...]
+    use_async_motion_generator: bool
+    maximum_velocity: tuple[float, ...]  # rad/s, 7 joints
+
+
+@dataclass(frozen=True)
+class StopMoveRequest(_Payload):
+    """§3: StopMove, no payload."""
+
+    COMMAND: ClassVar[Command] = Command.kStopMove
+
+
+@dataclass(frozen=True)
+class SetCollisionBehaviorRequest(_Payload):
+    """§3.2: eight threshold arrays, torques f64[7] (Nm) then forces f64[6] (N / Nm)."""
+
+    COMMAND: ClassVar[Command] = Command.kSetCollisionBehavior
+    _LAYOUT: ClassVar = (("d", 7),) * 4 + (("d", 6),) * 4
+    lower_torque_thresholds_acceleration: tuple[float, ...]
+    upper_torque_thresholds_acceleration: tuple[float, ...]
+    lower_torque_thresholds_nominal: tuple[float, ...]
+    upper_torque_thresholds_nominal: tuple[float, ...]
+    lower_force_thresholds_acceleration: tuple[float, ...]
+    upper_force_thresholds_acceleration: tuple[float, ...]
+    lower_force_thresholds_nominal: tuple[float, ...]
+    upper_force_thresholds_nominal: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SetJointImpedanceRequest(_Payload):
+    """§3.2: K_theta f64[7], Nm/rad."""
+
+    COMMAND: ClassVar[Command] = Command.kSetJointImpedance
+    _LAYOUT: ClassVar = (("d", 7),)
+    K_theta: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SetCartesianImpedanceRequest(_Payload):
+    """§3.2: K_x f64[6] (N/m x3, Nm/rad x3), in frame K."""
+
+    COMMAND: ClassVar[Command] = Command.kSetCartesianImpedance
+    _LAYOUT: ClassVar = (("d", 6),)
+    K_x: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SetGuidingModeRequest(_Payload):
+    """§3.2: guiding_mode bool[6] (x,y,z,R,P,Y unlocked), nullspace bool (elbow free)."""
+
+    COMMAND: ClassVar[Command] = Command.kSetGuidingMode
+    _LAYOUT: ClassVar = (("?", 6), ("?", None))
+    guiding_mode: tuple[bool, ...]
+    nullspace: bool
+
+
+@dataclass(frozen=True)
+class SetEEToKRequest(_Payload):
+    """§3.2: EE_T_K f64[16], column-major."""
+
+    COMMAND: ClassVar[Command] = Command.kSetEEToK
+    _LAYOUT: ClassVar = (("d", 16),)
+    EE_T_K: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SetNEToEERequest(_Payload):
+    """§3.2: NE_T_EE f64[16], column-major."""
+
+    COMMAND: ClassVar[Command] = Command.kSetNEToEE
+    _LAYOUT: ClassVar = (("d", 16),)
+    NE_T_EE: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class SetLoadRequest(_Payload):
+    """§3.2: m_load f64 kg, F_x_Cload f64[3] m, I_load f64[9] kg m^2 (column-major)."""
+
+    COMMAND: ClassVar[Command] = Command.kSetLoad
+    _LAYOUT: ClassVar = (("d", None), ("d", 3), ("d", 9))
+    m_load: float
+    F_x_Cload: tuple[float, ...]
+    I_load: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class AutomaticErrorRecoveryRequest(_Payload):
+    """§3: AutomaticErrorRecovery, no payload."""
+
+    COMMAND: ClassVar[Command] = Command.kAutomaticErrorRecovery
+
+
+@dataclass(frozen=True)
+class GetRobotModelRequest(_Payload):
+    """§6: GetRobotModel, no payload."""
+
+    COMMAND: ClassVar[Command] = Command.kGetRobotModel
+
+
+Request = (
+    ConnectRequest
+    | MoveRequest
+    | StopMoveRequest
+    | SetCollisionBehaviorRequest
+    | SetJointImpedanceRequest
+    | SetCartesianImpedanceRequest
+    | SetGuidingModeRequest
+    | SetEEToKRequest
+    | SetNEToEERequest
+    | SetLoadRequest
+    | AutomaticErrorRecoveryRequest
+    | GetRobotModelRequest
+)
+
+_REQUEST_CLASSES: dict[Command, type[_Payload]] = {
+    cls.COMMAND: cls
+    for cls in (
+        ConnectRequest,
+        MoveRequest,
+        StopMoveRequest,
+        SetCollisionBehaviorRequest,
+        SetJointImpedanceRequest,
+        SetCartesianImpedanceRequest,
+        SetGuidingModeRequest,
+        SetEEToKRequest,
+        SetNEToEERequest,
+        SetLoadRequest,
+        AutomaticErrorRecoveryRequest,
+        GetRobotModelRequest,
+    )
+}
+assert set(_REQUEST_CLASSES) == set(Command)
+
+
+def decode_request(command: int, payload: bytes) -> Request:
+    """Decode the payload (bytes after the header) of a request with this command id.
+
+    Raises ``ProtocolError`` for an unknown id or a payload whose length is not
+    exactly the command's (§3). Values are returned raw, never judged.
+    """
+    try:
+        cmd = Command(command)
+    except ValueError:
+        raise ProtocolError(f"unknown command id {command}") from None
+    expected = REQUEST_SIZE[cmd] - HEADER.size
+    n = len(payload)
+    if n < expected:
+        raise ProtocolError(f"truncated {_name(cmd)} payload: {n} bytes, expected {expected}")
+    if n > expected:
+        raise ProtocolError(f"oversized {_name(cmd)} payload: {n} bytes, expected {expected}")
+    return _REQUEST_CLASSES[cmd]._decode(payload)  # type: ignore[return-value]
+
+
+# ---------------------------------------------------------------------------
+# Encoding (requests for tests / a raw test client; replies for the server).
+# ---------------------------------------------------------------------------
+
+
+def encode_request(command: int, command_id: int, payload: bytes = b"") -> bytes:
+    """Header (§2.1, size = 12 + len(payload)) followed by the payload."""
+    return HEADER.pack(command, command_id, HEADER.size + len(payload)) + bytes(payload)
+
+
+def encode_message(request: Request, command_id: int) -> bytes:
+    """A complete request message for a request dataclass."""
+    return encode_request(request.COMMAND, command_id, request.payload())
+
+
+def encode_connect_request(command_id: int = 0, udp_port: int = 0, version: int = VERSION) -> bytes:
+    """§4: the 16-byte Connect request."""
+    return encode_message(ConnectRequest(version=version, udp_port=udp_port), command_id)
+
+
+def encode_move_request(
+    command_id: int,
+    controller_mode: int,
+    motion_generator_mode: int,
+    *,
+    maximum_path_deviation: tuple[float, ...] = DEFAULT_DEVIATION,
+    maximum_goal_pose_deviation: tuple[float, ...] = DEFAULT_DEVIATION,
+    use_async_motion_generator: bool = False,
+    maximum_velocity: tuple[float, ...] = (0.0,) * 7,
+) -> bytes:
+    """§5.1: the 125-byte Move request, with libfranka's defaults."""
+    request = MoveRequest(
+        controller_mode=controller_mode,
+        motion_generator_mode=motion_generator_mode,
+        maximum_path_deviation=tuple(maximum_path_deviation),
+        maximum_goal_pose_deviation=tuple(maximum_goal_pose_deviation),
+        use_async_motion_generator=use_async_motion_generator,
+        maximum_velocity=tuple(maximum_velocity),
+    )
+    return encode_message(request, command_id)
+
+
+def encode_reply(command: int, command_id: int, status: int, payload: bytes = b"") -> bytes:
+    """§2.1: reply header (size = 13 + len(payload)), u8 status, payload."""
+    body = _STATUS.pack(status) + bytes(payload)
+    return HEADER.pack(command, command_id, HEADER.size + len(body)) + body
+
+
+def encode_connect_reply(command_id: int, status: int, version: int = VERSION) -> bytes:
+    """§4: 15 bytes: header, status u8, the server's version u16."""
+    return encode_reply(Command.kConnect, command_id, status, _U16.pack(version))
+
+
+def encode_robot_model_reply(command_id: int, status: int, urdf: str) -> bytes:
+    """§6: 13 + N bytes: header, status u8, the URDF as UTF-8 (no prefix, no NUL)."""
+    return encode_reply(Command.kGetRobotModel, command_id, status, urdf.encode("utf-8"))
+
+
+def decode_reply(payload: bytes) -> tuple[int, bytes]:
+    """Split a reply payload into (status u8, rest). ``ProtocolError`` if empty."""
+    if len(payload) < _STATUS.size:
+        raise ProtocolError("reply payload without a status byte")
+    return payload[0], bytes(payload[1:])
+
+
+def decode_connect_reply(payload: bytes) -> tuple[int, int]:
+    """§4: (status, server version) of a Connect reply payload (trailing bytes ignored)."""
+    if len(payload) < _STATUS.size + _U16.size:
+        raise ProtocolError(f"truncated Connect reply payload: {len(payload)} bytes, expected 3")
+    return payload[0], _U16.unpack_from(payload, 1)[0]
+
+
+# ---------------------------------------------------------------------------
+# Framing (§2): incremental, bounded memory.
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One complete message: header fields and the payload after the header."""
+
+    command: int
+    command_id: int
+    payload: bytes
+
+
+@dataclass(frozen=True)
+class FramingError:
+    """A header the decoder skipped; ``reason`` is meant for the log."""
+
+    reason: str
+    command: int
+    command_id: int
+
+
+def _bound_text(size: int) -> str:
+    return f"{size >> 20} MiB" if size % (1 << 20) == 0 else f"{size}-byte"
+
+
+class FrameDecoder:
+    """Cut a TCP byte stream into frames, holding at most one header + one bounded payload.
+
+    * ``size`` < header size: a ``FramingError``; the header bytes are skipped and
+      parsing resumes right after them.
+    * ``size`` > ``max_message_size``: a ``FramingError``; the declared payload is
+      discarded as it arrives (only a counter is kept), then parsing resumes.
+
+    ``header`` is any struct unpacking to (command, command_id, size) with size
+    counting the header itself (the robot's ``HEADER`` by default).
+    """
+
+    def __init__(
+        self, max_message_size: int = MAX_MESSAGE_SIZE, header: struct.Struct = HEADER
+    ) -> None:
+        if max_message_size < header.size:
+            raise ValueError(f"max_message_size {max_message_size} below the header size")
+        self._header = header
+        self._max = max_message_size
+        self._buf = bytearray()
+        self._size: int | None = None  # total size of the message whose header is in _buf
+        self._discard = 0  # payload bytes of an oversized message still to drop
+
+    @property
+    def buffered(self) -> int:
+        """Bytes currently held (header + partial payload)."""
+        return len(self._buf)
+
+    @property
+    def discarding(self) -> int:
+        """Bytes of an oversized message still to be dropped."""
+        return self._discard
+
+    def feed(self, data: bytes) -> list[Frame | FramingError]:
+        """Consume ``data``; return the frames and framing errors it completed, in order."""
+        out: list[Frame | FramingError] = []
+        view = memoryview(data).cast("B")
+        pos, end = 0, len(view)
+        hsize = self._header.size
+        while True:
+            if self._discard:
+                n = min(self._discard, end - pos)
+                pos += n
+                self._discard -= n
+                if self._discard:
+                    break
+            need = hsize if self._size is None else self._size
+            take = min(need - len(self._buf), end - pos)
+            if take > 0:
+                self._buf += view[pos : pos + take]
+                pos += take
+            if len(self._buf) < need:
+                break
+            command, command_id, size = self._header.unpack_from(self._buf)
+            if self._size is None:
+                if size < hsize:
+                    reason = f"message size {size} below the {hsize}-byte header"
+                elif size > self._max:
+                    reason = f"message size {size} above the {_bound_text(self._max)} bound"
+                    self._discard = size - hsize
+                else:
+                    self._size = size  # go round again to collect the payload
+                    continue
+                out.append(FramingError(reason, command, command_id))
+                self._buf.clear()
+                continue
+            out.append(Frame(command, command_id, bytes(self._buf[hsize:])))
+            self._buf.clear()
+            self._size = None
+        return out

@@ -1,0 +1,166 @@
+"""Robot tables: every limit the simulated controller enforces, one table per robot.
+
+Two robots are selectable: the FR3 behind FCI v10 (libfranka >= 0.18) and the
+FER ("Panda") behind FCI v5 (libfranka 0.9.x). Every number cites where it
+comes from; `shared/spec/limits.md` collects the sources. Server-side checks
+use the *robot's* limits; libfranka's `rate_limiting.h` constants are those
+minus kLimitEps = 1e-3 (the limiter's target, so that a rate-limited command
+never touches the robot's threshold). Where the seed documents the robot
+threshold as "limit - 1e-3" we follow the seed (it is the requirement).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: libfranka include/franka/rate_limiting.h: kDeltaT, the 1 kHz cycle.
+DELTA_T = 1e-3
+#: libfranka rate_limiting.h: kLimitEps.
+LIMIT_EPS = 1e-3
+#: libfranka joint_velocity_limits.cpp: tolerance subtracted from the envelope.
+JOINT_VELOCITY_LIMIT_TOLERANCE = 1e-3
+#: Franka docs "Control Interface Specification": >= 20 consecutive lost
+#: packets abort the motion with communication_constraints_violation.
+MAX_LOST_CYCLES = 20
+#: libfranka docs: control_command_success_rate covers the last 100 commands.
+SUCCESS_RATE_WINDOW = 100
+#: Gravity published in O_ddP_O; libfranka docs: "fixed to (0, 0, -9.81)".
+#: libfranka's Model::gravity(state) uses this field as the gravity vector.
+GRAVITY = (0.0, 0.0, -9.81)
+#: limits.md §2.2: joint-4 angle of maximum extension (FER and FR3 alike).
+ELBOW_FLIP_Q4 = -0.467002423653011
+
+
+def _ro(values) -> np.ndarray:
+    array = np.asarray(values, dtype=np.float64)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class RobotTable:
+    """The limits of one robot model, as the controller behind one FCI version enforces them."""
+
+    name: str
+    fci_version: int
+    #: joint range [rad] (FR3: the served URDF <limit lower/upper>, limits.md §2.1 (a)).
+    q_lower: np.ndarray
+    q_upper: np.ndarray
+    #: nameplate joint velocity [rad/s] (URDF <limit velocity>).
+    dq_max: np.ndarray
+    #: position-based envelope parameters (URDF <position_based_velocity_limits>);
+    #: None for a robot with constant velocity limits (the FER).
+    dq_offset: np.ndarray | None
+    ddq_decel: np.ndarray | None
+    #: kMaxJointAcceleration / kMaxJointJerk: robot limit minus 1e-3 (seed table).
+    ddq_max: np.ndarray
+    dddq_max: np.ndarray
+    #: URDF <limit effort> [Nm].
+    tau_max: np.ndarray
+    #: kMaxTorqueRate = 1000 - 1e-3 Nm/s (seed table, rate_limiting.h).
+    dtau_max: float
+    #: Cartesian translational / rotational velocity, acceleration, jerk (seed table).
+    v_trans_max: float
+    a_trans_max: float
+    j_trans_max: float
+    v_rot_max: float
+    a_rot_max: float
+    j_rot_max: float
+    #: elbow velocity / acceleration / jerk (seed table: kMaxElbow*).
+    v_elbow_max: float
+    a_elbow_max: float
+    j_elbow_max: float
+    #: joint side of a Cartesian command (errors 29/30): per-joint tables.
+    ik_ddq_max: np.ndarray = field(default_factory=lambda: _ro(np.zeros(7)))
+    ik_dddq_max: np.ndarray = field(default_factory=lambda: _ro(np.zeros(7)))
+
+    def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The admissible joint velocity band at q, shape (..., 7) each.
+
+        libfranka >= 0.18 src/joint_velocity_limits.cpp (limits.md §4):
+        upper = min(v_max, max(0, -v_off + sqrt(max(0, 2 a_dec (q_max - q))))) - tol,
+        lower = max(-v_max, min(0, v_off - sqrt(max(0, 2 a_dec (q - q_min))))) + tol.
+        """
+        tol = JOINT_VELOCITY_LIMIT_TOLERANCE
+        if self.dq_offset is None:
+            upper = np.broadcast_to(self.dq_max - tol, np.shape(q))
+            return upper, -upper
+        two_a = 2.0 * self.ddq_decel
+        up = np.sqrt(np.maximum(0.0, two_a * (self.q_upper - q))) - self.dq_offset
+        lo = self.dq_offset - np.sqrt(np.maximum(0.0, two_a * (q - self.q_lower)))
+        upper = np.minimum(self.dq_max, np.maximum(0.0, up)) - tol
+        lower = np.maximum(-self.dq_max, np.minimum(0.0, lo)) + tol
+        return upper, lower
+
+
+#: FR3 behind FCI v10. Joint ranges, velocities, offsets, deceleration and
+#: efforts: the URDF the robot serves (libfranka test/fr3.urdf; limits.md §4).
+#: Acceleration / jerk / torque rate / Cartesian / elbow: libfranka >= 0.10
+#: rate_limiting.h robot values (limits.md §1.1), written as the seed's table
+#: writes them (limit - 1e-3).
+FR3 = RobotTable(
+    name="fr3",
+    fci_version=10,
+    q_lower=_ro([-2.7501, -1.7918, -2.9065, -3.0481, -2.8101, 0.54092, -3.0196]),
+    q_upper=_ro([2.7501, 1.7918, 2.9065, -0.1458, 2.8101, 4.5205, 3.0196]),
+    dq_max=_ro([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26]),
+    dq_offset=_ro([0.30, 0.20, 0.20, 0.30, 0.35, 0.35, 0.35]),
+    ddq_decel=_ro([6.0, 2.585, 3.5, 4.0, 17.0, 5.5, 17.0]),
+    ddq_max=_ro(np.full(7, 10.0 - LIMIT_EPS)),
+    dddq_max=_ro(np.full(7, 5000.0 - LIMIT_EPS)),
+    tau_max=_ro([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
+    dtau_max=1000.0 - LIMIT_EPS,
+    v_trans_max=3.0 - LIMIT_EPS,
+    a_trans_max=9.0 - LIMIT_EPS,
+    j_trans_max=4500.0 - LIMIT_EPS,
+    v_rot_max=2.5 - LIMIT_EPS,
+    a_rot_max=17.0 - LIMIT_EPS,
+    j_rot_max=8500.0 - LIMIT_EPS,
+    v_elbow_max=1.5 - LIMIT_EPS,
+    a_elbow_max=10.0 - LIMIT_EPS,
+    j_elbow_max=5000.0 - LIMIT_EPS,
+    # Seed "The joint side of a Cartesian command": FR3 uniform 10 rad/s^2 /
+    # 5000 rad/s^3 (libfranka >= 0.10), calibration factor 1.0.
+    ik_ddq_max=_ro(np.full(7, 10.0)),
+    ik_dddq_max=_ro(np.full(7, 5000.0)),
+)
+
+#: FER ("Panda") behind FCI v5: Franka docs control-parameters-joint-fer.csv and
+#: libfranka 0.9.2 rate_limiting.h (limits.md §3). Constant velocity limits.
+FER = RobotTable(
+    name="fer",
+    fci_version=5,
+    q_lower=_ro([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973]),
+    q_upper=_ro([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973]),
+    dq_max=_ro([2.1750, 2.1750, 2.1750, 2.1750, 2.6100, 2.6100, 2.6100]),
+    dq_offset=None,
+    ddq_decel=None,
+    ddq_max=_ro(np.array([15, 7.5, 10, 12.5, 15, 20, 20]) - LIMIT_EPS),
+    dddq_max=_ro(np.array([7500, 3750, 5000, 6250, 7500, 10000, 10000]) - LIMIT_EPS),
+    tau_max=_ro([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
+    dtau_max=1000.0 - LIMIT_EPS,
+    v_trans_max=1.7 - LIMIT_EPS,
+    a_trans_max=13.0 - LIMIT_EPS,
+    j_trans_max=6500.0 - LIMIT_EPS,
+    v_rot_max=2.5 - LIMIT_EPS,
+    a_rot_max=25.0 - LIMIT_EPS,
+    j_rot_max=12500.0 - LIMIT_EPS,
+    v_elbow_max=2.175 - LIMIT_EPS,
+    a_elbow_max=10.0 - LIMIT_EPS,
+    j_elbow_max=5000.0 - LIMIT_EPS,
+    # Seed calibration (FER, FCI v5): libfranka 0.9 per-joint tables, factor 1.0.
+    ik_ddq_max=_ro([15, 7.5, 10, 12.5, 15, 20, 20]),
+    ik_dddq_max=_ro([7500, 3750, 5000, 6250, 7500, 10000, 10000]),
+)
+
+ROBOTS: dict[str, RobotTable] = {"fr3": FR3, "fer": FER}
+
+
+def robot_table(name: str) -> RobotTable:
+    """The table for ``name`` ("fr3" or "fer"); a clear ValueError otherwise."""
+    try:
+        return ROBOTS[name.lower()]
+    except KeyError:
+        raise ValueError(f"unknown robot {name!r}: expected one of {sorted(ROBOTS)}") from None

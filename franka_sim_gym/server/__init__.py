@@ -1,0 +1,1 @@
+"""Sockets and time: TCP/UDP transport for libfranka clients, the 1 kHz tick, the CLI."""

@@ -1,0 +1,110 @@
+"""`franka-sim-gym serve`: the simulated FR3 for libfranka clients (TCP 1337 + UDP).
+
+Flags and environment variables carry the seed's names; a flag wins over its
+FRANKA_SIM_* variable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from ..fci.config import ControllerConfig
+from ..fci.protocol import COMMAND_PORT
+from .robot_server import RobotServer, ServerOptions
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="franka-sim-gym",
+        description="A simulated Franka FR3 behind FCI: Gymnasium env and libfranka server.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    serve = sub.add_parser(
+        "serve", help="serve the simulated robot to libfranka clients (pylibfranka, franky, ...)"
+    )
+    add_serve_arguments(serve)
+    return parser
+
+
+def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
+    serve.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to bind (default 127.0.0.1; libfranka always uses port 1337, so give "
+        "several servers their own loopback addresses, e.g. 127.0.0.2)",
+    )
+    serve.add_argument("--port", type=int, default=COMMAND_PORT, help="TCP port (default 1337)")
+    serve.add_argument(
+        "--enforce-motion-limits",
+        action="store_true",
+        default=None,
+        help="abort a motion on a motion-limit violation (env FRANKA_SIM_ENFORCE_MOTION_LIMITS)",
+    )
+    serve.add_argument(
+        "--enforce-comm-constraints",
+        action="store_true",
+        default=None,
+        help="abort a motion after 20 consecutive lost cycles "
+        "(env FRANKA_SIM_ENFORCE_COMM_CONSTRAINTS)",
+    )
+    serve.add_argument(
+        "--joint-discontinuity-scale",
+        type=float,
+        default=None,
+        help="scale the joint-side limits of Cartesian commands "
+        "(env FRANKA_SIM_JOINT_DISCONTINUITY_SCALE)",
+    )
+    serve.add_argument(
+        "--robot",
+        choices=("fr3", "fer"),
+        default="fr3",
+        help="limit tables: fr3 (FCI v10, default) or fer (the Panda's v5 tables)",
+    )
+    serve.add_argument("--urdf", type=Path, default=None, help="URDF served by GetRobotModel")
+    serve.add_argument("-v", "--vis", action="store_true", help="open the MuJoCo viewer")
+    serve.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
+
+
+def serve(args: argparse.Namespace) -> int:
+    logging.basicConfig(
+        level=getattr(logging, str(args.log_level).upper(), logging.INFO),
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        config = ControllerConfig.from_environment(
+            robot=args.robot,
+            enforce_motion_limits=args.enforce_motion_limits,
+            enforce_comm_constraints=args.enforce_comm_constraints,
+            joint_discontinuity_scale=args.joint_discontinuity_scale,
+        )
+    except ValueError as exc:
+        print(f"franka-sim-gym serve: {exc}", file=sys.stderr)
+        return 2
+    if args.urdf is not None and not args.urdf.is_file():
+        print(f"franka-sim-gym serve: --urdf {args.urdf}: no such file", file=sys.stderr)
+        return 2
+    server = RobotServer(config, ServerOptions(host=args.host, port=args.port, urdf=args.urdf))
+    if args.vis:
+        server.open_viewer()
+    try:
+        server.serve_forever()
+    except OSError as exc:
+        print(
+            f"franka-sim-gym serve: cannot serve on {args.host}:{args.port}: {exc}", file=sys.stderr
+        )
+        return 1
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command == "serve":
+        return serve(args)
+    return 2  # pragma: no cover
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,330 @@
+"""The FCI robot server: one tick thread owns the controller and the 1 kHz state stream.
+
+Threads (architecture.md "The two clocks"):
+
+* the tick thread waits for each millisecond boundary, applies the TCP
+  requests posted since the last tick, hands the command datagrams received
+  since then to the controller, runs one cycle, sends the state, and then
+  delivers the cycle's events (so a kReflexAborted is sent only after the
+  state carrying the error);
+* an accept thread and one session thread per client read TCP.
+
+No rule of the robot lives here: the server only delivers datagrams, requests
+and the tick to ``franka_sim_gym.fci``.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..fci import protocol as p
+from ..fci.config import ControllerConfig
+from ..fci.controller import FciController
+from ..fci.events import EventKind
+from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
+from ..sim.arm import ArmPhysics
+from ..sim.world import URDF_PATH
+from .logging_util import RateLimitedLog
+from .session import ClientSession
+
+log = logging.getLogger("franka_sim_gym.server")
+
+CYCLE_S = 0.001
+#: A tick later than this is not caught up with a burst of states: the clock
+#: restarts from now (a slow tick delays the next state; it never skips physics).
+_MAX_LAG_S = 0.005
+
+
+@dataclass
+class ServerOptions:
+    """Where and how to serve."""
+
+    host: str = "127.0.0.1"
+    port: int = p.COMMAND_PORT
+    urdf: Path | None = None
+    visualize: bool = False
+
+
+class RobotServer:
+    """Serves one simulated FR3 to one libfranka client at a time.
+
+    Args:
+        config: the controller's switches (enforcement, robot tables, ...).
+        options: bind address, port, URDF to serve, viewer.
+    """
+
+    def __init__(
+        self, config: ControllerConfig | None = None, options: ServerOptions | None = None
+    ):
+        self.config = config or ControllerConfig()
+        self.options = options or ServerOptions()
+        self.urdf = Path(self.options.urdf or URDF_PATH).read_text(encoding="utf-8")
+        self.physics = ArmPhysics(n_arms=1)
+        self.controller = FciController(self.physics, self.config)
+        self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._session: ClientSession | None = None
+        self._client_addr: tuple[str, int] | None = None
+        self._session_lock = threading.Lock()
+        self._pending_move: tuple[ClientSession, int] | None = None
+        self._pending_recovery: tuple[ClientSession, int] | None = None
+        self._running = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._udp_log = RateLimitedLog(log)
+        self._command = np.zeros(1, dtype=ROBOT_COMMAND_DTYPE)
+        self._mask = np.ones(1, dtype=bool)
+        self.ticks = 0
+        self._viewer = None
+
+    # -- lifecycle ----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Bind the sockets and start the threads."""
+        host, port = self.options.host, self.options.port
+        self._tcp = socket.create_server((host, port), reuse_port=False)
+        self._tcp.settimeout(0.2)
+        self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._udp.bind((host, 0))
+        self._udp.setblocking(False)
+        self._running.set()
+        for target, name in ((self._tick_loop, "fci-tick"), (self._accept_loop, "fci-accept")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        log.info(
+            "serving FR3 FCI v%d on %s:%d (enforce motion limits: %s, comm constraints: %s)",
+            p.VERSION,
+            host,
+            port,
+            self.config.enforce_motion_limits,
+            self.config.enforce_comm_constraints,
+        )
+
+    def stop(self) -> None:
+        """Stop the threads and close every socket."""
+        self._running.clear()
+        with self._session_lock:
+            session = self._session
+        if session is not None:
+            session.close()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        self._tcp.close()
+        self._udp.close()
+        if self._viewer is not None:
+            self._viewer.close()
+        log.info("server stopped")
+
+    def serve_forever(self) -> None:
+        """Start and block until interrupted (Ctrl-C exits cleanly)."""
+        self.start()
+        try:
+            while self._running.is_set():
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            log.info("interrupted")
+        finally:
+            self.stop()
+
+    # -- TCP side -----------------------------------------------------------------------------
+
+    def _accept_loop(self) -> None:
+        while self._running.is_set():
+            try:
+                sock, peer = self._tcp.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                break
+            with self._session_lock:
+                busy = self._session is not None
+                if not busy:
+                    session = ClientSession(self, sock, peer)
+                    self._session = session
+            if busy:
+                log.warning(
+                    "refusing a second client from %s:%d: a client is already connected "
+                    "(one FCI client at a time)",
+                    *peer,
+                )
+                sock.close()
+                continue
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            session.thread.start()
+
+    def client_connected(self, session: ClientSession) -> None:
+        """Connect succeeded: stream states to (peer IP, UDP port from Connect)."""
+        addr = (session.peer[0], int(session.udp_port))
+        self._requests.put(lambda: setattr(self, "_client_addr", addr))
+
+    def session_closed(self, session: ClientSession) -> None:
+        """A client went away: reset the robot to a clean idle so the next can connect."""
+        log.info("client %s disconnected", session.peer)
+
+        def reset() -> None:
+            self._client_addr = None
+            if self._pending_move and self._pending_move[0] is session:
+                self._pending_move = None
+            if self._pending_recovery and self._pending_recovery[0] is session:
+                self._pending_recovery = None
+            self.controller.end_session(0)
+            with self._session_lock:
+                if self._session is session:
+                    self._session = None
+
+        self._requests.put(reset)
+
+    def submit_request(self, session: ClientSession, command: p.Command, command_id: int, request):
+        """Apply ``request`` on the tick thread at the next cycle boundary, then answer it."""
+        self._requests.put(lambda: self._apply(session, command, command_id, request))
+
+    def _apply(self, session: ClientSession, command: p.Command, command_id: int, request) -> None:
+        ctrl = self.controller
+        C = p.Command
+        if command == C.kMove:
+            status = ctrl.move(
+                0,
+                request.controller_mode,
+                request.motion_generator_mode,
+                request.use_async_motion_generator,
+            )
+            # The preemption event of a running Move (if any) goes out first.
+            self._deliver_events(ctrl.take_events())
+            if status == p.MoveStatus.kMotionStarted:
+                self._pending_move = (session, command_id)
+            session.reply(command, command_id, status)
+        elif command == C.kStopMove:
+            status = ctrl.stop_move(0)
+            session.reply(command, command_id, status)
+        elif command == C.kAutomaticErrorRecovery:
+            status = ctrl.automatic_error_recovery(0)
+            if status is None:
+                self._pending_recovery = (session, command_id)
+            else:
+                session.reply(command, command_id, status)
+        elif command == C.kSetNEToEE:
+            session.reply(command, command_id, ctrl.set_ne_to_ee(0, request.NE_T_EE))
+        elif command == C.kSetEEToK:
+            session.reply(command, command_id, ctrl.set_ee_to_k(0, request.EE_T_K))
+        elif command == C.kSetLoad:
+            status = ctrl.set_load(0, request.m_load, request.F_x_Cload, request.I_load)
+            session.reply(command, command_id, status)
+        elif command == C.kSetJointImpedance:
+            session.reply(command, command_id, ctrl.set_joint_impedance(0, request.K_theta))
+        elif command == C.kSetCartesianImpedance:
+            status = ctrl.acknowledge_setter(0, "SetCartesianImpedance", request.K_x)
+            session.reply(command, command_id, status)
+        elif command == C.kSetCollisionBehavior:
+            values = [v for field in request.__dataclass_fields__ for v in getattr(request, field)]
+            status = ctrl.acknowledge_setter(0, "SetCollisionBehavior", values)
+            session.reply(command, command_id, status)
+        elif command == C.kSetGuidingMode:
+            status = ctrl.acknowledge_setter(0, "SetGuidingMode", [float(request.nullspace)])
+            session.reply(command, command_id, status)
+        else:  # pragma: no cover - every v10 command is handled above
+            session.reply(command, command_id, 1)
+
+    # -- the tick -----------------------------------------------------------------------------
+
+    def _tick_loop(self) -> None:
+        next_t = time.perf_counter()
+        while self._running.is_set():
+            next_t += CYCLE_S
+            self._tick()
+            now = time.perf_counter()
+            delay = next_t - now
+            if delay > 0:
+                time.sleep(delay)
+            elif -delay > _MAX_LAG_S:
+                next_t = now
+
+    def _tick(self) -> None:
+        while True:
+            try:
+                apply = self._requests.get_nowait()
+            except queue.Empty:
+                break
+            try:
+                apply()
+            except Exception:  # a request must never kill the tick thread
+                log.exception("request failed")
+        self._receive_datagrams()
+        events = self.controller.step()
+        self.ticks += 1
+        addr = self._client_addr
+        if addr is not None:
+            try:
+                self._udp.sendto(self.controller.states[0].tobytes(), addr)
+            except OSError as exc:
+                self._udp_log.warning("udp-send-failed", "state not sent to %s: %s", addr, exc)
+        self._deliver_events(events)
+        if self._viewer is not None and self.ticks % 16 == 0:
+            self._viewer.sync()
+
+    def _receive_datagrams(self) -> None:
+        while True:
+            try:
+                data, addr = self._udp.recvfrom(2048)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # e.g. ICMP port unreachable from a vanished client
+                self._udp_log.warning("udp-receive-error", "%s", exc)
+                continue
+            client = self._client_addr
+            if client is None or addr != client:
+                self._udp_log.warning(
+                    "datagram-from-unknown-address",
+                    "ignored a %d-byte datagram from %s:%d (connected client: %s)",
+                    len(data),
+                    addr[0],
+                    addr[1],
+                    client,
+                )
+                continue
+            if len(data) != ROBOT_COMMAND_SIZE:
+                self._udp_log.warning(
+                    "datagram-wrong-size",
+                    "ignored a %d-byte datagram from %s:%d: a RobotCommand is %d bytes",
+                    len(data),
+                    addr[0],
+                    addr[1],
+                    ROBOT_COMMAND_SIZE,
+                )
+                continue
+            self._command[0] = np.frombuffer(data, dtype=ROBOT_COMMAND_DTYPE)[0]
+            self.controller.receive(self._command, self._mask)
+
+    def _deliver_events(self, events) -> None:
+        for event in events:
+            if event.kind is EventKind.MOVE_FINISHED and self._pending_move is not None:
+                session, command_id = self._pending_move
+                self._pending_move = None
+                session.reply(p.Command.kMove, command_id, event.status)
+            elif event.kind is EventKind.RECOVERY_FINISHED and self._pending_recovery is not None:
+                session, command_id = self._pending_recovery
+                self._pending_recovery = None
+                session.reply(p.Command.kAutomaticErrorRecovery, command_id, event.status)
+
+    # -- viewer -------------------------------------------------------------------------------
+
+    def open_viewer(self) -> None:
+        """Open MuJoCo's passive viewer where a display exists; otherwise log why not."""
+        import os
+
+        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            log.warning("--vis: no display ($DISPLAY unset); running without the viewer")
+            return
+        try:
+            import mujoco.viewer
+
+            self._viewer = mujoco.viewer.launch_passive(self.physics.model, self.physics.data)
+        except Exception as exc:  # the viewer is optional; serving is not
+            log.warning("--vis: could not open the MuJoCo viewer (%s)", exc)

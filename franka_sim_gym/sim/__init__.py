@@ -1,0 +1,1 @@
+"""MuJoCo side: the FR3 model files, stepping, the joint servo, gravity compensation."""

@@ -1,0 +1,185 @@
+"""n FR3 arms in one MuJoCo world: the joint servo, the torque path, measurements.
+
+This is the physics half of the robot. It knows nothing of the FCI (no modes,
+errors or message ids): each cycle it is handed, per arm, a joint reference
+for the internal joint impedance servo or an external torque, steps the world
+by 1 ms, and exposes the measured state as (n, 7) arrays.
+
+Gravity compensation is MuJoCo's own: every arm body has gravcomp="1" and
+every joint actuatorgravcomp="true" (models/fr3.xml), so the gravity torque is
+applied *through the actuators* and shows up in qfrc_actuator, which is why
+the measured tau_J includes gravity exactly as the robot's torque sensors do.
+
+The step is split as mj_step2 -> mj_step1 so that after a step the kinematics,
+bias forces and Jacobian-ready positions describe the new state: the FCI reads
+them to publish state k+1 and to compute the next cycle's servo torque.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .world import HOME_Q, ArmLayout, build_world
+
+#: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
+#: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,
+#: 2000, 2000}}), e.g. examples/joint_impedance_control.cpp callers); the
+#: robot's own factory value is not published.
+DEFAULT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
+
+
+def _affine_view(flat: np.ndarray, adr: np.ndarray) -> np.ndarray | None:
+    """An (n, k) *view* of ``flat`` at addresses ``adr`` when they are affine.
+
+    MuJoCo lays the arms out one after another, so arm i's joints sit at
+    start + i * stride + j; a strided view then replaces a fancy-index copy on
+    every read and write of the hot path.
+    """
+    n, k = adr.shape
+    start = int(adr[0, 0])
+    stride = int(adr[1, 0] - adr[0, 0]) if n > 1 else k
+    expected = start + stride * np.arange(n)[:, None] + np.arange(k)[None, :]
+    if stride < k or not np.array_equal(adr, expected):
+        return None
+    item = flat.itemsize
+    return np.lib.stride_tricks.as_strided(
+        flat[start:], shape=(n, k), strides=(stride * item, item), writeable=True
+    )
+
+
+class _ArmArray:
+    """Read/write access to one (n, 7) slice of a flat MuJoCo array."""
+
+    def __init__(self, flat: np.ndarray, adr: np.ndarray) -> None:
+        self.flat = flat
+        self.adr = adr
+        self.view = _affine_view(flat, adr)
+
+    def get(self) -> np.ndarray:
+        return self.view if self.view is not None else self.flat[self.adr]
+
+    def set(self, value: np.ndarray) -> None:
+        if self.view is not None:
+            self.view[...] = value
+        else:
+            self.flat[self.adr] = value
+
+
+class ArmPhysics:
+    """The simulated arms: one MuJoCo world, n FR3 arms, stepped 1 ms at a time.
+
+    Args:
+        n_arms: number of arms in the world (one per simulated robot).
+        hand: mount the Franka Hand on every flange.
+        spacing: distance between arm bases along x [m].
+    """
+
+    def __init__(self, n_arms: int = 1, hand: bool = False, spacing: float = 2.0) -> None:
+        if n_arms < 1:
+            raise ValueError(f"n_arms must be >= 1, got {n_arms}")
+        self.model, self.layout = build_world(n_arms=n_arms, hand=hand, spacing=spacing)
+        self.data = mujoco.MjData(self.model)
+        self.n = n_arms
+        self.hand = hand
+        lay: ArmLayout = self.layout
+        self._qpos = _ArmArray(self.data.qpos, lay.qpos_adr)
+        self._qvel = _ArmArray(self.data.qvel, lay.dof_adr)
+        self._ctrl = _ArmArray(self.data.ctrl, lay.actuator_ids)
+        self._bias = _ArmArray(self.data.qfrc_bias, lay.dof_adr)
+        self._gravcomp = _ArmArray(self.data.qfrc_gravcomp, lay.dof_adr)
+        self._actuator = _ArmArray(self.data.qfrc_actuator, lay.dof_adr)
+        self.base_pos = np.asarray(lay.base_pos, dtype=np.float64)
+        self.kp = np.empty((n_arms, 7))
+        self.kd = np.empty((n_arms, 7))
+        self._effective_inertia = self._home_inertia()
+        self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
+        self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
+
+    # -- configuration -------------------------------------------------------------------------
+
+    def _home_inertia(self) -> np.ndarray:
+        """Diagonal of the joint-space inertia at home (armature included), arm 0."""
+        data = mujoco.MjData(self.model)
+        data.qpos[self.layout.qpos_adr[0]] = HOME_Q
+        mujoco.mj_forward(self.model, data)
+        full = np.zeros((self.model.nv, self.model.nv))
+        mujoco.mj_fullM(self.model, data, full)
+        dofs = self.layout.dof_adr[0]
+        return full[dofs, dofs].copy()
+
+    def set_stiffness(self, arms: np.ndarray, stiffness: np.ndarray) -> None:
+        """Set the joint servo stiffness K [Nm/rad] of ``arms``; damping follows critically.
+
+        D = 2 sqrt(K m) with m the joint's effective inertia at home (armature
+        included): a critically damped servo holds the idle pose without ring.
+        """
+        stiffness = np.asarray(stiffness, dtype=np.float64)
+        self.kp[arms] = stiffness
+        self.kd[arms] = 2.0 * np.sqrt(stiffness * self._effective_inertia)
+
+    # -- state ---------------------------------------------------------------------------------
+
+    def reset_arms(self, arms: np.ndarray, q: np.ndarray) -> None:
+        """Teleport ``arms`` to joint positions ``q`` at rest (a reset, not a motion)."""
+        arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
+        q = np.asarray(q, dtype=np.float64).reshape(len(arms), 7)
+        lay = self.layout
+        self.data.qpos[lay.qpos_adr[arms]] = q
+        self.data.qvel[lay.dof_adr[arms]] = 0.0
+        self.data.qacc_warmstart[lay.dof_adr[arms]] = 0.0
+        self.data.ctrl[lay.actuator_ids[arms]] = 0.0
+        if lay.finger_qpos_adr is not None:
+            self.data.qpos[lay.finger_qpos_adr[arms]] = 0.04
+            self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        self._refresh(self._actuator.get().copy())
+
+    def _refresh(self, tau_applied: np.ndarray) -> None:
+        """Copy the measured quantities of the current MuJoCo state into (n, 7) arrays."""
+        self.q = self._qpos.get().copy()
+        self.dq = self._qvel.get().copy()
+        self.tau_J = tau_applied
+        self.gravity = self._gravcomp.get().copy()
+        self.coriolis = self._bias.get() - self.gravity
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    # -- the cycle -----------------------------------------------------------------------------
+
+    def step(
+        self,
+        q_ref: np.ndarray,
+        dq_ref: np.ndarray,
+        tau_external: np.ndarray,
+        external: np.ndarray,
+    ) -> None:
+        """Advance the world by one 1 ms cycle.
+
+        Args:
+            q_ref, dq_ref: (n, 7) joint reference of the internal joint
+                impedance servo (used for arms where ``external`` is False).
+            tau_external: (n, 7) commanded torque *without gravity* (used where
+                ``external`` is True); gravity is added by the actuators.
+            external: (n,) bool, True where an external controller commands torque.
+        """
+        tau = self.kp * (q_ref - self.q) + self.kd * (dq_ref - self.dq) + self.coriolis
+        if external.any():
+            tau = np.where(external[:, None], tau_external, tau)
+        self._ctrl.set(tau)
+        mujoco.mj_step2(self.model, self.data)
+        applied = self._actuator.get().copy()
+        mujoco.mj_step1(self.model, self.data)
+        self._refresh(applied)
+
+    # -- kinematics ----------------------------------------------------------------------------
+
+    def flange_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Flange (link8) position (n, 3) and rotation (n, 3, 3) in each arm's base frame."""
+        sites = self.layout.flange_site
+        pos = self.data.site_xpos[sites] - self.base_pos
+        rot = self.data.site_xmat[sites].reshape(self.n, 3, 3)
+        return pos, rot

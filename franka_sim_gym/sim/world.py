@@ -1,0 +1,201 @@
+"""Compose n FR3 arms, optionally with Franka Hands, into one MuJoCo world.
+
+Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
+(spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
+to each arm's ``flange`` site rotated Rz(-pi/4), as franka_description mounts
+it (fr3-model.md §5). :class:`ArmLayout` holds every index the rest of the
+simulator needs, so nothing downstream looks names up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+MODEL_DIR: Path = Path(__file__).resolve().parent / "models"
+FR3_XML: Path = MODEL_DIR / "fr3.xml"
+HAND_XML: Path = MODEL_DIR / "hand.xml"
+#: The URDF GetRobotModel serves to libfranka clients (arm only, no hand).
+URDF_PATH: Path = MODEL_DIR / "fr3.urdf"
+
+#: The home pose (fr3-model.md §6), read-only.
+HOME_Q: np.ndarray = np.array(
+    [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
+)
+HOME_Q.flags.writeable = False
+
+#: Finger position (m, per finger) of an open hand: finger_joint1/2 upper limit.
+FINGER_OPEN = 0.04
+#: The safety controller's self-collision distance (m): arm-arm geom pairs closer
+#: than this are reported in data.contact without any force (see fr3.xml).
+SELF_COLLISION_DISTANCE = 0.05
+#: franka_description hand_joint: rpy (0, 0, -pi/4) relative to the flange.
+HAND_QUAT = (math.cos(-math.pi / 8), 0.0, 0.0, math.sin(-math.pi / 8))
+
+_ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
+_ARM_LINKS = tuple(f"link{k}" for k in range(8))
+_ARM_GEOM_CLASS = "arm_collision"
+
+
+@dataclass(frozen=True)
+class ArmLayout:
+    """Indices of every arm's elements in the compiled world model.
+
+    Rows are arms; columns joints 1..7 (or links 0..7). ``geom_arm`` /
+    ``geom_link`` map every geom to the arm and link it belongs to, -1 for
+    geoms that are not arm-link geoms (the floor, the hand).
+    """
+
+    n: int
+    hand: bool
+    qpos_adr: np.ndarray  # (n, 7) qpos address of joint1..7
+    dof_adr: np.ndarray  # (n, 7) dof (qvel) address of joint1..7
+    actuator_ids: np.ndarray  # (n, 7) the joint torque motors
+    flange_site: np.ndarray  # (n,) site id of libfranka's kFlange (URDF link8)
+    base_pos: np.ndarray  # (n, 3) world position of link0 (bases are not rotated)
+    link_body: np.ndarray  # (n, 8) body ids of link0..link7
+    geom_arm: np.ndarray  # (ngeom,) arm index or -1
+    geom_link: np.ndarray  # (ngeom,) link index 0..7 or -1
+    finger_qpos_adr: np.ndarray | None = None  # (n, 2) finger_joint1/2
+    finger_dof_adr: np.ndarray | None = None  # (n, 2)
+    finger_actuator: np.ndarray | None = None  # (n,) the `fingers` position servo
+    tcp_site: np.ndarray | None = None  # (n,) hand TCP site
+
+
+def _mujoco_version() -> tuple[int, int]:
+    major, minor = mujoco.__version__.split(".")[:2]
+    return int(major), int(minor)
+
+
+def report_band_params(version: tuple[int, int] | None = None) -> tuple[float, float]:
+    """(margin, gap) per arm geom that reports pairs within 50 mm, force-free.
+
+    MuJoCo >= 3.9: force when dist < margin, reported while dist < margin + gap;
+    >= 3.5: a pair's margin/gap are the sums of the two geoms' values; before
+    3.5 the maxima, and before 3.9 gap was subtracted from margin instead.
+    fr3.xml carries the >= 3.9 values.
+    """
+    version = version or _mujoco_version()
+    band = SELF_COLLISION_DISTANCE
+    if version >= (3, 9):
+        return 0.0, band / 2
+    if version >= (3, 5):
+        return band / 2, band / 2
+    return band, band
+
+
+def _arm_spec() -> mujoco.MjSpec:
+    """One arm as a spec, with the report band of this MuJoCo version."""
+    arm = mujoco.MjSpec.from_file(str(FR3_XML))
+    margin, gap = report_band_params()
+    for geom in arm.geoms:
+        if geom.classname.name == _ARM_GEOM_CLASS:
+            geom.margin, geom.gap = margin, gap
+    return arm
+
+
+def build_world(
+    n_arms: int = 1, hand: bool = False, spacing: float = 2.0
+) -> tuple[mujoco.MjModel, ArmLayout]:
+    """Build a world of ``n_arms`` FR3 arms on a ground plane.
+
+    Keyframe ``home`` puts every arm at HOME_Q with the fingers open; callers
+    should start from it (mj_resetDataKeyframe) or set data.qpos themselves:
+    mj_resetData gives q = 0, outside the joint-4 and joint-6 ranges. qpos0 is
+    left at 0 on purpose: MuJoCo's hinge kinematics rotate by qpos - qpos0.
+    """
+    if n_arms < 1:
+        raise ValueError(f"n_arms must be >= 1, got {n_arms}")
+    spec = mujoco.MjSpec()
+    spec.modelname = "franka_sim_gym"
+    spec.copy_during_attach = True  # the same arm (and hand) spec is attached n times
+    spec.compiler.degree = False
+    # 1 ms = one FCI cycle; implicitfast as in fr3.xml (attach does not copy <option>).
+    spec.option.timestep = 0.001
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    world = spec.worldbody
+    # The floor is static, like each link0 (welded to the world): MuJoCo never
+    # collides two geoms of the world's weld group, so link0 cannot touch it.
+    world.add_geom(
+        name="floor",
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0, 0, 0.05],
+        rgba=[0.5, 0.55, 0.6, 1],
+    )
+    world.add_light(
+        name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 3], dir=[0, 0, -1]
+    )
+    arm = _arm_spec()
+    hand_spec = mujoco.MjSpec.from_file(str(HAND_XML)) if hand else None
+    for i in range(n_arms):
+        prefix = f"arm{i}/"
+        spec.attach(arm, prefix=prefix, frame=world.add_frame(pos=[spacing * i, 0.0, 0.0]))
+        if hand_spec is not None:
+            # Same prefix, so the hand's names read arm{i}/hand, arm{i}/fingers, ...
+            flange = spec.site(prefix + "flange")
+            mount = spec.body(prefix + "link7").add_frame(pos=flange.pos, quat=HAND_QUAT)
+            spec.attach(hand_spec, prefix=prefix, frame=mount)
+    spec.add_key(name="home")
+    model = spec.compile()
+    layout = _layout(model, n_arms, hand)
+    _set_home(model, layout)
+    return model, layout
+
+
+def _ids(model: mujoco.MjModel, kind: str, names: list[list[str]]) -> np.ndarray:
+    lookup = getattr(model, kind)
+    return np.array([[lookup(name).id for name in row] for row in names], dtype=np.int64)
+
+
+def _layout(model: mujoco.MjModel, n: int, hand: bool) -> ArmLayout:
+    pre = [f"arm{i}/" for i in range(n)]
+    joints = _ids(model, "joint", [[p + j for j in _ARM_JOINTS] for p in pre])
+    link_body = _ids(model, "body", [[p + b for b in _ARM_LINKS] for p in pre])
+    geom_arm = np.full(model.ngeom, -1, dtype=np.int64)
+    geom_link = np.full(model.ngeom, -1, dtype=np.int64)
+    body_arm = np.full(model.nbody, -1, dtype=np.int64)
+    body_link = np.full(model.nbody, -1, dtype=np.int64)
+    body_arm[link_body] = np.arange(n)[:, None]
+    body_link[link_body] = np.arange(8)[None, :]
+    geom_arm[:] = body_arm[model.geom_bodyid]
+    geom_link[:] = body_link[model.geom_bodyid]
+    fingers = {}
+    if hand:
+        fjoints = _ids(model, "joint", [[p + "finger_joint1", p + "finger_joint2"] for p in pre])
+        fingers = dict(
+            finger_qpos_adr=model.jnt_qposadr[fjoints],
+            finger_dof_adr=model.jnt_dofadr[fjoints],
+            finger_actuator=_ids(model, "actuator", [[p + "fingers"] for p in pre])[:, 0],
+            tcp_site=_ids(model, "site", [[p + "tcp"] for p in pre])[:, 0],
+        )
+    return ArmLayout(
+        n=n,
+        hand=hand,
+        qpos_adr=model.jnt_qposadr[joints],
+        dof_adr=model.jnt_dofadr[joints],
+        actuator_ids=_ids(model, "actuator", [[p + j for j in _ARM_JOINTS] for p in pre]),
+        flange_site=_ids(model, "site", [[p + "flange"] for p in pre])[:, 0],
+        base_pos=model.body_pos[link_body[:, 0]].copy(),
+        link_body=link_body,
+        geom_arm=geom_arm,
+        geom_link=geom_link,
+        **fingers,
+    )
+
+
+def _set_home(model: mujoco.MjModel, layout: ArmLayout) -> None:
+    """Keyframe `home`: arms at HOME_Q, fingers open, zero motor torque."""
+    qpos = model.qpos0.copy()
+    qpos[layout.qpos_adr] = HOME_Q
+    ctrl = np.zeros(model.nu)
+    if layout.hand:
+        qpos[layout.finger_qpos_adr] = FINGER_OPEN
+        ctrl[layout.finger_actuator] = FINGER_OPEN
+    key = model.key("home").id
+    model.key_qpos[key] = qpos
+    model.key_qvel[key] = 0.0
+    model.key_ctrl[key] = ctrl

@@ -1,0 +1,123 @@
+"""Fixtures: `franka-sim-gym serve` on a fresh loopback address; real clients in child processes.
+
+libfranka always connects to TCP 1337, so every server gets its own address
+in 127.0.0.0/8 (real-client-notes.md "Ports and addresses"); libfranka has no
+reply timeout, so every client runs in a child process under a hard timeout.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CLIENTS = Path(__file__).resolve().parent / "clients"
+_addresses = itertools.count(1)
+
+
+def fresh_address() -> str:
+    """A loopback address no other test (or stray server on 127.0.0.1) uses."""
+    k = next(_addresses)
+    return f"127.{10 + os.getpid() % 200}.{k // 250}.{1 + k % 250}"
+
+
+@dataclass
+class ServerProcess:
+    host: str
+    process: subprocess.Popen
+    log_path: Path
+    flags: tuple[str, ...] = field(default_factory=tuple)
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def stop(self) -> int:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        return self.process.returncode
+
+
+def wait_for_port(host: str, port: int, process: subprocess.Popen, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            raise RuntimeError(f"server exited early with {process.returncode}")
+        try:
+            with socket.create_connection((host, port), timeout=0.2):
+                return
+        except OSError:
+            time.sleep(0.05)
+    raise TimeoutError(f"server on {host}:{port} did not come up")
+
+
+@pytest.fixture
+def serve(tmp_path):
+    """Start `python -m franka_sim_gym.server --host <fresh> FLAGS...`; stopped with Ctrl-C."""
+    servers: list[ServerProcess] = []
+
+    def start(*flags: str, env: dict | None = None) -> ServerProcess:
+        host = fresh_address()
+        log_path = tmp_path / f"server-{len(servers)}.log"
+        log_file = open(log_path, "w")  # noqa: SIM115 - closed with the process
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "franka_sim_gym.server", "--host", host, *flags],
+            cwd=ROOT,
+            stdout=log_file,
+            stderr=subprocess.STDOUT,
+            env={**os.environ, **(env or {})},
+        )
+        server = ServerProcess(host, proc, log_path, flags)
+        servers.append(server)
+        wait_for_port(host, 1337, proc)
+        # The probe connection above was a client: let the server see it leave.
+        time.sleep(0.1)
+        return server
+
+    yield start
+    for server in servers:
+        server.stop()
+
+
+def run_client(
+    kind: str, scenario: str, host: str, timeout: float = 60.0, env: dict | None = None
+) -> dict:
+    """Run one client scenario in a child process; its last stdout line is JSON."""
+    script = CLIENTS / f"{kind}_client.py"
+    proc = subprocess.run(
+        [sys.executable, str(script), scenario, host],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+        env={**os.environ, **(env or {})},
+    )
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("{")]
+    if not lines:
+        raise AssertionError(
+            f"{kind} scenario {scenario} printed no result (exit {proc.returncode})\n"
+            f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+        )
+    return json.loads(lines[-1])
+
+
+@pytest.fixture
+def client():
+    return run_client

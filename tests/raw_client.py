@@ -1,0 +1,88 @@
+"""A raw-socket FCI client for the tests that send what libfranka never would."""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import numpy as np
+
+from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
+
+
+class RawClient:
+    """TCP + UDP to a server, with replies matched by command_id."""
+
+    def __init__(self, host: str, port: int = 1337) -> None:
+        self.host = host
+        self.tcp = socket.create_connection((host, port), timeout=5.0)
+        self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        # Like libfranka: states go to (TCP peer address, udp_port), so listen where
+        # our TCP connection comes from.
+        self.udp.bind((self.tcp.getsockname()[0], 0))
+        self.udp.settimeout(1.0)
+        self.udp_port = self.udp.getsockname()[1]
+        self.decoder = p.FrameDecoder()
+        self.replies: dict[int, p.Frame] = {}
+        self.next_id = 0
+        self.server_udp = None
+
+    def close(self) -> None:
+        self.tcp.close()
+        self.udp.close()
+
+    def send_raw(self, data: bytes) -> None:
+        self.tcp.sendall(data)
+
+    def request(self, command: int, payload: bytes = b"") -> int:
+        command_id = self.next_id
+        self.next_id += 1
+        self.send_raw(p.encode_request(command, command_id, payload))
+        return command_id
+
+    def reply(self, command_id: int, timeout: float = 5.0) -> p.Frame:
+        deadline = time.monotonic() + timeout
+        while command_id not in self.replies:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f"no reply to request {command_id}")
+            self.tcp.settimeout(remaining)
+            data = self.tcp.recv(65536)
+            if not data:
+                raise ConnectionError("server closed the connection")
+            for frame in self.decoder.feed(data):
+                self.replies[frame.command_id] = frame
+        return self.replies.pop(command_id)
+
+    def connect(self, version: int = p.VERSION) -> tuple[int, int]:
+        command_id = self.next_id
+        self.next_id += 1
+        self.send_raw(p.encode_connect_request(command_id, self.udp_port, version))
+        return p.decode_connect_reply(self.reply(command_id).payload)
+
+    def state(self) -> np.ndarray:
+        """The next state datagram (remembering where commands must go)."""
+        data, addr = self.udp.recvfrom(4096)
+        assert len(data) == ROBOT_STATE_SIZE
+        self.server_udp = addr
+        return np.frombuffer(data, dtype=ROBOT_STATE_DTYPE)[0]
+
+    def latest_state(self) -> np.ndarray:
+        state = self.state()
+        self.udp.setblocking(False)
+        try:
+            while True:
+                data, self.server_udp = self.udp.recvfrom(4096)
+                state = np.frombuffer(data, dtype=ROBOT_STATE_DTYPE)[0]
+        except BlockingIOError:
+            pass
+        finally:
+            self.udp.settimeout(1.0)
+        return state
+
+    def send_command(self, **fields) -> None:
+        command = np.zeros((), dtype=ROBOT_COMMAND_DTYPE)
+        for name, value in fields.items():
+            command[name] = value
+        self.udp.sendto(command.tobytes(), self.server_udp)
