@@ -17,27 +17,30 @@ import numpy as np
 
 from .tables import SUCCESS_RATE_WINDOW
 
+_NO_MOTION = np.iinfo(np.uint64).max
+
 
 class CycleAccounting:
     """Per-robot success-rate window and lost-cycle run."""
 
     def __init__(self, n: int, window: int = SUCCESS_RATE_WINDOW) -> None:
+        self.n = n
         self.window = window
         self._ring = np.zeros((n, window), dtype=bool)
-        self._pos = 0  # all robots share the ring position; fill counts are per robot
-        self._filled = np.zeros(n, dtype=np.int64)
-        self._answered_sum = np.zeros(n, dtype=np.int64)
-        self._answered = np.zeros(n, dtype=bool)
+        self._pos = 0  # one ring position for all robots; each robot's ring is cleared per motion
+        self._counted = np.zeros(n, dtype=np.int64)
+        #: a command answering the open cycle has arrived
+        self.answered = np.zeros(n, dtype=bool)
         #: the first command of the motion has arrived (accounting is open)
         self.started = np.zeros(n, dtype=bool)
         #: consecutive unanswered cycles of the running motion
         self.lost_run = np.zeros(n, dtype=np.int64)
-        #: the longest such run in the running motion
+        #: the longest such run, and all cycles lost, in the running motion
         self.longest_lost_run = np.zeros(n, dtype=np.int64)
-        #: cycles lost in the running motion
         self.lost_total = np.zeros(n, dtype=np.int64)
         #: the first message_id a command of the running motion may echo
-        self.motion_first_id = np.full(n, np.iinfo(np.uint64).max, dtype=np.uint64)
+        self.motion_first_id = np.full(n, _NO_MOTION, dtype=np.uint64)
+        self._rate = np.zeros(n)
 
     def start_motion(self, i: int, last_published_id: int) -> None:
         """A Move started; commands echoing states from now on belong to it."""
@@ -47,43 +50,43 @@ class CycleAccounting:
     def stop_motion(self, i: int) -> None:
         """The motion ended: the window empties and the rate reads 0.0."""
         self._ring[i] = False
-        self._filled[i] = 0
-        self._answered_sum[i] = 0
-        self._answered[i] = False
+        self._counted[i] = 0
+        self.answered[i] = False
         self.started[i] = False
         self.lost_run[i] = 0
         self.longest_lost_run[i] = 0
         self.lost_total[i] = 0
-        self.motion_first_id[i] = np.iinfo(np.uint64).max
+        self.motion_first_id[i] = _NO_MOTION
+        self._rate[i] = 0.0
 
     def rearm(self, i: int) -> None:
         """AutomaticErrorRecovery re-arms the lost-cycle bound."""
         self.lost_run[i] = 0
 
-    def mark_answered(self, fresh: np.ndarray) -> None:
-        """A command echoing the open cycle's id arrived for these robots."""
-        self._answered |= fresh
-
-    def mark_first_command(self, applied: np.ndarray) -> None:
-        self.started |= applied
-
-    def close_cycle(self, counting: np.ndarray) -> None:
-        """Close the open cycle for the robots whose accounting is open."""
+    def close_cycle(self, n_started: int) -> None:
+        """Close the open cycle for the robots whose accounting is open (``n_started`` of them)."""
+        answered = self.answered
         pos = self._pos
-        answered = self._answered & counting
-        old = self._ring[:, pos]
-        # Robots not counting keep their (empty) window untouched.
-        full = self._filled >= self.window
-        self._answered_sum += np.where(counting, answered.astype(np.int64) - (old & full), 0)
-        self._ring[:, pos] = np.where(counting, answered, old)
-        self._filled = np.where(counting, np.minimum(self._filled + 1, self.window), self._filled)
-        lost = counting & ~answered
-        self.lost_run = np.where(lost, self.lost_run + 1, np.where(counting, 0, self.lost_run))
-        self.lost_total += lost
-        self.longest_lost_run = np.maximum(self.longest_lost_run, self.lost_run)
-        self._answered[:] = False
+        if n_started == self.n:  # every robot counts: no masks
+            self._ring[:, pos] = answered
+            self._counted += 1
+            self.lost_total += ~answered
+            self.lost_run += 1
+            self.lost_run[answered] = 0
+        else:
+            counting = self.started
+            lost = counting & ~answered
+            # Robots not counting hold an empty (cleared) window.
+            self._ring[:, pos] = answered & counting
+            self._counted += counting
+            self.lost_total += lost
+            self.lost_run = np.where(lost, self.lost_run + 1, np.where(counting, 0, self.lost_run))
+        np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
+        answered[...] = False
         self._pos = (pos + 1) % self.window
+        held = np.minimum(self._counted, self.window)
+        np.divide(np.count_nonzero(self._ring, axis=1), held, out=self._rate, where=held > 0)
 
     def success_rate(self) -> np.ndarray:
         """control_command_success_rate per robot: answered / cycles held by the window."""
-        return np.where(self._filled > 0, self._answered_sum / np.maximum(self._filled, 1), 0.0)
+        return self._rate

@@ -11,9 +11,6 @@ import numpy as np
 from ..sim.arm import DEFAULT_STIFFNESS
 from .tables import RobotTable, robot_table
 
-#: fci-wire-protocol.md §3.2: SetJointImpedance documents 0 ... 14250 per joint.
-MAX_JOINT_STIFFNESS = 14250.0
-
 
 def env_flag(name: str) -> bool | None:
     """A FRANKA_SIM_* boolean environment variable: None when unset."""

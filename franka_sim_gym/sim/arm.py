@@ -20,7 +20,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .world import HOME_Q, ArmLayout, build_world
+from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
 #: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,
@@ -92,6 +92,13 @@ class ArmPhysics:
         self.base_pos = np.asarray(lay.base_pos, dtype=np.float64)
         self.kp = np.empty((n_arms, 7))
         self.kd = np.empty((n_arms, 7))
+        self.coriolis = np.zeros((n_arms, 7))
+        self._tau = np.zeros((n_arms, 7))
+        self._tmp = np.zeros((n_arms, 7))
+        self._copies = any(
+            a.view is None
+            for a in (self._qpos, self._qvel, self._actuator, self._bias, self._gravcomp)
+        )
         self._effective_inertia = self._home_inertia()
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
@@ -130,18 +137,22 @@ class ArmPhysics:
         self.data.qacc_warmstart[lay.dof_adr[arms]] = 0.0
         self.data.ctrl[lay.actuator_ids[arms]] = 0.0
         if lay.finger_qpos_adr is not None:
-            self.data.qpos[lay.finger_qpos_adr[arms]] = 0.04
+            self.data.qpos[lay.finger_qpos_adr[arms]] = FINGER_OPEN
             self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
         mujoco.mj_forward(self.model, self.data)
-        self._refresh(self._actuator.get().copy())
+        self._refresh()
 
-    def _refresh(self, tau_applied: np.ndarray) -> None:
-        """Copy the measured quantities of the current MuJoCo state into (n, 7) arrays."""
-        self.q = self._qpos.get().copy()
-        self.dq = self._qvel.get().copy()
-        self.tau_J = tau_applied
-        self.gravity = self._gravcomp.get().copy()
-        self.coriolis = self._bias.get() - self.gravity
+    def _refresh(self) -> None:
+        """Measured quantities of the current MuJoCo state, as (n, 7) arrays.
+
+        Where the arms' addresses are affine these are live views into MjData
+        (no copy per cycle); otherwise copies made here.
+        """
+        self.q = self._qpos.get()
+        self.dq = self._qvel.get()
+        # qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone.
+        self.tau_J = self._actuator.get()
+        np.subtract(self._bias.get(), self._gravcomp.get(), out=self.coriolis)
 
     @property
     def time(self) -> float:
@@ -153,33 +164,55 @@ class ArmPhysics:
     def step(
         self,
         q_ref: np.ndarray,
-        dq_ref: np.ndarray,
-        tau_external: np.ndarray,
-        external: np.ndarray,
+        dq_ref: np.ndarray | None,
+        tau_external: np.ndarray | None = None,
+        external: np.ndarray | bool | None = None,
     ) -> None:
         """Advance the world by one 1 ms cycle.
 
         Args:
-            q_ref, dq_ref: (n, 7) joint reference of the internal joint
-                impedance servo (used for arms where ``external`` is False).
-            tau_external: (n, 7) commanded torque *without gravity* (used where
-                ``external`` is True); gravity is added by the actuators.
-            external: (n,) bool, True where an external controller commands torque.
+            q_ref, dq_ref: (n, 7) joint reference of the internal joint impedance
+                servo; ``dq_ref=None`` holds at rest (zero reference velocity).
+            tau_external: (n, 7) commanded torque *without gravity*, applied where
+                ``external`` says; gravity is added by the actuators.
+            external: None or False (no arm under external torque), True (every
+                arm), or an (n,) bool mask.
         """
-        tau = self.kp * (q_ref - self.q) + self.kd * (dq_ref - self.dq) + self.coriolis
-        if external.any():
+        tau, tmp = self._tau, self._tmp
+        # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
+        np.subtract(q_ref, self.q, out=tau)
+        tau *= self.kp
+        if dq_ref is None:
+            np.multiply(self.kd, self.dq, out=tmp)
+            tau -= tmp
+        else:
+            np.subtract(dq_ref, self.dq, out=tmp)
+            tmp *= self.kd
+            tau += tmp
+        tau += self.coriolis
+        if external is True:
+            tau = tau_external
+        elif external is not None and external is not False:
             tau = np.where(external[:, None], tau_external, tau)
         self._ctrl.set(tau)
         mujoco.mj_step2(self.model, self.data)
-        applied = self._actuator.get().copy()
         mujoco.mj_step1(self.model, self.data)
-        self._refresh(applied)
+        if self._copies:
+            self._refresh()
+        else:
+            np.subtract(self._bias.view, self._gravcomp.view, out=self.coriolis)
 
     # -- kinematics ----------------------------------------------------------------------------
 
+    def flange_pose_raw(self) -> tuple[np.ndarray, np.ndarray]:
+        """Flange (link8) position (n, 3) in each arm's base frame, and its rotation as
+        MuJoCo's row-major (n, 9) xmat (arm bases are not rotated)."""
+        sites = self.layout.flange_site
+        pos = self.data.site_xpos[sites]
+        pos -= self.base_pos
+        return pos, self.data.site_xmat[sites]
+
     def flange_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Flange (link8) position (n, 3) and rotation (n, 3, 3) in each arm's base frame."""
-        sites = self.layout.flange_site
-        pos = self.data.site_xpos[sites] - self.base_pos
-        rot = self.data.site_xmat[sites].reshape(self.n, 3, 3)
-        return pos, rot
+        pos, xmat = self.flange_pose_raw()
+        return pos, xmat.reshape(self.n, 3, 3)

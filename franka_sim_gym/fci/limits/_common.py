@@ -1,0 +1,168 @@
+"""Shared machinery of the limit rules: the precedence table, intervals, violation records.
+
+Every rule function packs its per-joint findings into one small bit field per
+(robot, joint) — bit k set means "row k of this generator's precedence table
+trips on this joint" — ORs it over the joints, and looks the result up in a
+table that maps a row bitmask to the index of the *first* row that is set
+(seed "What is checked, and what it latches": "the first row whose condition
+trips is the error you get"). That keeps the per-cycle path to a handful of
+numpy operations whatever the number of rows, with no Python loop over robots.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ERROR_NAMES
+from ..tables import DELTA_T
+
+#: The "no violation" value of every ``error`` array.
+NO_ERROR = -1
+
+
+@dataclass(frozen=True)
+class Violation:
+    """What robot i's latched error was about, for the log line.
+
+    ``joint`` is the 0-based joint index (``-1`` when the signal is not per
+    joint, e.g. the end-effector speed); :meth:`message` prints it 1-based,
+    as the seed's log lines and Franka's tables number joints 1-7.
+    ``value`` is the offending (signed) value of ``signal``'s checked quantity,
+    ``limit`` the bound it crossed (the magnitude for a symmetric ``|x| <=``
+    limit; NaN for a non-finite command, which has no bound), ``check`` which
+    row of the precedence table tripped.
+    """
+
+    error: int
+    signal: str
+    joint: int
+    value: float
+    limit: float
+    unit: str
+    check: str = ""
+
+    def message(self) -> str:
+        """The seed's log line ("Checking is always on; aborting is opt-in"), e.g.
+
+        ``joint_motion_generator_velocity_discontinuity: q_c joint 4 = 294.395 rad/s^2,
+        limit 9.999 rad/s^2 (acceleration)``.
+        """
+        where = f"{self.signal} joint {self.joint + 1}" if self.joint >= 0 else self.signal
+        return (
+            f"{ERROR_NAMES[self.error]}: {where} = {self.value:.6g} {self.unit}, "
+            f"limit {self.limit:.6g} {self.unit} ({self.check})"
+        )
+
+
+@dataclass(frozen=True)
+class Row:
+    """One row of a precedence table, as :func:`describe_row` needs it (describe path only).
+
+    A joint trips the row where ``value > upper`` or ``value < lower`` (or, for
+    the non-finite row, where ``value`` is not finite).
+    """
+
+    error: int
+    check: str
+    signal: str
+    unit: str
+    value: np.ndarray
+    upper: np.ndarray | float
+    lower: np.ndarray | float
+    symmetric: bool = False
+
+
+class Precedence:
+    """First-row-wins selection over up to 8 rows, optionally gated by ``first``.
+
+    ``codes[k]`` is the error of row k, rows in precedence order. Rows listed in
+    ``first_only`` apply only where ``first`` is true, rows in ``later_only``
+    only where it is false.
+    """
+
+    def __init__(
+        self,
+        codes: Sequence[int],
+        first_only: Sequence[int] = (),
+        later_only: Sequence[int] = (),
+    ) -> None:
+        k = len(codes)
+        if not 0 < k <= 8:
+            raise ValueError("between 1 and 8 rows")
+        every = (1 << k) - 1
+        allowed = (
+            every & ~sum(1 << r for r in first_only),  # first == False
+            every & ~sum(1 << r for r in later_only),  # first == True
+        )
+        lut = np.full((2, 1 << k), NO_ERROR, dtype=np.int64)
+        for first, gate in enumerate(allowed):
+            for bits in range(1, 1 << k):
+                live = bits & gate
+                if live:
+                    lut[first, bits] = codes[(live & -live).bit_length() - 1]
+        lut.setflags(write=False)
+        self.codes = tuple(int(c) for c in codes)
+        self.allowed = allowed
+        self.lut = lut
+
+    def select(self, bits: np.ndarray, first: np.ndarray) -> np.ndarray:
+        """(n,) int64 error from (n, m) uint8 per-joint row bits and (n,) bool ``first``."""
+        rows = np.bitwise_or.reduce(bits, axis=1)
+        return self.lut[first.view(np.uint8), rows]
+
+    def first_row(self, bits: np.ndarray, first: bool) -> int | None:
+        """Index of the row that wins for one robot's (m,) bits, or None."""
+        live = int(np.bitwise_or.reduce(bits)) & self.allowed[int(first)]
+        return (live & -live).bit_length() - 1 if live else None
+
+
+def pack(*masks: np.ndarray) -> np.ndarray:
+    """Per-joint bit field: bit k of the result is ``masks[k]`` (bool arrays, same shape)."""
+    bits = masks[0].view(np.uint8)
+    for k in range(1, len(masks)):
+        bits = bits | (masks[k].view(np.uint8) << k)
+    return bits
+
+
+def as_bool(first) -> np.ndarray:
+    """``first`` as a bool ndarray ((n,) or 0-d), so that ``~`` and ``view`` behave."""
+    return np.asarray(first, dtype=bool)
+
+
+def interval(steps) -> np.ndarray:
+    """(n, 1) differencing interval ``steps * dt`` [s] (or (1, 1) for a scalar ``steps``).
+
+    The seed ("The difference formulas"): the interval is the server's own count
+    of published cycles since the command the history sits at, not an assumed
+    millisecond. ``steps`` >= 1 is the caller's precondition.
+    """
+    return np.asarray(steps, dtype=np.float64).reshape(-1, 1) * DELTA_T
+
+
+def robot_row(x, i: int):
+    """Robot i's slice of a batched argument, keeping the leading axis (scalars pass through)."""
+    a = np.asarray(x)
+    return a if a.ndim == 0 else a[i : i + 1]
+
+
+def describe_row(row: Row, bits: np.ndarray, k: int) -> Violation:
+    """The worst joint of row ``row`` (index ``k`` in ``bits``, one robot's (m,) bits)."""
+    value = np.asarray(row.value, dtype=np.float64).reshape(-1)
+    upper = np.broadcast_to(np.asarray(row.upper, dtype=np.float64), value.shape)
+    lower = np.broadcast_to(np.asarray(row.lower, dtype=np.float64), value.shape)
+    tripped = (bits.reshape(-1) >> k) & 1 == 1
+    bad = tripped & ~np.isfinite(value)
+    if bad.any():
+        # NaN / inf has no distance to a bound (seed: a non-finite command is
+        # "the limits violation of the generator"): name the first such joint.
+        j = int(np.flatnonzero(bad)[0])
+        nan = float("nan")
+        return Violation(row.error, row.signal, j, float(value[j]), nan, row.unit, "non-finite")
+    excess = np.where(tripped, np.maximum(value - upper, lower - value), -np.inf)
+    j = int(np.argmax(excess))
+    above = value[j] - upper[j] >= lower[j] - value[j]
+    limit = upper[j] if (above or row.symmetric) else lower[j]
+    return Violation(row.error, row.signal, j, float(value[j]), float(limit), row.unit, row.check)

@@ -1,0 +1,75 @@
+"""Per-robot motion modes as arrays, with the group counts the cycle's fast paths branch on.
+
+The robot's state machine (robot_mode, motion generator, controller) is kept
+as (n,) arrays — never Python objects per arm (architecture.md "Batch
+first") — plus Python-int counts of each group, recomputed at transitions, so
+the 1 kHz cycle can take an unmasked path when every robot is in the same
+situation (always the case for the socket server's single robot).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .wire import ControllerMode, MotionGeneratorMode, RobotMode
+
+JOINT_POSITION = int(MotionGeneratorMode.kJointPosition)
+JOINT_VELOCITY = int(MotionGeneratorMode.kJointVelocity)
+NONE = int(MotionGeneratorMode.kNone)
+IDLE = int(MotionGeneratorMode.kIdle)
+EXTERNAL = int(ControllerMode.kExternalController)
+JOINT_IMPEDANCE = int(ControllerMode.kJointImpedance)
+
+
+class Modes:
+    """robot_mode / motion_generator_mode / controller_mode of n robots, and derived groups."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.robot_mode = np.full(n, int(RobotMode.kIdle), dtype=np.uint8)
+        self.motion_generator_mode = np.full(n, IDLE, dtype=np.uint8)
+        self.controller_mode = np.full(n, JOINT_IMPEDANCE, dtype=np.uint8)
+        self.regroup()
+
+    def start(self, i: int, generator: int, controller: int) -> None:
+        """Robot i runs a Move with these (state-enum) modes."""
+        self.robot_mode[i] = RobotMode.kMove
+        self.motion_generator_mode[i] = generator
+        self.controller_mode[i] = controller
+        self.regroup()
+
+    def end(self, i: int, robot_mode: int = int(RobotMode.kIdle)) -> None:
+        """Robot i's motion ended; the internal joint impedance servo holds it."""
+        self.robot_mode[i] = robot_mode
+        self.motion_generator_mode[i] = IDLE
+        self.controller_mode[i] = JOINT_IMPEDANCE
+        self.regroup()
+
+    def set_robot_mode(self, i: int, robot_mode: int) -> None:
+        self.robot_mode[i] = robot_mode
+        self.regroup()
+
+    def regroup(self) -> None:
+        """Recompute the masks and counts (at transitions only, never per cycle)."""
+        gen, ctrl = self.motion_generator_mode, self.controller_mode
+        self.in_motion = self.robot_mode == RobotMode.kMove
+        self.joint_position = self.in_motion & (gen == JOINT_POSITION)
+        self.joint_velocity = self.in_motion & (gen == JOINT_VELOCITY)
+        #: a joint generator drives the internal servo's reference
+        self.tracking = self.joint_position | self.joint_velocity
+        self.external = self.in_motion & (ctrl == EXTERNAL)
+        #: an external controller with no motion generator (startTorqueControl)
+        self.torque_only = self.in_motion & (gen == NONE)
+        self.n_motion = int(np.count_nonzero(self.in_motion))
+        self.n_joint_position = int(np.count_nonzero(self.joint_position))
+        self.n_joint_velocity = int(np.count_nonzero(self.joint_velocity))
+        self.n_tracking = self.n_joint_position + self.n_joint_velocity
+        self.n_external = int(np.count_nonzero(self.external))
+        self.n_torque_only = int(np.count_nonzero(self.torque_only))
+        #: what physics.step takes for ``external``: None, True or a mask
+        if self.n_external == 0:
+            self.external_arg = None
+        elif self.n_external == self.n:
+            self.external_arg = True
+        else:
+            self.external_arg = self.external
