@@ -56,7 +56,9 @@ def main() -> None:
         cpu0, t0 = cpu_seconds(server.pid), time.monotonic()
         out = subprocess.run(
             [sys.executable, str(CLIENT), "rate", HOST],
-            capture_output=True, text=True, timeout=4 * args.seconds + 60,
+            capture_output=True,
+            text=True,
+            timeout=4 * args.seconds + 60,
             env={**os.environ, "RATE_SECONDS": str(args.seconds)},
         ).stdout
         share = (cpu_seconds(server.pid) - cpu0) / (time.monotonic() - t0)
@@ -66,12 +68,19 @@ def main() -> None:
         server.wait(timeout=10)
     rows = [
         ("states/s received by pylibfranka read_once", f"{result['states_per_s']:.1f}", "1000"),
+        ("states/s published (message ids over wall time)", f"{result['published_per_s']:.1f}", ""),
         ("server CPU share of one core, no client", f"{idle_share:.1%}", ""),
         ("server CPU share of one core, client reading + 1 kHz loop", f"{share:.1%}", "<= 10%"),
-        ("readOnce/writeOnce loop success rate (mean)",
-         f"{result['loop_success_rate_mean']:.3f}", ""),
-        ("readOnce/writeOnce loop success rate (min)",
-         f"{result['loop_success_rate_min']:.3f}", ""),
+        (
+            "readOnce/writeOnce loop success rate (mean)",
+            f"{result['loop_success_rate_mean']:.3f}",
+            "",
+        ),
+        (
+            "readOnce/writeOnce loop success rate (min)",
+            f"{result['loop_success_rate_min']:.3f}",
+            "",
+        ),
     ]
     print(f"{'quantity':<60}{'value':>10}{'target':>10}")
     for name, value, target in rows:

@@ -15,6 +15,7 @@ and the tick to ``franka_sim_gym.fci``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import queue
 import socket
@@ -183,8 +184,20 @@ class RobotServer:
         self._requests.put(reset)
 
     def submit_request(self, session: ClientSession, command: p.Command, command_id: int, request):
-        """Apply ``request`` on the tick thread at the next cycle boundary, then answer it."""
-        self._requests.put(lambda: self._apply(session, command, command_id, request))
+        """Apply ``request`` on the tick thread at the next cycle boundary, then answer it.
+
+        Every request is answered: libfranka has no reply timeout, so a handler
+        that failed still answers (status 1, "not possible") and logs why.
+        """
+
+        def apply() -> None:
+            try:
+                self._apply(session, command, command_id, request)
+            except Exception:
+                log.exception("%s (request %d) failed; answered status 1", command.name, command_id)
+                session.reply(command, command_id, 1)
+
+        self._requests.put(apply)
 
     def _apply(self, session: ClientSession, command: p.Command, command_id: int, request) -> None:
         ctrl = self.controller
@@ -223,7 +236,7 @@ class RobotServer:
             status = ctrl.acknowledge_setter(0, "SetCartesianImpedance", request.K_x)
             session.reply(command, command_id, status)
         elif command == C.kSetCollisionBehavior:
-            values = [v for field in request.__dataclass_fields__ for v in getattr(request, field)]
+            values = [v for f in dataclasses.fields(request) for v in getattr(request, f.name)]
             status = ctrl.acknowledge_setter(0, "SetCollisionBehavior", values)
             session.reply(command, command_id, status)
         elif command == C.kSetGuidingMode:

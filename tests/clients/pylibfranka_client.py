@@ -254,9 +254,14 @@ def scenario_rate(host: str) -> dict:
     first = robot.read_once()
     t0 = time.monotonic()
     last = first
+    reads = 0
     while time.monotonic() - t0 < seconds:
-        last = robot.read_once()
-    states_per_s = (last.time.to_sec() - first.time.to_sec()) / (time.monotonic() - t0)
+        last = robot.read_once()  # blocks until a newer state than the last one
+        reads += 1
+    elapsed = time.monotonic() - t0
+    # message ids count milliseconds: the states published over the interval
+    published_per_s = (last.time.to_sec() - first.time.to_sec()) * 1000.0 / elapsed
+    states_per_s = reads / elapsed
     control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
     q0 = None
     rates = []
@@ -274,6 +279,7 @@ def scenario_rate(host: str) -> dict:
         control.writeOnce(command)
     return {
         "states_per_s": states_per_s,
+        "published_per_s": published_per_s,
         "loop_success_rate_mean": sum(rates[200:]) / max(1, len(rates[200:])),
         "loop_success_rate_min": min(rates[200:]) if rates[200:] else None,
     }
