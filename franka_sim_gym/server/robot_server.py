@@ -82,6 +82,11 @@ class RobotServer:
         self._udp_log = RateLimitedLog(log)
         self._command = np.zeros(1, dtype=ROBOT_COMMAND_DTYPE)
         self._mask = np.ones(1, dtype=bool)
+        # Zero-copy views: datagrams are received straight into the command
+        # array, and the state is sent straight from the controller's array.
+        self._command_buffer = memoryview(self._command.view(np.uint8))
+        self._receive_buffer = bytearray(4096)
+        self._state_bytes = memoryview(self.controller.states.view(np.uint8))
         self.ticks = 0
         self._viewer = None
 
@@ -275,7 +280,7 @@ class RobotServer:
         addr = self._client_addr
         if addr is not None:
             try:
-                self._udp.sendto(self.controller.states[0].tobytes(), addr)
+                self._udp.sendto(self._state_bytes, addr)
             except OSError as exc:
                 self._udp_log.warning("udp-send-failed", "state not sent to %s: %s", addr, exc)
         self._deliver_events(events)
@@ -283,9 +288,10 @@ class RobotServer:
             self._viewer.sync()
 
     def _receive_datagrams(self) -> None:
+        buffer = self._receive_buffer
         while True:
             try:
-                data, addr = self._udp.recvfrom(2048)
+                size, addr = self._udp.recvfrom_into(buffer)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError as exc:  # e.g. ICMP port unreachable from a vanished client
@@ -296,23 +302,17 @@ class RobotServer:
                 self._udp_log.warning(
                     "datagram-from-unknown-address",
                     "ignored a %d-byte datagram from %s:%d (connected client: %s)",
-                    len(data),
-                    addr[0],
-                    addr[1],
-                    client,
+                    size, addr[0], addr[1], client,
                 )
                 continue
-            if len(data) != ROBOT_COMMAND_SIZE:
+            if size != ROBOT_COMMAND_SIZE:
                 self._udp_log.warning(
                     "datagram-wrong-size",
                     "ignored a %d-byte datagram from %s:%d: a RobotCommand is %d bytes",
-                    len(data),
-                    addr[0],
-                    addr[1],
-                    ROBOT_COMMAND_SIZE,
+                    size, addr[0], addr[1], ROBOT_COMMAND_SIZE,
                 )
                 continue
-            self._command[0] = np.frombuffer(data, dtype=ROBOT_COMMAND_DTYPE)[0]
+            self._command_buffer[:] = buffer[:ROBOT_COMMAND_SIZE]
             self.controller.receive(self._command, self._mask)
 
     def _deliver_events(self, events) -> None:

@@ -1,12 +1,13 @@
 """Shared machinery of the limit rules: the precedence table, intervals, violation records.
 
-Every rule function packs its per-joint findings into one small bit field per
-(robot, joint) — bit k set means "row k of this generator's precedence table
-trips on this joint" — ORs it over the joints, and looks the result up in a
-table that maps a row bitmask to the index of the *first* row that is set
-(seed "What is checked, and what it latches": "the first row whose condition
-trips is the error you get"). That keeps the per-cycle path to a handful of
-numpy operations whatever the number of rows, with no Python loop over robots.
+Every rule function stacks its per-joint findings into one (n, rows, joints)
+bool array — [i, k, j] means "row k of this generator's precedence table trips
+on robot i's joint j" — reduces it over the joints, packs each robot's rows
+into one byte and looks that up in a table mapping a row bitmask to the error
+of the *first* row that is set (seed "What is checked, and what it latches":
+"the first row whose condition trips is the error you get"). That keeps the
+per-cycle path to a handful of numpy operations whatever the number of rows,
+with no Python loop over robots or joints.
 """
 
 from __future__ import annotations
@@ -108,23 +109,21 @@ class Precedence:
         self.allowed = allowed
         self.lut = lut
 
-    def select(self, bits: np.ndarray, first: np.ndarray) -> np.ndarray:
-        """(n,) int64 error from (n, m) uint8 per-joint row bits and (n,) bool ``first``."""
-        rows = np.bitwise_or.reduce(bits, axis=1)
+    def select(self, tripped: np.ndarray, first: np.ndarray) -> np.ndarray:
+        """(n,) int64 error from (n, rows, m) ``tripped`` and (n,) bool ``first``."""
+        rows = np.packbits(tripped.any(axis=2), axis=1, bitorder="little")[:, 0]
         return self.lut[first.view(np.uint8), rows]
 
-    def first_row(self, bits: np.ndarray, first: bool) -> int | None:
-        """Index of the row that wins for one robot's (m,) bits, or None."""
-        live = int(np.bitwise_or.reduce(bits)) & self.allowed[int(first)]
+    def first_row(self, tripped: np.ndarray, first: bool) -> int | None:
+        """Index of the row that wins for one robot's (rows, m) ``tripped``, or None."""
+        live = int(np.packbits(tripped.any(axis=1), bitorder="little")[0])
+        live &= self.allowed[int(first)]
         return (live & -live).bit_length() - 1 if live else None
 
 
-def pack(*masks: np.ndarray) -> np.ndarray:
-    """Per-joint bit field: bit k of the result is ``masks[k]`` (bool arrays, same shape)."""
-    bits = masks[0].view(np.uint8)
-    for k in range(1, len(masks)):
-        bits = bits | (masks[k].view(np.uint8) << k)
-    return bits
+def stack(*masks: np.ndarray) -> np.ndarray:
+    """(n, rows, m) bool from the rows' (n, m) per-joint masks, in precedence order."""
+    return np.concatenate(masks, axis=1).reshape(-1, len(masks), masks[0].shape[-1])
 
 
 def as_bool(first) -> np.ndarray:
@@ -148,12 +147,12 @@ def robot_row(x, i: int):
     return a if a.ndim == 0 else a[i : i + 1]
 
 
-def describe_row(row: Row, bits: np.ndarray, k: int) -> Violation:
-    """The worst joint of row ``row`` (index ``k`` in ``bits``, one robot's (m,) bits)."""
+def describe_row(row: Row, tripped: np.ndarray) -> Violation:
+    """The worst joint among those where ``row`` trips (``tripped``: one robot's (m,) mask)."""
     value = np.asarray(row.value, dtype=np.float64).reshape(-1)
     upper = np.broadcast_to(np.asarray(row.upper, dtype=np.float64), value.shape)
     lower = np.broadcast_to(np.asarray(row.lower, dtype=np.float64), value.shape)
-    tripped = (bits.reshape(-1) >> k) & 1 == 1
+    tripped = np.asarray(tripped, dtype=bool).reshape(-1)
     bad = tripped & ~np.isfinite(value)
     if bad.any():
         # NaN / inf has no distance to a bound (seed: a non-finite command is
