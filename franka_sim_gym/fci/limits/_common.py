@@ -60,10 +60,10 @@ class Violation:
 
 @dataclass(frozen=True)
 class Row:
-    """One row of a precedence table, as :func:`describe_row` needs it (describe path only).
+    """One row of a precedence table, as :func:`describe_row` reports it (describe path only).
 
-    A joint trips the row where ``value > upper`` or ``value < lower`` (or, for
-    the non-finite row, where ``value`` is not finite).
+    Which joints trip is the check's mask; ``value`` against ``upper`` / ``lower``
+    only ranks the tripped joints (largest excess first) and names the bound.
     """
 
     error: int
@@ -105,7 +105,6 @@ class Precedence:
                 if live:
                     lut[first, bits] = codes[(live & -live).bit_length() - 1]
         lut.setflags(write=False)
-        self.codes = tuple(int(c) for c in codes)
         self.allowed = allowed
         self.lut = lut
 
@@ -150,8 +149,8 @@ def robot_row(x, i: int):
 def describe_row(row: Row, tripped: np.ndarray) -> Violation:
     """The worst joint among those where ``row`` trips (``tripped``: one robot's (m,) mask)."""
     value = np.asarray(row.value, dtype=np.float64).reshape(-1)
-    upper = np.broadcast_to(np.asarray(row.upper, dtype=np.float64), value.shape)
-    lower = np.broadcast_to(np.asarray(row.lower, dtype=np.float64), value.shape)
+    upper = np.broadcast_to(np.asarray(row.upper, dtype=np.float64), (1, value.size)).reshape(-1)
+    lower = np.broadcast_to(np.asarray(row.lower, dtype=np.float64), (1, value.size)).reshape(-1)
     tripped = np.asarray(tripped, dtype=bool).reshape(-1)
     bad = tripped & ~np.isfinite(value)
     if bad.any():

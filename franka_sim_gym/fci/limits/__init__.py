@@ -1,0 +1,84 @@
+"""Pure, vectorised rule functions of the motion-limit engine.
+
+Every ``check_*`` function takes arrays with a leading robot axis n ((n, 7) for
+joint signals) and returns an (n,) int64 ``error``: the :class:`~..errors.Error`
+index the robot latches this cycle, or ``NO_ERROR`` (-1). One index per robot:
+within a generator the rows of the seed's table "What is checked, and what it
+latches" are in precedence order and the first tripped row wins. The per-cycle
+path is a fixed handful of numpy operations, with no Python loop over robots or
+joints; the matching ``describe_*`` function (same arguments plus the robot
+index, called only for a violating robot) recomputes that robot's row and names
+the joint, value and limit for the log line (:class:`Violation`).
+
+* :func:`check_joint_position` (q_c): 12 range, 11 start pose, 14, 13, 15;
+* :func:`check_joint_velocity` (dq_c): 13 non-finite, 15 start / acceleration / jerk, 13;
+* :func:`check_torque` (tau_J_d): 34 range, 32 rate;
+* :func:`check_measured_joint_velocity` (measured dq): 3;
+* :func:`check_measured_cartesian_speed` (measured EE speed): 4;
+* :func:`safety_error`: one safety-controller error per robot, 4 over 3.
+
+What the caller does, not these functions:
+
+* **13 latches 3 with it.** Seed "joint_velocity_violation (3)": when the
+  commanded-envelope check (13) trips during a motion, the sim latches the safety
+  controller's 3 alongside it in the same abort (no margin: "The margin is not
+  applied when the only question is which name an already-certain violation
+  gets"). These functions return one index per generator; pairing 13 with 3 is
+  the caller's.
+* The safety controller (3, 4, and 2 elsewhere) is not in any generator's chain:
+  "they never preempt any row below and no row below preempts them". The caller
+  ORs :func:`safety_error` into the latched bits next to the generator's error.
+* Choosing the interval ``steps`` (seed "The difference formulas": the server's
+  own count of published cycles since the command the history sits at, never
+  widened by the client's echo) and keeping the history. A non-finite command
+  is refused whether or not enforcement is on (seed: NaN "poisons the backward
+  differences it would be recorded into"), so it must never be recorded; the
+  derivatives these functions return for it are NaN / inf.
+* Logging once per error class per motion, and aborting only under
+  ``--enforce-motion-limits``.
+
+Constants: every threshold comes from :mod:`..tables` (``ddq_max``, ``dddq_max``
+and ``dtau_max`` already "limit - 1e-3", the envelope's tolerance inside
+``velocity_envelope``); the start tolerances are arguments (seed "Two deliberate
+departures": 0.1 rad, 0.1 rad/s, sim choices; ``ControllerConfig`` holds them);
+the only constant defined here is ``MEASURED_VELOCITY_MARGIN`` (0.1 rad/s, seed
+"joint_velocity_violation (3)").
+"""
+
+from ._common import NO_ERROR, Violation
+from .joint import (
+    PositionCheck,
+    VelocityCheck,
+    check_joint_position,
+    check_joint_velocity,
+    describe_joint_position,
+    describe_joint_velocity,
+)
+from .safety import (
+    MEASURED_VELOCITY_MARGIN,
+    check_measured_cartesian_speed,
+    check_measured_joint_velocity,
+    describe_measured_cartesian_speed,
+    describe_measured_joint_velocity,
+    safety_error,
+)
+from .torque import check_torque, describe_torque
+
+__all__ = [
+    "MEASURED_VELOCITY_MARGIN",
+    "NO_ERROR",
+    "PositionCheck",
+    "VelocityCheck",
+    "Violation",
+    "check_joint_position",
+    "check_joint_velocity",
+    "check_measured_cartesian_speed",
+    "check_measured_joint_velocity",
+    "check_torque",
+    "describe_joint_position",
+    "describe_joint_velocity",
+    "describe_measured_cartesian_speed",
+    "describe_measured_joint_velocity",
+    "describe_torque",
+    "safety_error",
+]

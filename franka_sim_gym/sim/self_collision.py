@@ -1,0 +1,68 @@
+"""Distances between the arm's own links, read off MuJoCo's contact list.
+
+The safety controller's self_collision_avoidance_violation (2) fires when two
+links at least three apart in the chain come within 50 mm (seed
+"self_collision_avoidance_violation (2): the geometric half"). The arm's
+collision geoms carry a contact *reporting* band (models/fr3.xml: gap without
+margin, so a pair is listed in data.contact out to 50 mm with no constraint
+row): the physics and its contact forces are unchanged, only MuJoCo's field of
+view widens. Neighbours and once-removed pairs are not monitored, nor the hand
+(geom_link = -1): link0/link1 and link5/link7 are excluded in the model itself.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .world import SELF_COLLISION_DISTANCE, ArmLayout
+
+#: Seed: "Only links at least three apart in the chain are monitored."
+MIN_CHAIN_SEPARATION = 3
+
+
+def close_link_pairs(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    layout: ArmLayout,
+    distance: float = SELF_COLLISION_DISTANCE,
+) -> np.ndarray:
+    """(n,) bool: arm i has a monitored link pair closer than ``distance``.
+
+    Costs nothing when MuJoCo reports no contact at all (the usual case).
+    """
+    close = np.zeros(layout.n, dtype=bool)
+    ncon = data.ncon
+    if ncon == 0:
+        return close
+    geoms = data.contact.geom[:ncon]
+    arm = layout.geom_arm[geoms]
+    link = layout.geom_link[geoms]
+    monitored = (
+        (arm[:, 0] >= 0)
+        & (arm[:, 0] == arm[:, 1])
+        & (link[:, 0] >= 0)
+        & (link[:, 1] >= 0)
+        & (np.abs(link[:, 0] - link[:, 1]) >= MIN_CHAIN_SEPARATION)
+        & (data.contact.dist[:ncon] < distance)
+    )
+    close[arm[monitored, 0]] = True
+    return close
+
+
+def closest_link_pair(
+    model: mujoco.MjModel, data: mujoco.MjData, layout: ArmLayout, arm: int
+) -> tuple[float, int, int] | None:
+    """For the log line: (distance, link a, link b) of arm ``arm``'s closest monitored pair."""
+    best = None
+    for c in range(data.ncon):
+        g1, g2 = data.contact.geom[c]
+        if layout.geom_arm[g1] != arm or layout.geom_arm[g2] != arm:
+            continue
+        a, b = int(layout.geom_link[g1]), int(layout.geom_link[g2])
+        if a < 0 or b < 0 or abs(a - b) < MIN_CHAIN_SEPARATION:
+            continue
+        d = float(data.contact.dist[c])
+        if best is None or d < best[0]:
+            best = (d, min(a, b), max(a, b))
+    return best
