@@ -29,6 +29,8 @@ class CycleAccounting:
         self._ring = np.zeros((n, window), dtype=bool)
         self._pos = 0  # one ring position for all robots; each robot's ring is cleared per motion
         self._counted = np.zeros(n, dtype=np.int64)
+        self._held = np.zeros(n, dtype=np.int64)
+        self._answered_sum = np.zeros(n, dtype=np.int64)
         #: a command answering the open cycle has arrived
         self.answered = np.zeros(n, dtype=bool)
         #: the first command of the motion has arrived (accounting is open)
@@ -51,6 +53,8 @@ class CycleAccounting:
         """The motion ended: the window empties and the rate reads 0.0."""
         self._ring[i] = False
         self._counted[i] = 0
+        self._held[i] = 0
+        self._answered_sum[i] = 0
         self.answered[i] = False
         self.started[i] = False
         self.lost_run[i] = 0
@@ -66,26 +70,33 @@ class CycleAccounting:
     def close_cycle(self, n_started: int) -> None:
         """Close the open cycle for the robots whose accounting is open (``n_started`` of them)."""
         answered = self.answered
-        pos = self._pos
+        column = self._ring[:, self._pos]  # the oldest entry, about to be replaced
         if n_started == self.n:  # every robot counts: no masks
-            self._ring[:, pos] = answered
+            self._answered_sum += answered
+            self._answered_sum -= column
+            column[...] = answered
             self._counted += 1
-            self.lost_total += ~answered
+            lost = ~answered
+            self.lost_total += lost
             self.lost_run += 1
-            self.lost_run[answered] = 0
+            self.lost_run *= lost
         else:
             counting = self.started
             lost = counting & ~answered
-            # Robots not counting hold an empty (cleared) window.
-            self._ring[:, pos] = answered & counting
+            entry = answered & counting  # robots not counting keep an empty (cleared) window
+            self._answered_sum += entry
+            self._answered_sum -= column
+            column[...] = entry
             self._counted += counting
             self.lost_total += lost
             self.lost_run = np.where(lost, self.lost_run + 1, np.where(counting, 0, self.lost_run))
         np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
         answered[...] = False
-        self._pos = (pos + 1) % self.window
-        held = np.minimum(self._counted, self.window)
-        np.divide(np.count_nonzero(self._ring, axis=1), held, out=self._rate, where=held > 0)
+        self._pos = (self._pos + 1) % self.window
+        # While the window fills the divisor is what it holds (never 0 here: an
+        # empty window has an empty sum, and 0 / 1 reads 0.0 as between motions).
+        np.clip(self._counted, 1, self.window, out=self._held)
+        np.divide(self._answered_sum, self._held, out=self._rate)
 
     def success_rate(self) -> np.ndarray:
         """control_command_success_rate per robot: answered / cycles held by the window."""

@@ -26,16 +26,19 @@ import logging
 import numpy as np
 
 from ..sim.arm import ArmPhysics
-from . import setters
+from ..sim.self_collision import close_link_pairs, closest_link_pair
+from . import limits, setters
+from ._fast import count_nonzero
 from .accounting import CycleAccounting
 from .config import ControllerConfig
-from .errors import ERROR_COUNT, error_names
+from .errors import ERROR_COUNT, ERROR_NAMES, Error, error_names
 from .events import Event, EventKind
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .reference import JointReference
 from .state import StateWriter
-from .tables import MAX_LOST_CYCLES
+from .tables import DELTA_T, MAX_LOST_CYCLES
+from .violations import ViolationLog, latched_bits
 from .wire import (
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -82,6 +85,12 @@ class FciController:
         self._tau_c = np.zeros((n, 7))
         self._have = np.zeros(n, dtype=bool)
         self._finish = np.zeros(n, dtype=bool)
+        #: a non-finite command arrived (refused whatever the enforcement)
+        self._refused = np.zeros(n, dtype=bool)
+        #: the motion's opening command has not been judged yet
+        self._first = np.zeros(n, dtype=bool)
+        self._ee_prev = np.zeros((n, 3))
+        self.violations = ViolationLog(n)
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         for i in range(n):
@@ -120,7 +129,7 @@ class FciController:
         n = self.n
         if m.n_motion < n:
             mask = mask & m.in_motion
-        k = np.count_nonzero(mask)
+        k = count_nonzero(mask)
         if k == 0:
             return
         ids = commands["message_id"]
@@ -128,17 +137,19 @@ class FciController:
         fresh = ids == published
         if k < n:
             fresh &= mask
-        if np.count_nonzero(fresh) == k:
+        if count_nonzero(fresh) == k:
             accepted = fresh
         else:
             accepted = fresh | (mask & (ids < published) & (ids >= self.accounting.motion_first_id))
             self._log_unanswerable(mask & ~accepted, ids)
         finite = self._finite(commands)
-        if np.count_nonzero(finite) < n:
-            self._log_non_finite(accepted & ~finite)
+        if count_nonzero(finite) < n:
+            refused = accepted & ~finite
+            self._log_non_finite(refused)
+            self._refused |= refused
             accepted = accepted & finite
         self.accounting.answered |= fresh
-        all_in = np.count_nonzero(accepted) == n
+        all_in = count_nonzero(accepted) == n
         if m.n_joint_position:
             self._take(self._q_c, commands["q_c"], accepted, all_in)
         if m.n_joint_velocity:
@@ -171,7 +182,7 @@ class FciController:
         m = self.modes
         w = self.writer
         if m.n_motion:
-            n_started = self._advance_commands()
+            self._advance_commands()
         # Physics: the internal joint servo tracks q_d / dq_d under a joint
         # generator and the hold setpoint otherwise; an external controller's
         # torque is applied with gravity added by the actuators.
@@ -183,46 +194,248 @@ class FciController:
             track = m.tracking[:, None]
             q_ref = np.where(track, w.q_d, self.q_hold)
             dq_ref = np.where(track, w.dq_d, 0.0)
+        moving = m.n_motion > 0
+        if moving:
+            self._ee_prev[...] = w.O_T_EE[:, 12:15]
         self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg)
-        if m.n_motion:
-            self.accounting.close_cycle(n_started)
-            if np.count_nonzero(self._finish):
-                for i in np.flatnonzero(self._finish & m.in_motion):
-                    self._end_motion(int(i), MoveStatus.kSuccess, hold_reference=True)
+        w.write_measured(self.physics)
+        if moving:
+            if m.n_motion:
+                self._safety_controller()
+            acc = self.accounting
+            acc.close_cycle(int(count_nonzero(acc.started)))
+            if count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
+                self._communication_constraints()
+            if count_nonzero(self._finish):
+                for i in np.flatnonzero(self._finish & m.in_motion).tolist():
+                    self._end_motion(i, MoveStatus.kSuccess, hold_reference=True)
             self._have[...] = False
             self._finish[...] = False
         if self._n_recovering:
             self._advance_recovery()
-        self._publish()
+        self._publish_rest()
         return self.take_events()
 
-    def _advance_commands(self) -> int:
-        """Apply the cycle's commands, or extrapolate the lost cycles; returns #started."""
+    # -- the commanded signal ------------------------------------------------------------------
+
+    def _advance_commands(self) -> None:
+        """Judge and apply the cycle's commands, or extrapolate the lost cycles.
+
+        Seed "Motion limits and discontinuities": every command — and every
+        extrapolated waypoint, which is checked, never clamped — goes through
+        its generator's precedence table; a violation is logged always and,
+        with enforcement on, the command is not applied and the motion aborts.
+        """
         m = self.modes
         n = self.n
+        ref = self.reference
+        if count_nonzero(self._refused):
+            self._judge_non_finite()
         started = self.accounting.started
-        n_started = int(np.count_nonzero(started))
-        have = self._have
-        n_have = int(np.count_nonzero(have))
-        if m.n_tracking and n_started:
-            if n_have == n and m.n_joint_position == n:
-                self.reference.apply_positions(self._q_c)
-            else:
-                lost = started & ~have & m.tracking
-                self.reference.advance(
-                    position_cmd=have & m.joint_position,
-                    velocity_cmd=have & m.joint_velocity,
-                    extrapolate=lost,
-                    q_c=self._q_c,
-                    dq_c=self._dq_c,
-                    # Seed "Extrapolation stops at 20": past it the last value holds.
-                    can_extrapolate=self.accounting.lost_run < MAX_LOST_CYCLES,
+        if m.n_tracking and count_nonzero(started):
+            have = self._have
+            if (
+                m.n_joint_position == n
+                and count_nonzero(have) == n
+                and not count_nonzero(self._first)
+            ):
+                check = limits.check_joint_position(
+                    self._q_c,
+                    ref.q,
+                    ref.dq,
+                    ref.ddq,
+                    False,
+                    ref.q,
+                    1,
+                    self.table,
+                    self.config.start_pose_tolerance,
                 )
-        if m.n_external and n_have:
-            # A torque is not a waypoint: a lost cycle keeps the last one
-            # (seed "What the sim does with a lost cycle": tau_J_d held).
-            self._take(self.tau_J_d, self._tau_c, have & m.external, n_have == m.n_external == n)
-        return n_started
+                if not count_nonzero(check.error >= 0):
+                    ref.record_positions(self._q_c, check.dq, check.ddq)
+                else:
+                    self._advance_joints(started)
+            else:
+                self._advance_joints(started)
+        if m.n_external and count_nonzero(self._have):
+            self._advance_torques()
+
+    def _advance_joints(self, started: np.ndarray) -> None:
+        """The general (masked) path: commands, extrapolations and holds of joint motions."""
+        m = self.modes
+        ref = self.reference
+        have = self._have
+        dt = DELTA_T
+        lost = started & ~have & m.tracking
+        extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
+        # Seed "What the sim does with a lost cycle": one substitute waypoint per
+        # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
+        ex_dq = ref.dq + ref.ddq_frozen * dt
+        ex_q = ref.q + ex_dq * dt
+        h = have[:, None]
+        q_cand = np.where(h, self._q_c, ex_q)
+        dq_cand = np.where(h, self._dq_c, ex_dq)
+        first = self._first & have
+        position = (have | extrapolate) & m.joint_position
+        velocity = (have | extrapolate) & m.joint_velocity
+        tol = self.config
+        error = np.full(self.n, limits.NO_ERROR)
+        new_dq, new_ddq = ex_dq, ref.ddq_frozen
+        if count_nonzero(position):
+            args = (
+                q_cand,
+                ref.q.copy(),
+                ref.dq.copy(),
+                ref.ddq.copy(),
+                first,
+                ref.q.copy(),
+                1,
+                self.table,
+                tol.start_pose_tolerance,
+            )
+            pc = limits.check_joint_position(*args)
+            error = np.where(position, pc.error, error)
+            self._judge(error, position, lambda i: limits.describe_joint_position(i, *args))
+            real = (have & m.joint_position)[:, None]
+            new_dq = np.where(real, pc.dq, new_dq)
+            new_ddq = np.where(real, pc.ddq, new_ddq)
+        if count_nonzero(velocity):
+            args = (
+                dq_cand,
+                ref.q.copy(),
+                ref.dq.copy(),
+                ref.ddq.copy(),
+                first,
+                ref.dq.copy(),
+                1,
+                self.table,
+                tol.start_velocity_tolerance,
+            )
+            vc = limits.check_joint_velocity(*args)
+            error = np.where(velocity, vc.error, error)
+            self._judge(error, velocity, lambda i: limits.describe_joint_velocity(i, *args))
+            real = (have & m.joint_velocity)[:, None]
+            new_dq = np.where(real, self._dq_c, new_dq)
+            new_ddq = np.where(real, vc.ddq, new_ddq)
+            q_cand = np.where((velocity & have)[:, None], ref.q + self._dq_c * dt, q_cand)
+        # Robots aborted by _judge are no longer tracking: apply to the rest only.
+        apply = (position | velocity) & self.modes.tracking
+        held = lost & ~extrapolate & self.modes.tracking
+        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held)
+        self._first &= ~have
+
+    def _advance_torques(self) -> None:
+        """Judge the arrived torques (34 range, 32 rate); a lost cycle keeps the last one."""
+        m = self.modes
+        rows = self._have & m.external
+        args = (self._tau_c, self.tau_J_d.copy(), self._first & rows, 1, self.table)
+        error = limits.check_torque(*args)
+        if count_nonzero(error[rows] >= 0):
+            self._judge(error, rows, lambda i: limits.describe_torque(i, *args))
+            rows = rows & self.modes.external
+        # A torque is not a waypoint: a lost cycle keeps the last one (seed "What
+        # the sim does with a lost cycle": tau_J_d held).
+        np.copyto(self.tau_J_d, self._tau_c, where=rows[:, None])
+        self._first &= ~(rows & self.modes.torque_only)
+
+    def _judge_non_finite(self) -> None:
+        """Seed: a non-finite command is refused whatever the enforcement, and reported as
+        the limits violation of the generator it arrived in (12 q_c, 13 dq_c, 34 tau_J_d)."""
+        m = self.modes
+        refused = self._refused & m.in_motion
+        error = np.full(self.n, limits.NO_ERROR)
+        error[refused & m.external] = Error.tau_j_range_violation
+        error[refused & m.joint_velocity] = Error.joint_motion_generator_velocity_limits_violation
+        error[refused & m.joint_position] = Error.joint_motion_generator_position_limits_violation
+        self._judge(error, refused, lambda i: "non-finite commanded value (refused)")
+        self._refused[...] = False
+
+    def _judge(self, error: np.ndarray, rows: np.ndarray, describe) -> None:
+        """Log every violation in ``rows``; abort those robots' motions when enforced."""
+        bad = rows & (error >= 0) & self.modes.in_motion
+        if not count_nonzero(bad):
+            return
+        enforce = self.config.enforce_motion_limits
+        for i in np.flatnonzero(bad).tolist():
+            e = int(error[i])
+            described = describe(i)
+            message = described.message() if hasattr(described, "message") else str(described)
+            self.violations.report(i, e, message, enforce)
+            if enforce:
+                self._reflex(i, latched_bits(e))
+
+    # -- the safety controller and the communication bound ------------------------------------
+
+    def _safety_controller(self) -> None:
+        """Seed "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
+        "self_collision_avoidance_violation (2)": on the measured state, every control
+        mode, every cycle of a motion; 4 outranks 3; 2 is independent of both."""
+        physics, w, table = self.physics, self.writer, self.table
+        margin = self.config.measured_velocity_margin
+        e_joint = limits.check_measured_joint_velocity(physics.dq, physics.q, table, margin)
+        # The measured EE speed at F_T_EE: backward difference of the measured
+        # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
+        v_ee = (w.O_T_EE[:, 12:15] - self._ee_prev) * (1.0 / DELTA_T)
+        e_cart = limits.check_measured_cartesian_speed(v_ee, table)
+        error = limits.safety_error(e_joint, e_cart)
+        close = close_link_pairs(
+            physics.model, physics.data, physics.layout, self.config.self_collision_distance
+        )
+        bad = self.modes.in_motion & ((error >= 0) | close)
+        if not count_nonzero(bad):
+            return
+        enforce = self.config.enforce_motion_limits
+        for i in np.flatnonzero(bad).tolist():
+            bits = []
+            if error[i] >= 0:
+                e = int(error[i])
+                if e == int(Error.cartesian_velocity_violation):
+                    d = limits.describe_measured_cartesian_speed(i, v_ee, table)
+                else:
+                    d = limits.describe_measured_joint_velocity(
+                        i, physics.dq, physics.q, table, margin
+                    )
+                self.violations.report(i, e, d.message() if d else ERROR_NAMES[e], enforce)
+                bits.append(e)
+            if close[i]:
+                e = int(Error.self_collision_avoidance_violation)
+                pair = closest_link_pair(physics.model, physics.data, physics.layout, i)
+                where = f"link{pair[1]} / link{pair[2]} at {pair[0] * 1000:.1f} mm" if pair else ""
+                self.violations.report(
+                    i,
+                    e,
+                    f"{where}, limit {self.config.self_collision_distance * 1000:.0f} mm",
+                    enforce,
+                )
+                bits.append(e)
+            if enforce:
+                self._reflex(i, bits)
+
+    def _communication_constraints(self) -> None:
+        """Seed "Enabling the violation": 20 consecutive lost cycles latch 25 (opt-in)."""
+        over = (self.accounting.lost_run >= MAX_LOST_CYCLES) & self.modes.in_motion
+        enforce = self.config.enforce_comm_constraints
+        e = int(Error.communication_constraints_violation)
+        for i in np.flatnonzero(over).tolist():
+            run = int(self.accounting.lost_run[i])
+            self.violations.report(
+                i, e, f"{run} consecutive lost cycles, limit {MAX_LOST_CYCLES}", enforce
+            )
+            if enforce:
+                self._reflex(i, [e])
+
+    def _reflex(self, i: int, bits: list[int]) -> None:
+        """Abort robot i's motion: latch ``bits``, kReflex, Move answered kReflexAborted
+        (after the state carrying the error is sent: events go out after the state)."""
+        if not self.modes.in_motion[i]:
+            self.errors[i, bits] = True
+            self.reflex_reason[i, bits] = True
+            self._write_modes(i)
+            return
+        self.errors[i, bits] = True
+        self.reflex_reason[i, bits] = True
+        self._end_motion(
+            i, MoveStatus.kReflexAborted, hold_reference=False, robot_mode=int(RobotMode.kReflex)
+        )
 
     def cycle(self, commands: np.ndarray | None = None, mask=None) -> list[Event]:
         """``receive`` (when commands are given) then ``step``: one whole cycle."""
@@ -236,11 +449,15 @@ class FciController:
         return events
 
     def _publish(self) -> None:
-        """Write state k+1 (measured fields, q_d between motions) and publish it."""
+        """Write state k+1 from the current physics (no step) and publish it."""
+        self.writer.write_measured(self.physics)
+        self._publish_rest()
+
+    def _publish_rest(self) -> None:
+        """Derived fields, q_d between motions, and publish state k+1."""
         m = self.modes
         w = self.writer
         physics = self.physics
-        w.write_measured(physics)
         # Idle and under joint generators the desired/commanded pose and elbow
         # are the measured ones (seed "RobotState fields": O_T_EE_d / O_T_EE_c).
         w.O_T_EE_d[...] = w.O_T_EE
@@ -307,7 +524,9 @@ class FciController:
         # motion that was aborted, not the connection (as the robot does).
         self.reflex_reason[i] = False
         self.accounting.start_motion(i, int(self.writer.message_id[i]))
-        self._have[i] = self._finish[i] = False
+        self._have[i] = self._finish[i] = self._refused[i] = False
+        self._first[i] = True
+        self.violations.begin_motion(i)
         self._write_modes(i)
         return MoveStatus.kMotionStarted
 
@@ -333,7 +552,7 @@ class FciController:
         self.modes.set_robot_mode(i, int(RobotMode.kAutomaticErrorRecovery))
         self._recovery_wait[i] = 0
         self._recovery_settled[i] = 0
-        self._n_recovering = int(np.count_nonzero(self._recovery_wait >= 0))
+        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
         self._write_modes(i)
         return None
 
@@ -402,7 +621,7 @@ class FciController:
             self.accounting.stop_motion(i)
             self.writer.reset_configuration(i)
             self._write_modes(i)
-        self._n_recovering = int(np.count_nonzero(self._recovery_wait >= 0))
+        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
         self._have[robots] = False
         self._finish[robots] = False
         dropped = set(robots.tolist())
@@ -411,7 +630,9 @@ class FciController:
 
     # -- internals ------------------------------------------------------------------------------
 
-    def _end_motion(self, i: int, status: MoveStatus, hold_reference: bool) -> None:
+    def _end_motion(
+        self, i: int, status: MoveStatus, hold_reference: bool, robot_mode: int | None = None
+    ) -> None:
         """End robot i's motion with ``status``; the idle hold takes the arm back."""
         generator = int(self.modes.motion_generator_mode[i])
         if hold_reference and generator in (JOINT_POSITION, JOINT_VELOCITY):
@@ -419,11 +640,13 @@ class FciController:
             self.q_hold[i] = self.reference.q[i]
         else:
             self.q_hold[i] = self.physics.q[i]
-        mode = int(self.modes.robot_mode[i])
-        self.modes.end(i, mode if mode != RobotMode.kMove else int(RobotMode.kIdle))
+        if robot_mode is None:
+            mode = int(self.modes.robot_mode[i])
+            robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
+        self.modes.end(i, robot_mode)
         self._clear_commanded(i)
         self.accounting.stop_motion(i)
-        self._have[i] = self._finish[i] = False
+        self._have[i] = self._finish[i] = self._first[i] = self._refused[i] = False
         self._write_modes(i)
         self._events.append(Event(i, EventKind.MOVE_FINISHED, int(status)))
 
@@ -452,7 +675,7 @@ class FciController:
     def _finish_recovery(self, i: int) -> None:
         self._recovery_wait[i] = -1
         self._recovery_settled[i] = 0
-        self._n_recovering = int(np.count_nonzero(self._recovery_wait >= 0))
+        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
         self.modes.set_robot_mode(i, int(RobotMode.kIdle))
         self._write_modes(i)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._fast import count_nonzero
 from .tables import DELTA_T
 
 _RATE = 1.0 / DELTA_T
@@ -38,56 +39,39 @@ class JointReference:
         self.ddq[i] = 0.0
         self.ddq_frozen[i] = 0.0
 
-    def apply_positions(self, q_c: np.ndarray) -> None:
-        """Every robot received a q_c this cycle (the common case, no masks)."""
-        dq_new = self._dq_new
-        np.subtract(q_c, self.q, out=dq_new)
-        dq_new *= _RATE
-        np.subtract(dq_new, self.dq, out=self.ddq)
-        self.ddq *= _RATE
-        self.dq[...] = dq_new
+    def record_positions(self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
+        """Every robot applied a q_c this cycle, with its judged derivatives (no masks)."""
         self.q[...] = q_c
-        self.ddq_frozen[...] = self.ddq
+        self.dq[...] = dq
+        self.ddq[...] = ddq
+        self.ddq_frozen[...] = ddq
 
-    def advance(
+    def record_masked(
         self,
-        position_cmd: np.ndarray,
-        velocity_cmd: np.ndarray,
-        extrapolate: np.ndarray,
-        q_c: np.ndarray,
-        dq_c: np.ndarray,
-        can_extrapolate: np.ndarray,
+        apply: np.ndarray,
+        real: np.ndarray,
+        q: np.ndarray,
+        dq: np.ndarray,
+        ddq: np.ndarray,
+        held: np.ndarray,
     ) -> None:
-        """Advance the robots of the masks by one cycle (the general, masked path).
+        """Record the cycle's reference where ``apply`` (the general path).
 
         Args:
-            position_cmd: (n,) a q_c arrived for a joint-position motion.
-            velocity_cmd: (n,) a dq_c arrived for a joint-velocity motion.
-            extrapolate: (n,) a joint motion's cycle went unanswered.
-            q_c, dq_c: (n, 7) the cycle's commands (read where the masks say).
-            can_extrapolate: (n,) fewer than 20 cycles lost in a row; past
-                that the last extrapolated value holds (at rest).
+            apply: (n,) robots whose reference advances to (q, dq, ddq): an applied
+                command or an extrapolated waypoint.
+            real: (n,) of those, the ones a command actually arrived for: only
+                these re-freeze the acceleration a lost cycle continues with (seed
+                "Frozen, not continued").
+            held: (n,) robots past 20 lost cycles: the last extrapolated value
+                holds, at rest (seed "Extrapolation stops at 20").
         """
-        dt = DELTA_T
-        q, dq = self.q, self.dq
-        pc, vc = position_cmd[:, None], velocity_cmd[:, None]
-        # Backward Euler of the command (libfranka docs/overview.rst).
-        new_dq = np.where(pc, (q_c - q) * _RATE, np.where(vc, dq_c, dq))
-        new_ddq = (new_dq - dq) * _RATE
-        new_q = np.where(pc, q_c, np.where(vc, q + new_dq * dt, q))
-        # A lost cycle: semi-implicit Euler at the frozen acceleration (v += a dt,
-        # then q += v dt); the same law for dq_c (dq += a dt, no jerk term).
-        extra = (extrapolate & can_extrapolate)[:, None]
-        ex_dq = dq + self.ddq_frozen * dt
-        new_dq = np.where(extra, ex_dq, new_dq)
-        new_ddq = np.where(extra, self.ddq_frozen, new_ddq)
-        new_q = np.where(extra, q + ex_dq * dt, new_q)
-        # Past 20 lost cycles the last extrapolated value holds, at rest.
-        held = (extrapolate & ~can_extrapolate)[:, None]
-        new_dq = np.where(held, 0.0, new_dq)
-        new_ddq = np.where(held, 0.0, new_ddq)
-        touched = (position_cmd | velocity_cmd | extrapolate)[:, None]
-        np.copyto(self.ddq_frozen, new_ddq, where=(position_cmd | velocity_cmd)[:, None])
-        np.copyto(self.q, new_q, where=touched)
-        np.copyto(self.dq, new_dq, where=touched)
-        np.copyto(self.ddq, new_ddq, where=touched)
+        a = apply[:, None]
+        np.copyto(self.q, q, where=a)
+        np.copyto(self.dq, dq, where=a)
+        np.copyto(self.ddq, ddq, where=a)
+        np.copyto(self.ddq_frozen, ddq, where=real[:, None])
+        if count_nonzero(held):
+            h = held[:, None]
+            np.copyto(self.dq, 0.0, where=h)
+            np.copyto(self.ddq, 0.0, where=h)

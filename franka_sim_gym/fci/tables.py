@@ -12,6 +12,7 @@ threshold as "limit - 1e-3" we follow the seed (it is the requirement).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -76,23 +77,37 @@ class RobotTable:
     ik_ddq_max: np.ndarray = field(default_factory=lambda: _ro(np.zeros(7)))
     ik_dddq_max: np.ndarray = field(default_factory=lambda: _ro(np.zeros(7)))
 
+    @cached_property
+    def _envelope_constants(self) -> tuple[np.ndarray, ...]:
+        """Upper and lower halves side by side, (14,) each: one pass computes both."""
+        two_a = np.concatenate([2.0 * self.ddq_decel] * 2)
+        bound = np.concatenate([self.q_upper, -self.q_lower])
+        return two_a, bound, np.concatenate([self.dq_offset] * 2), np.concatenate([self.dq_max] * 2)
+
     def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The admissible joint velocity band at q, shape (..., 7) each.
 
         libfranka >= 0.18 src/joint_velocity_limits.cpp (limits.md §4):
         upper = min(v_max, max(0, -v_off + sqrt(max(0, 2 a_dec (q_max - q))))) - tol,
         lower = max(-v_max, min(0, v_off - sqrt(max(0, 2 a_dec (q - q_min))))) + tol.
+        Computed as one (..., 14) pass: lower = -(the same law on the mirrored range).
         """
         tol = JOINT_VELOCITY_LIMIT_TOLERANCE
         if self.dq_offset is None:
             upper = np.broadcast_to(self.dq_max - tol, np.shape(q))
             return upper, -upper
-        two_a = 2.0 * self.ddq_decel
-        up = np.sqrt(np.maximum(0.0, two_a * (self.q_upper - q))) - self.dq_offset
-        lo = self.dq_offset - np.sqrt(np.maximum(0.0, two_a * (q - self.q_lower)))
-        upper = np.minimum(self.dq_max, np.maximum(0.0, up)) - tol
-        lower = np.maximum(-self.dq_max, np.minimum(0.0, lo)) + tol
-        return upper, lower
+        two_a, bound, offset, vmax = self._envelope_constants
+        r = np.concatenate((q, q), axis=-1)
+        r[..., 7:] *= -1.0
+        np.subtract(bound, r, out=r)  # distance to the stop, both sides
+        r *= two_a
+        np.maximum(r, 0.0, out=r)
+        np.sqrt(r, out=r)
+        r -= offset
+        np.maximum(r, 0.0, out=r)
+        np.minimum(r, vmax, out=r)
+        r -= tol
+        return r[..., :7], -r[..., 7:]
 
 
 #: FR3 behind FCI v10. Joint ranges, velocities, offsets, deceleration and

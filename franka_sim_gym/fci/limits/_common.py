@@ -130,13 +130,15 @@ def as_bool(first) -> np.ndarray:
     return np.asarray(first, dtype=bool)
 
 
-def interval(steps) -> np.ndarray:
+def interval(steps) -> np.ndarray | float:
     """(n, 1) differencing interval ``steps * dt`` [s] (or (1, 1) for a scalar ``steps``).
 
     The seed ("The difference formulas"): the interval is the server's own count
     of published cycles since the command the history sits at, not an assumed
     millisecond. ``steps`` >= 1 is the caller's precondition.
     """
+    if isinstance(steps, int | np.integer):  # one interval for every robot: a scalar is cheapest
+        return float(steps) * DELTA_T
     return np.asarray(steps, dtype=np.float64).reshape(-1, 1) * DELTA_T
 
 
