@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import queue
+import signal
 import socket
 import threading
 import time
@@ -138,6 +139,8 @@ class RobotServer:
         except KeyboardInterrupt:
             log.info("interrupted")
         finally:
+            # A second Ctrl-C must not interrupt the shutdown itself.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
             self.stop()
 
     # -- TCP side -----------------------------------------------------------------------------

@@ -285,6 +285,125 @@ def scenario_rate(host: str) -> dict:
     }
 
 
+#: Start pose of the fold: shoulder forward (q2 = 0.3), so that folding joint 4 brings
+#: the wrist down onto the base within 50 mm before joint 4 reaches its stop.
+FOLD_START = [0.0, 0.3, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
+
+
+def move_to(robot: fr.Robot, target: list[float], duration: float) -> None:
+    """A smooth (cosine-blended) joint-position motion to ``target``."""
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    t, q0 = 0.0, None
+    while True:
+        state, period = control.readOnce()
+        t += period.to_sec()
+        if q0 is None:
+            q0 = list(state.q_d)
+        s = 0.5 * (1 - math.cos(math.pi * min(t / duration, 1.0)))
+        command = fr.JointPositions([a + s * (b - a) for a, b in zip(q0, target, strict=True)])
+        if t >= duration:
+            command.motion_finished = True
+            control.writeOnce(command)
+            return
+        control.writeOnce(command)
+
+
+def _provoke(robot: fr.Robot, kind: str) -> str | None:
+    """Run one reflex provocation; the ControlException text it ends with (None if none)."""
+    if kind == "fold":
+        move_to(robot, FOLD_START, 3.0)
+    if kind == "torque_step":
+        control = robot.start_torque_control()
+    elif kind in ("velocity_step", "fold"):
+        control = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
+    else:
+        control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    q0 = None
+    t = 0.0
+    try:
+        for k in range(20000):
+            state, period = control.readOnce()
+            t += period.to_sec()
+            if q0 is None:
+                q0 = list(state.q_d)
+            if kind == "start_pose":  # first waypoint +0.2 rad on joint 1
+                q = list(q0)
+                q[0] += 0.2
+                control.writeOnce(fr.JointPositions(q))
+            elif kind == "position_step":  # hold, then a 1 rad step on joint 1
+                q = list(q0)
+                if k >= 50:
+                    q[0] += 1.0
+                control.writeOnce(fr.JointPositions(q))
+            elif kind == "velocity_step":  # rest, then a 50 rad/s step in dq_c
+                dq = [0.0] * 7
+                if k >= 50:
+                    dq[3] = 50.0
+                control.writeOnce(fr.JointVelocities(dq))
+            elif kind == "torque_step":  # zero torque, then a 5 Nm step on joint 1
+                tau = [0.0] * 7
+                if k >= 50:
+                    tau[0] = 5.0
+                control.writeOnce(fr.Torques(tau))
+            elif kind == "fold":
+                # Seed: joint 4 folds at -0.1 rad/s while joint 5 turns at 0.2 rad/s
+                # (smooth 0.5 s ramps keep the command inside the jerk limit).
+                ramp = min(1.0, t / 0.5)
+                ramp = ramp * ramp * (3 - 2 * ramp)
+                dq = [0.0, 0.0, 0.0, -0.1 * ramp, 0.2 * ramp, 0.0, 0.0]
+                control.writeOnce(fr.JointVelocities(dq))
+    except fr.ControlException as exc:
+        return str(exc)
+    finally:
+        del control
+    return None
+
+
+def scenario_reflex(host: str) -> dict:
+    """A provocation (REFLEX env), then: Move refused, recovery, a fresh motion succeeds."""
+    kind = os.environ["REFLEX"]
+    robot = connect(host)
+    error = _provoke(robot, kind)
+    after = robot.read_once()
+    refused = None
+    try:
+        control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+        del control
+    except Exception as exc:  # expected: the robot is in Reflex
+        refused = f"{type(exc).__name__}: {exc}"
+    t0 = time.monotonic()
+    robot.automatic_error_recovery()
+    recovery_s = time.monotonic() - t0
+    # States queued while the reply was deferred are stale (the UDP buffer kept the
+    # oldest ones): read until the stream shows the recovered robot.
+    recovered = robot.read_once()
+    for _ in range(3000):
+        if recovered.robot_mode != fr.RobotMode.AutomaticErrorRecovery:
+            break
+        recovered = robot.read_once()
+    try:
+        motion = cosine_motion(robot, duration=0.5, amplitude=0.02)
+        next_error = None
+    except fr.ControlException as exc:
+        motion, next_error = None, str(exc)
+    final = motion["final"] if motion else state_dict(robot.read_once())
+    return {
+        "error": error,
+        "mode_after": after.robot_mode.name,
+        "current_errors_after": str(after.current_errors),
+        "last_motion_errors_after": str(after.last_motion_errors),
+        "q4_after": after.q[3],
+        "refused": refused,
+        "recovery_s": recovery_s,
+        "mode_recovered": recovered.robot_mode.name,
+        "current_errors_recovered": str(recovered.current_errors),
+        "last_motion_errors_recovered": str(recovered.last_motion_errors),
+        "next_motion_error": next_error,
+        "next_motion_final_mode": final["robot_mode"],
+        "next_motion_last_motion_errors": final["last_motion_errors"],
+    }
+
+
 if __name__ == "__main__":
     name, host = sys.argv[1], sys.argv[2]
     try:
