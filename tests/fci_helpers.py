@@ -71,8 +71,7 @@ class LoopClient:
     def finish(self, **fields) -> int | None:
         """Send the final command until the motion ends; the Move's final status."""
         for _ in range(10):
-            self.send(finished=True, **fields)
-            for event in self.events:
+            for event in self.send(finished=True, **fields):
                 if event.kind is EventKind.MOVE_FINISHED:
                     return event.status
         return None
