@@ -371,15 +371,28 @@ class FciController:
         mode, every cycle of a motion; 4 outranks 3; 2 is independent of both."""
         physics, w, table = self.physics, self.writer, self.table
         margin = self.config.measured_velocity_margin
-        e_joint = limits.check_measured_joint_velocity(physics.dq, physics.q, table, margin)
+        dq = physics.dq
+        upper, lower = table.velocity_envelope(physics.q)
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
-        v_ee = (w.O_T_EE[:, 12:15] - self._ee_prev) * (1.0 / DELTA_T)
-        e_cart = limits.check_measured_cartesian_speed(v_ee, table)
-        error = limits.safety_error(e_joint, e_cart)
+        v_ee = w.O_T_EE[:, 12:15] - self._ee_prev
+        v_ee *= 1.0 / DELTA_T
+        # Cheap booleans first; the rule functions name the error only on a trip.
+        # Written as "not inside" so that a NaN physics state trips too.
+        fast = ~((dq <= upper + margin) & (dq >= lower - margin))
+        speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
         close = close_link_pairs(
             physics.model, physics.data, physics.layout, self.config.self_collision_distance
         )
+        if not (
+            count_nonzero(fast)
+            or count_nonzero(~(speed2 <= table.v_trans_max**2))
+            or count_nonzero(close)
+        ):
+            return
+        e_joint = limits.check_measured_joint_velocity(dq, physics.q, table, margin)
+        e_cart = limits.check_measured_cartesian_speed(v_ee, table)
+        error = limits.safety_error(e_joint, e_cart)
         bad = self.modes.in_motion & ((error >= 0) | close)
         if not count_nonzero(bad):
             return
