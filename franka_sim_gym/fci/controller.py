@@ -137,10 +137,12 @@ class FciController:
         fresh = ids == published
         if k < n:
             fresh &= mask
+        late = None
         if count_nonzero(fresh) == k:
             accepted = fresh
         else:
-            accepted = fresh | (mask & (ids < published) & (ids >= self.accounting.motion_first_id))
+            late = mask & (ids < published) & (ids >= self.accounting.motion_first_id)
+            accepted = fresh | late
             self._log_unanswerable(mask & ~accepted, ids)
         finite = self._finite(commands)
         if count_nonzero(finite) < n:
@@ -149,6 +151,13 @@ class FciController:
             self._refused |= refused
             accepted = accepted & finite
         self.accounting.answered |= fresh
+        if late is not None and m.n_tracking:
+            late_joint = late & m.tracking & accepted
+            if count_nonzero(late_joint):
+                # Late datagrams of joint motions are handled on arrival: the one
+                # the extrapolated run is missing rewinds it, the others are judged.
+                self._late_joint_datagrams(commands, late_joint, ids)
+                accepted = accepted & ~late_joint
         all_in = count_nonzero(accepted) == n
         if m.n_joint_position:
             self._take(self._q_c, commands["q_c"], accepted, all_in)
@@ -251,29 +260,45 @@ class FciController:
                     self.config.start_pose_tolerance,
                 )
                 if not count_nonzero(check.error >= 0):
-                    ref.record_positions(self._q_c, check.dq, check.ddq)
+                    ref.record_positions(self._q_c, check.dq, check.ddq, self.writer.message_id)
                 else:
-                    self._advance_joints(started)
+                    self._advance_joints(started, have, self._q_c, self._dq_c)
             else:
-                self._advance_joints(started)
+                self._advance_joints(started, have, self._q_c, self._dq_c)
         if m.n_external and count_nonzero(self._have):
             self._advance_torques()
 
-    def _advance_joints(self, started: np.ndarray) -> None:
-        """The general (masked) path: commands, extrapolations and holds of joint motions."""
+    def _advance_joints(
+        self,
+        started: np.ndarray,
+        have: np.ndarray,
+        q_c: np.ndarray,
+        dq_c: np.ndarray,
+        echo: np.ndarray | None = None,
+        extrapolate_lost: bool = True,
+    ) -> None:
+        """The general (masked) path: commands, extrapolations and holds of joint motions.
+
+        ``have`` marks the robots whose command (``q_c`` / ``dq_c``, echoing ``echo``,
+        by default the open cycle's id) is applied and recorded as a real sample;
+        with ``extrapolate_lost`` the other started joint motions lose the cycle.
+        """
         m = self.modes
         ref = self.reference
-        have = self._have
         dt = DELTA_T
+        if echo is None:
+            echo = self.writer.message_id
         lost = started & ~have & m.tracking
+        if not extrapolate_lost:
+            lost = np.zeros_like(lost)
         extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
         # Seed "What the sim does with a lost cycle": one substitute waypoint per
         # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
         ex_dq = ref.dq + ref.ddq_frozen * dt
         ex_q = ref.q + ex_dq * dt
         h = have[:, None]
-        q_cand = np.where(h, self._q_c, ex_q)
-        dq_cand = np.where(h, self._dq_c, ex_dq)
+        q_cand = np.where(h, q_c, ex_q)
+        dq_cand = np.where(h, dq_c, ex_dq)
         first = self._first & have
         position = (have | extrapolate) & m.joint_position
         velocity = (have | extrapolate) & m.joint_velocity
@@ -314,14 +339,80 @@ class FciController:
             error = np.where(velocity, vc.error, error)
             self._judge(error, velocity, lambda i: limits.describe_joint_velocity(i, *args))
             real = (have & m.joint_velocity)[:, None]
-            new_dq = np.where(real, self._dq_c, new_dq)
+            new_dq = np.where(real, dq_c, new_dq)
             new_ddq = np.where(real, vc.ddq, new_ddq)
-            q_cand = np.where((velocity & have)[:, None], ref.q + self._dq_c * dt, q_cand)
+            q_cand = np.where((velocity & have)[:, None], ref.q + dq_c * dt, q_cand)
         # Robots aborted by _judge are no longer tracking: apply to the rest only.
         apply = (position | velocity) & self.modes.tracking
         held = lost & ~extrapolate & self.modes.tracking
-        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held)
+        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held, echo)
         self._first &= ~have
+
+    def _late_joint_datagrams(self, commands: np.ndarray, late: np.ndarray, ids) -> None:
+        """Seed "A datagram that turns up late replaces the guess it stood in for".
+
+        Inside an extrapolated run, the datagram echoing the run's oldest unanswered
+        id throws the run's guesses away and is differenced against the last
+        command that actually arrived, over the one cycle it really travelled in
+        the client's stream, and becomes the new real sample (a backlog draining
+        in order rewinds datagram by datagram). Any other late datagram — a
+        replay, a duplicate, a reordered packet — gets no rewind and never touches
+        the history: it is judged against the reference as it stands (and can
+        trip a spurious discontinuity, as the seed warns), but not applied.
+        """
+        ref = self.reference
+        ids = ids.astype(np.uint64)
+        # The run's oldest unanswered id is the one after the last real command's:
+        # after each rewind the next datagram of an in-order backlog is again that.
+        rewind = late & (ids == ref.real_echo + np.uint64(1))
+        if count_nonzero(rewind):
+            ref.rewind(rewind)
+            never = np.zeros(self.n, dtype=bool)
+            self._advance_joints(
+                never,
+                rewind,
+                commands["q_c"],
+                commands["dq_c"],
+                echo=ids,
+                extrapolate_lost=False,
+            )
+        judged = late & ~rewind & self.modes.tracking
+        if count_nonzero(judged):
+            self._judge_only(commands, judged)
+
+    def _judge_only(self, commands: np.ndarray, rows: np.ndarray) -> None:
+        """Check commands of ``rows`` against the reference as it stands, without applying."""
+        m, ref, cfg = self.modes, self.reference, self.config
+        position = rows & m.joint_position
+        if count_nonzero(position):
+            args = (
+                commands["q_c"].copy(),
+                ref.q.copy(),
+                ref.dq.copy(),
+                ref.ddq.copy(),
+                False,
+                ref.q.copy(),
+                1,
+                self.table,
+                cfg.start_pose_tolerance,
+            )
+            error = limits.check_joint_position(*args).error
+            self._judge(error, position, lambda i: limits.describe_joint_position(i, *args))
+        velocity = rows & m.joint_velocity
+        if count_nonzero(velocity):
+            args = (
+                commands["dq_c"].copy(),
+                ref.q.copy(),
+                ref.dq.copy(),
+                ref.ddq.copy(),
+                False,
+                ref.dq.copy(),
+                1,
+                self.table,
+                cfg.start_velocity_tolerance,
+            )
+            error = limits.check_joint_velocity(*args).error
+            self._judge(error, velocity, lambda i: limits.describe_joint_velocity(i, *args))
 
     def _advance_torques(self) -> None:
         """Judge the arrived torques (34 range, 32 rate); a lost cycle keeps the last one."""
@@ -530,7 +621,7 @@ class FciController:
             self._end_motion(i, MoveStatus.kPreempted, hold_reference=False)
         q = self.physics.q[i].copy()
         self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
-        self.reference.seed(i, q)
+        self.reference.seed(i, q, int(self.writer.message_id[i]))
         self.q_hold[i] = q
         self.tau_J_d[i] = 0.0
         # A new motion starts with last_motion_errors clear: it describes the

@@ -30,21 +30,49 @@ class JointReference:
     def __init__(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
         self.q, self.dq, self.ddq = q, dq, ddq
         self.ddq_frozen = np.zeros_like(q)
-        self._dq_new = np.empty_like(q)
+        n = q.shape[0]
+        #: the message id the last command that actually arrived echoed
+        self.real_echo = np.zeros(n, dtype=np.uint64)
+        #: extrapolated samples recorded since that command (the current run)
+        self.run = np.zeros(n, dtype=np.int64)
+        # The last real sample, snapshotted when an extrapolated run begins, so a
+        # late datagram can throw the run's guesses away (seed "A datagram that
+        # turns up late replaces the guess it stood in for").
+        self._real_q = np.zeros_like(q)
+        self._real_dq = np.zeros_like(q)
+        self._real_ddq = np.zeros_like(q)
 
-    def seed(self, i: int, q: np.ndarray) -> None:
-        """Start robot i's motion at rest at ``q`` (a new Move)."""
+    def seed(self, i: int, q: np.ndarray, echo: int) -> None:
+        """Start robot i's motion at rest at ``q`` (a new Move); ``echo``: the last published id."""
         self.q[i] = q
         self.dq[i] = 0.0
         self.ddq[i] = 0.0
         self.ddq_frozen[i] = 0.0
+        self.real_echo[i] = echo
+        self.run[i] = 0
 
-    def record_positions(self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
-        """Every robot applied a q_c this cycle, with its judged derivatives (no masks)."""
+    def rewind(self, rows: np.ndarray) -> None:
+        """Throw away the extrapolated run of ``rows``: the history is the last real sample.
+
+        A robot with no guesses since its last real sample is already there.
+        """
+        rows = rows & (self.run > 0)
+        r = rows[:, None]
+        np.copyto(self.q, self._real_q, where=r)
+        np.copyto(self.dq, self._real_dq, where=r)
+        np.copyto(self.ddq, self._real_ddq, where=r)
+        self.run[rows] = 0
+
+    def record_positions(
+        self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray, echo: np.ndarray
+    ) -> None:
+        """Every robot applied a fresh q_c this cycle, with its judged derivatives (no masks)."""
         self.q[...] = q_c
         self.dq[...] = dq
         self.ddq[...] = ddq
         self.ddq_frozen[...] = ddq
+        self.real_echo[...] = echo
+        self.run[...] = 0
 
     def record_masked(
         self,
@@ -54,6 +82,7 @@ class JointReference:
         dq: np.ndarray,
         ddq: np.ndarray,
         held: np.ndarray,
+        echo: np.ndarray,
     ) -> None:
         """Record the cycle's reference where ``apply`` (the general path).
 
@@ -67,6 +96,16 @@ class JointReference:
                 holds, at rest (seed "Extrapolation stops at 20").
         """
         a = apply[:, None]
+        guessed = apply & ~real
+        starting = guessed & (self.run == 0)
+        if count_nonzero(starting):  # a run of guesses begins: remember the real sample
+            st = starting[:, None]
+            np.copyto(self._real_q, self.q, where=st)
+            np.copyto(self._real_dq, self.dq, where=st)
+            np.copyto(self._real_ddq, self.ddq, where=st)
+        self.run += guessed
+        self.run[real] = 0
+        np.copyto(self.real_echo, echo, where=real)
         np.copyto(self.q, q, where=a)
         np.copyto(self.dq, dq, where=a)
         np.copyto(self.ddq, ddq, where=a)

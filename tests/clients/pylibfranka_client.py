@@ -404,6 +404,42 @@ def scenario_reflex(host: str) -> dict:
     }
 
 
+def scenario_silence(host: str) -> dict:
+    """A joint motion whose loop goes silent for SILENCE_MS once, then recovery and a motion."""
+    silence = float(os.environ["SILENCE_MS"]) / 1000.0
+    robot = connect(host)
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    t, q0, error, slept = 0.0, None, None, False
+    try:
+        while t < 1.5:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            if q0 is None:
+                q0 = list(state.q_d)
+            if t >= 0.5 and not slept:
+                slept = True
+                time.sleep(silence)  # neither reading nor writing: cycles go unanswered
+                continue
+            q = list(q0)
+            q[3] += 0.05 * (1 - math.cos(2 * math.pi * t / 1.5))
+            command = fr.JointPositions(q)
+            if t >= 1.5:
+                command.motion_finished = True
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    after = robot.read_once()
+    if error is not None:
+        robot.automatic_error_recovery()
+    motion = cosine_motion(robot, duration=0.5, amplitude=0.02)
+    return {
+        "error": error,
+        "mode_after": after.robot_mode.name,
+        "next_motion_final_mode": motion["final"]["robot_mode"],
+    }
+
+
 if __name__ == "__main__":
     name, host = sys.argv[1], sys.argv[2]
     try:
