@@ -36,14 +36,14 @@ def test_constant_acceleration_stream_is_extrapolated_onto_its_own_waypoints(gap
         c.send(q_c=stream(q0, k))
     for j in range(1, gap + 1):
         c.send(deliver=False)
-        # the substitute waypoint is the stream's own next waypoint (to rounding)
+        # the substitute waypoint is the stream's own next waypoint (to double rounding)
         np.testing.assert_allclose(ctrl.reference.q[0], stream(q0, 29 + j), rtol=0, atol=1e-12)
     for k in range(30 + gap, 40 + gap):
         c.send(q_c=stream(q0, k))
     assert c.state["robot_mode"] == RobotMode.kMove
     assert not ctrl.violations.take().any()
     # resuming reports the acceleration it was commanding
-    assert float(c.state["ddq_d"][1]) == pytest.approx(2.0, abs=1e-3)
+    assert float(ctrl.reference.ddq[0, 1]) == pytest.approx(2.0, abs=1e-6)
 
 
 def test_the_trap_resuming_from_your_own_last_waypoint_trips_14():

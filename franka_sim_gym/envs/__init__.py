@@ -1,1 +1,32 @@
-"""Gymnasium environments (see the env issue); drives franka_sim_gym.fci in-process."""
+"""Gymnasium environments driving the simulated FCI controller in-process.
+
+``import franka_sim_gym`` registers them (entry points are strings: nothing
+heavy is imported until an env is made):
+
+* ``FrankaFCI-v0`` — reach, joint-position actions through libfranka's rate limiter;
+* ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``, ``FrankaFCITorque-v0``
+  — one id per action interface (every constructor argument of
+  ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed to ``gym.make``).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+_ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
+IDS = {
+    "FrankaFCI-v0": {"action_interface": "joint_position"},
+    "FrankaFCIJointPosition-v0": {"action_interface": "joint_position"},
+    "FrankaFCIJointVelocity-v0": {"action_interface": "joint_velocity"},
+    "FrankaFCITorque-v0": {"action_interface": "torque"},
+}
+
+
+def register_envs() -> None:
+    """Register every id (idempotent)."""
+    for env_id, kwargs in IDS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=_ENTRY, kwargs=kwargs)
+
+
+register_envs()

@@ -125,7 +125,12 @@ class StateWriter:
         np.copysign(1.0, q[:, 3], out=self.elbow[:, 1])
 
     def publish(self, success_rate: np.ndarray | None) -> None:
-        """Make state k+1 the published one: new message id, floats cast to the wire."""
+        """Make state k+1 the published one: new message id, floats cast to the wire.
+
+        The history the next command is differenced against stays float64 (the
+        seed: a constant-acceleration stream is extrapolated onto its own
+        waypoints exactly); the wire carries it rounded to float32.
+        """
         self.message_id += 1
         self._message_id[...] = self.message_id
         self._wire[...] = self.shadow

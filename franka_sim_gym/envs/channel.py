@@ -1,0 +1,138 @@
+"""Channel models: which RobotCommand datagrams reach the robot, and when (in cycles).
+
+In socket mode the real network decides; in-process the env's channel does, so
+lost cycles, extrapolation, late datagrams and communication_constraints_violation
+happen exactly as over a bad link (architecture.md: "A new way to deliver
+commands ... envs/channel.py, never the controller"). Every model is seeded
+through the env's RNG, so an episode is reproducible from ``reset(seed=...)``.
+
+A channel takes the command sent in cycle k and returns the list of commands
+delivered in cycle k (possibly older ones, delayed), oldest first: late
+datagrams then go through the controller's late-datagram path.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class Channel:
+    """A perfect link: every command arrives in the cycle it was sent."""
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start a new episode with the env's RNG."""
+        self.rng = rng
+
+    def transmit(self, command: np.ndarray) -> list[np.ndarray]:
+        """The commands delivered this cycle, given the one sent now (oldest first)."""
+        return [command]
+
+
+@dataclass
+class BernoulliLoss(Channel):
+    """Each datagram is lost independently with probability ``p``."""
+
+    p: float = 0.01
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.p <= 1.0:
+            raise ValueError(f"BernoulliLoss: p must be in [0, 1], got {self.p}")
+
+    def transmit(self, command: np.ndarray) -> list[np.ndarray]:
+        return [] if self.rng.random() < self.p else [command]
+
+
+@dataclass
+class GilbertElliott(Channel):
+    """Bursty loss: a two-state Markov chain (good / bad) with a loss rate per state.
+
+    Args:
+        p_good_to_bad: probability per cycle of entering the bad state.
+        p_bad_to_good: probability per cycle of leaving it (mean burst 1/p cycles).
+        loss_good, loss_bad: loss probability in each state.
+    """
+
+    p_good_to_bad: float = 0.002
+    p_bad_to_good: float = 0.1
+    loss_good: float = 0.0
+    loss_bad: float = 0.9
+    _bad: bool = field(default=False, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"GilbertElliott: {name} must be in [0, 1], got {value}")
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self._bad = False
+
+    def transmit(self, command: np.ndarray) -> list[np.ndarray]:
+        u = self.rng.random(2)
+        self._bad = (u[0] >= self.p_bad_to_good) if self._bad else (u[0] < self.p_good_to_bad)
+        loss = self.loss_bad if self._bad else self.loss_good
+        return [] if u[1] < loss else [command]
+
+
+@dataclass
+class Delay(Channel):
+    """Every datagram arrives ``cycles`` cycles late, or a random 0..``max_cycles`` late.
+
+    Delayed datagrams keep their order (a FIFO link); with ``max_cycles`` set each
+    datagram's delay is drawn uniformly, and one that would overtake an earlier one
+    waits for it.
+    """
+
+    cycles: int = 1
+    max_cycles: int | None = None
+    _queue: deque = field(default_factory=deque, init=False, repr=False)
+    _now: int = field(default=0, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.cycles < 0 or (self.max_cycles is not None and self.max_cycles < 0):
+            raise ValueError("Delay: cycles must be >= 0")
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self._queue = deque()
+        self._now = 0
+
+    def transmit(self, command: np.ndarray) -> list[np.ndarray]:
+        delay = self.cycles
+        if self.max_cycles is not None:
+            delay = int(self.rng.integers(0, self.max_cycles + 1))
+        due = self._now + delay
+        if self._queue:
+            due = max(due, self._queue[-1][0])  # FIFO: never overtake
+        self._queue.append((due, command.copy()))
+        delivered = []
+        while self._queue and self._queue[0][0] <= self._now:
+            delivered.append(self._queue.popleft()[1])
+        self._now += 1
+        return delivered
+
+
+def make_channel(spec: Channel | str | None) -> Channel:
+    """A channel from an instance, None (perfect), or a short spec such as ``"loss:0.01"``,
+    ``"bursty"``, ``"delay:2"``, ``"delay:0-3"``."""
+    if spec is None or spec == "none":
+        return Channel()
+    if isinstance(spec, Channel):
+        return spec
+    name, _, arg = str(spec).partition(":")
+    if name == "loss":
+        return BernoulliLoss(float(arg or 0.01))
+    if name == "bursty":
+        return GilbertElliott()
+    if name == "delay":
+        if "-" in arg:
+            lo, hi = arg.split("-")
+            if int(lo) != 0:
+                raise ValueError("delay:A-B: random delays start at 0 cycles (delay:0-B)")
+            return Delay(max_cycles=int(hi))
+        return Delay(cycles=int(arg or 1))
+    raise ValueError(f"unknown channel {spec!r}: expected none, loss:P, bursty, delay:N, delay:0-N")

@@ -1,0 +1,313 @@
+"""libfranka's client-side command filters, batch-first: the env plays the client.
+
+Pure functions over float64 arrays with a leading robot axis, ``(n, 7)``; any
+shapes that broadcast work the same. Each reproduces one piece of libfranka
+0.21 (shared/spec/limits.md §6) operation for operation, so that a command
+stream built here equals the one a ``franka::Robot::control(...)`` loop sends:
+
+* :func:`lowpass_filter` -- ``franka::lowpassFilter`` (include/franka/lowpass_filter.h,
+  src/lowpass_filter.cpp), with the gain of :func:`lowpass_gain`;
+* :func:`limit_rate_joint_velocities` / :func:`limit_rate_joint_positions` -- the
+  scalar velocity and position overloads of ``franka::limitRate``
+  (src/rate_limiting.cpp), vectorised over robots and joints;
+* :func:`limit_rate_torques` -- the ``limitRate(max_derivatives, commanded,
+  last_commanded)`` overload used for torques.
+
+None of them decides *whether* to filter: ``ControlLoop`` filters only when
+``cutoff_frequency < kMaxCutoffFrequency`` (:data:`MAX_CUTOFF_FREQUENCY`) and
+rate-limits only when ``limit_rate`` is true (default false since 0.10.0). The
+caller passes the robot's own references from the state, exactly as
+``ControlLoop<T>::convertMotion`` / ``spinControl`` (src/control_loop.cpp) do,
+in the order callback -> low-pass -> rate limiter -> finite check -> send::
+
+    # JointPositions: reference = the command itself on the motion's first
+    # cycle (initialized_filter_ false), state.q_d afterwards; the limiter's
+    # velocity bounds are evaluated at that reference, its last position is it.
+    ref = q_c if first_cycle else state.q_d
+    if cutoff < MAX_CUTOFF_FREQUENCY:
+        q_c = lowpass_filter(q_c, ref, cutoff)
+    if limit_rate:
+        upper, lower = table.velocity_envelope(ref)
+        q_c = limit_rate_joint_positions(q_c, ref, state.dq_d, state.ddq_d,
+                                         upper, lower, table.ddq_max, table.dddq_max)
+
+    # JointVelocities: reference state.dq_d (also on the first cycle); bounds at state.q_d.
+    dq_c = lowpass_filter(dq_c, state.dq_d, cutoff)
+    upper, lower = table.velocity_envelope(state.q_d)
+    dq_c = limit_rate_joint_velocities(dq_c, state.dq_d, state.ddq_d,
+                                       upper, lower, table.ddq_max, table.dddq_max)
+
+    # Torques: reference state.tau_J_d.
+    tau = lowpass_filter(tau, state.tau_J_d, cutoff)
+    tau = limit_rate_torques(tau, state.tau_J_d, table.dtau_max)
+
+The limiter targets are libfranka's ``rate_limiting.h`` constants (robot limit
+minus kLimitEps = 1e-3): for the FR3 these are the table's ``ddq_max`` /
+``dddq_max`` / ``dtau_max``, and ``RobotTable.velocity_envelope`` is exactly
+``Robot::getUpper/LowerJointVelocityLimits`` (tolerance included).
+
+Where libfranka throws ``std::invalid_argument`` (non-finite values, a cutoff
+that is not a positive finite number) these functions raise :class:`ValueError`
+with libfranka's message, prefixed by the offending argument.
+
+:func:`interpolate` is not libfranka: it is the plain per-cycle interpolation
+of the env's ``"interpolate"`` action filter.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..fci.tables import DELTA_T
+
+__all__ = [
+    "DELTA_T",
+    "LOWPASS_DEFAULT_CUTOFF",
+    "MAX_CUTOFF_FREQUENCY",
+    "interpolate",
+    "limit_rate_joint_positions",
+    "limit_rate_joint_velocities",
+    "limit_rate_torques",
+    "lowpass_filter",
+    "lowpass_gain",
+]
+
+#: include/franka/lowpass_filter.h: kDefaultCutoffFrequency [Hz], Robot::control's default.
+LOWPASS_DEFAULT_CUTOFF = 100.0
+#: include/franka/lowpass_filter.h: kMaxCutoffFrequency [Hz]. ControlLoop filters only
+#: when cutoff_frequency < this value; at or above it the command passes unfiltered.
+MAX_CUTOFF_FREQUENCY = 1000.0
+
+#: src/control_data_checker.cpp checkFinite / src/rate_limiting.cpp.
+_MSG_COMMAND = "Commanding value is infinite or NaN."
+#: src/lowpass_filter.cpp (libfranka >= 0.8).
+_MSG_CUTOFF = "lowpass-filter: cutoff_frequency is zero, negative, infinite or NaN."
+_MSG_SAMPLE_TIME = "lowpass-filter: sample_time is negative, infinite or NaN."
+_MSG_SIGNAL = (
+    "lowpass-filter: current or past input value of the signal to be filtered is infinite or NaN."
+)
+
+_INTERPOLATION_KINDS = ("linear", "cosine")
+
+
+def _finite(name: str, value: ArrayLike, message: str | None = None) -> np.ndarray:
+    """``value`` as float64; ValueError naming ``name`` if any entry is NaN or infinite.
+
+    ``message`` is libfranka's own where libfranka checks this very value (and
+    throws std::invalid_argument); references and limits, which libfranka does
+    not check up front (a NaN there only surfaces in the final checkFinite of the
+    command), get a plain message.
+    """
+    array = np.asarray(value, dtype=np.float64)
+    if not np.isfinite(array).all():
+        if message is None:
+            raise ValueError(f"{name} contains NaN or infinite entries")
+        raise ValueError(f"{name}: {message} (libfranka throws std::invalid_argument)")
+    return array
+
+
+def _check_cutoff(cutoff: ArrayLike) -> np.ndarray:
+    c = np.asarray(cutoff, dtype=np.float64)
+    if not (np.isfinite(c).all() and (c > 0.0).all()):
+        raise ValueError(
+            f"cutoff={cutoff!r}: {_MSG_CUTOFF} (libfranka throws std::invalid_argument)"
+        )
+    return c
+
+
+def lowpass_gain(cutoff: ArrayLike, dt: float = DELTA_T) -> float | np.ndarray:
+    """The first-order low-pass gain ``dt / (dt + 1/(2 pi fc))``.
+
+    src/lowpass_filter.cpp ``lowpassFilter``; ControlLoop always passes
+    ``dt = kDeltaT = 1e-3`` (not the measured time step). 0.385870 at 100 Hz.
+    Raises ValueError where libfranka throws: cutoff not a positive finite
+    number, or dt negative or not finite.
+    """
+    if not (math.isfinite(dt) and dt >= 0.0):
+        raise ValueError(f"dt={dt!r}: {_MSG_SAMPLE_TIME} (libfranka throws std::invalid_argument)")
+    c = _check_cutoff(cutoff)
+    gain = dt / (dt + (1.0 / (2.0 * math.pi * c)))
+    return float(gain) if gain.ndim == 0 else gain
+
+
+def lowpass_filter(
+    x: ArrayLike, x_ref: ArrayLike, cutoff: ArrayLike = LOWPASS_DEFAULT_CUTOFF
+) -> np.ndarray:
+    """``g * x + (1 - g) * x_ref`` with ``g = lowpass_gain(cutoff)``, elementwise.
+
+    ``franka::lowpassFilter(kDeltaT, x, x_ref, cutoff)`` (src/lowpass_filter.cpp),
+    as ControlLoop applies it per joint. ``x`` is the callback's command, ``x_ref``
+    the state's reference (q_d / dq_d / tau_J_d, or the command itself on a
+    position motion's first cycle). This is the filter's arithmetic only: libfranka
+    does not call it at all when ``cutoff >= MAX_CUTOFF_FREQUENCY`` -- the caller
+    decides. ``cutoff`` may be a scalar or broadcast against ``x`` (e.g. (n, 1)).
+    Like libfranka's, the result for ``x == x_ref`` is ``x`` only to 1 ulp.
+
+    Raises:
+        ValueError: cutoff zero, negative or not finite; ``x`` or ``x_ref`` with a
+            NaN or infinite entry (libfranka throws std::invalid_argument, in this order).
+    """
+    gain = lowpass_gain(cutoff)
+    x = _finite("x", x, _MSG_SIGNAL)
+    x_ref = _finite("x_ref", x_ref, _MSG_SIGNAL)
+    return gain * x + (1.0 - gain) * x_ref
+
+
+def limit_rate_joint_velocities(
+    dq_c: ArrayLike,
+    dq_last: ArrayLike,
+    ddq_last: ArrayLike,
+    upper: ArrayLike,
+    lower: ArrayLike,
+    ddq_max: ArrayLike,
+    dddq_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit commanded joint velocities, (n, 7) -> (n, 7).
+
+    The scalar ``franka::limitRate(upper, lower, max_acceleration, max_jerk,
+    commanded_velocity, last_commanded_velocity, last_commanded_acceleration)``
+    of src/rate_limiting.cpp (libfranka >= 0.11, limits.md §6.3), per joint,
+    vectorised; with dt = kDeltaT::
+
+        jerk = ((dq_c - dq_last) / dt - ddq_last) / dt
+        acc  = ddq_last + clamp(jerk, -J, J) * dt
+        hi   = min(J / A * (upper - dq_last),  A)
+        lo   = max(J / A * (lower - dq_last), -A)
+        out  = dq_last + max(min(acc, hi), lo) * dt
+
+    The clamp order is libfranka's: if ``lo > hi`` (the last velocity already
+    far outside the band) the lower bound wins.
+
+    With bounds that stay constant and a last state inside them, the output keeps
+    ``lower <= v <= upper``, ``|a| <= A`` and ``|jerk| <= J`` (the band shrinks
+    the admissible acceleration by J dt per cycle at most, since J dt <= A). With
+    the position-based envelope, which moves with q, that is not guaranteed:
+    heading into a joint limit the velocity can lag the shrinking envelope and
+    the jerk exceed J -- libfranka behaves the same; nothing here corrects it.
+
+    Args:
+        dq_c: the (filtered) velocity command.
+        dq_last, ddq_last: the last commanded velocity and acceleration
+            (``state.dq_d``, ``state.ddq_d``).
+        upper, lower: the velocity bounds, (n, 7) -- ``velocity_envelope(state.q_d)``.
+        ddq_max, dddq_max: ``kMaxJointAcceleration`` / ``kMaxJointJerk`` (A, J),
+            broadcast against the rest (e.g. (7,)).
+
+    Raises:
+        ValueError: any NaN or infinite entry in the inputs (libfranka checks the
+            command up front and the result before sending).
+    """
+    dq_c = _finite("dq_c", dq_c, _MSG_COMMAND)
+    v_last = _finite("dq_last", dq_last)
+    a_last = _finite("ddq_last", ddq_last)
+    upper = _finite("upper", upper)
+    lower = _finite("lower", lower)
+    a_max = _finite("ddq_max", ddq_max)
+    j_max = _finite("dddq_max", dddq_max)
+    return _limit_velocity(dq_c, v_last, a_last, upper, lower, a_max, j_max)
+
+
+def _limit_velocity(v_c, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
+    """The scalar velocity limiter of src/rate_limiting.cpp, on validated float64 arrays."""
+    dt = DELTA_T
+    # Differentiate to get jerk.
+    jerk = (((v_c - v_last) / dt) - a_last) / dt
+    # Limit jerk and integrate to get acceleration.
+    acc = a_last + np.maximum(np.minimum(jerk, j_max), -j_max) * dt
+    # Compute acceleration limits.
+    ratio = j_max / a_max
+    safe_max = np.minimum(ratio * (upper - v_last), a_max)
+    safe_min = np.maximum(ratio * (lower - v_last), -a_max)
+    # Limit acceleration and integrate to get the velocity.
+    return v_last + np.maximum(np.minimum(acc, safe_max), safe_min) * dt
+
+
+def limit_rate_joint_positions(
+    q_c: ArrayLike,
+    q_last: ArrayLike,
+    dq_last: ArrayLike,
+    ddq_last: ArrayLike,
+    upper: ArrayLike,
+    lower: ArrayLike,
+    ddq_max: ArrayLike,
+    dddq_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit commanded joint positions, (n, 7) -> (n, 7).
+
+    The scalar position ``franka::limitRate`` of src/rate_limiting.cpp: the
+    command is differentiated against the last position, ``(q_c - q_last) / dt``,
+    passed through the velocity limiter of :func:`limit_rate_joint_velocities`
+    with ``dq_last`` / ``ddq_last``, and re-integrated: ``q_last + v * dt``.
+
+    Args:
+        q_c: the (filtered) position command.
+        q_last: the filter reference -- ``state.q_d``, or the command itself on
+            the motion's first cycle (ControlLoop<JointPositions>::convertMotion).
+        dq_last, ddq_last: ``state.dq_d``, ``state.ddq_d``.
+        upper, lower: the velocity bounds, (n, 7) -- ``velocity_envelope(q_last)``
+            (libfranka evaluates them at the reference, not at measured q).
+        ddq_max, dddq_max: ``kMaxJointAcceleration`` / ``kMaxJointJerk``.
+
+    Raises:
+        ValueError: any NaN or infinite entry in the inputs.
+    """
+    q_c = _finite("q_c", q_c, _MSG_COMMAND)
+    q_last = _finite("q_last", q_last)
+    v_last = _finite("dq_last", dq_last)
+    a_last = _finite("ddq_last", ddq_last)
+    upper = _finite("upper", upper)
+    lower = _finite("lower", lower)
+    a_max = _finite("ddq_max", ddq_max)
+    j_max = _finite("dddq_max", dddq_max)
+    v_c = (q_c - q_last) / DELTA_T
+    v = _limit_velocity(v_c, v_last, a_last, upper, lower, a_max, j_max)
+    return q_last + v * DELTA_T
+
+
+def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLike) -> np.ndarray:
+    """Rate-limit commanded torques, (n, 7) -> (n, 7).
+
+    ``franka::limitRate(kMaxTorqueRate, tau_c, state.tau_J_d)`` (the
+    ``max_derivatives`` overload of src/rate_limiting.cpp)::
+
+        out = tau_last + clamp((tau_c - tau_last) / dt, -dtau_max, dtau_max) * dt
+
+    Raises:
+        ValueError: any NaN or infinite entry in the inputs.
+    """
+    tau_c = _finite("tau_c", tau_c, _MSG_COMMAND)
+    tau_last = _finite("tau_last", tau_last)
+    d_max = _finite("dtau_max", dtau_max)
+    rate = (tau_c - tau_last) / DELTA_T
+    return tau_last + np.maximum(np.minimum(rate, d_max), -d_max) * DELTA_T
+
+
+def interpolate(
+    q_from: ArrayLike, q_to: ArrayLike, alpha: ArrayLike, kind: str = "linear"
+) -> np.ndarray:
+    """``q_from + s(alpha) * (q_to - q_from)``: one cycle of the env's "interpolate" filter.
+
+    Not a libfranka function. ``s(alpha) = alpha`` (``kind="linear"``) or
+    ``0.5 * (1 - cos(pi * alpha))`` (``kind="cosine"``, zero slope at both ends).
+    ``alpha`` in [0, 1] is a scalar or broadcasts against ``q_from`` (use shape
+    (n, 1) for one phase per robot); 0 gives ``q_from``, 1 gives ``q_to`` exactly.
+
+    Raises:
+        ValueError: unknown ``kind``; ``alpha`` outside [0, 1] or not finite;
+            non-finite ``q_from`` / ``q_to``.
+    """
+    if kind not in _INTERPOLATION_KINDS:
+        raise ValueError(
+            f"unknown interpolation kind {kind!r}: expected one of {_INTERPOLATION_KINDS}"
+        )
+    a = np.asarray(alpha, dtype=np.float64)
+    if not (np.isfinite(a).all() and (a >= 0.0).all() and (a <= 1.0).all()):
+        raise ValueError(f"interpolation alpha must be finite and in [0, 1], got {alpha!r}")
+    q_from = _finite("q_from", q_from)
+    q_to = _finite("q_to", q_to)
+    s = a if kind == "linear" else 0.5 * (1.0 - np.cos(np.pi * a))
+    # Written so that s == 1 returns q_to bit-exactly (q_from + (q_to - q_from) may not).
+    return (1.0 - s) * q_from + s * q_to

@@ -1,0 +1,51 @@
+"""Reach: bring the end effector (O_T_EE's position) within ``distance_threshold`` of a goal."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Goals are drawn uniformly from this box in the robot's base frame [m]: in
+#: front of the arm, inside its workspace, clear of the base and the floor.
+GOAL_LOW = np.array([0.30, -0.30, 0.20])
+GOAL_HIGH = np.array([0.65, 0.30, 0.65])
+
+
+@dataclass
+class Reach:
+    """Goal-conditioned reach with a sparse or dense reward.
+
+    Args:
+        reward_type: "sparse" (-1 per step until within the threshold, else 0) or
+            "dense" (minus the distance to the goal).
+        distance_threshold: success radius [m] (default 5 cm).
+    """
+
+    reward_type: str = "sparse"
+    distance_threshold: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.reward_type not in ("sparse", "dense"):
+            raise ValueError(f"reward_type must be 'sparse' or 'dense', got {self.reward_type!r}")
+
+    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+        return rng.uniform(GOAL_LOW, GOAL_HIGH)
+
+    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Vectorised over a leading batch axis, as SB3's HER calls it."""
+        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        if self.reward_type == "sparse":
+            return -(d > self.distance_threshold).astype(np.float32)
+        return -d.astype(np.float32)
+
+    def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
+        d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        return d <= self.distance_threshold
+
+    @property
+    def worst_step_reward(self) -> float:
+        """The lowest reward one step can give (for the reflex penalty)."""
+        if self.reward_type == "sparse":
+            return -1.0
+        return -float(np.linalg.norm(GOAL_HIGH - GOAL_LOW)) - 1.0

@@ -1,0 +1,170 @@
+"""FrankaFCI-v0: Gymnasium conventions, reflexes as terminations, lost cycles in info."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.envs import IDS
+from franka_sim_gym.envs.channel import Channel
+from franka_sim_gym.envs.commands import FILTERS, INTERFACES
+
+
+@pytest.mark.parametrize("env_id", list(IDS))
+def test_check_env_passes_for_every_id(env_id):
+    env = gym.make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+@pytest.mark.parametrize("interface", INTERFACES)
+@pytest.mark.parametrize("action_filter", FILTERS)
+def test_one_episode_per_interface_and_filter(interface, action_filter):
+    env = gym.make(
+        "FrankaFCI-v0",
+        action_interface=interface,
+        action_filter=action_filter,
+        max_episode_steps=5,
+        enforce_motion_limits=False,
+    )
+    obs, info = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    assert info["robot_mode"] == "kMove"
+    steps = 0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample() * 0.1)
+        steps += 1
+        assert env.observation_space.contains(obs)
+        assert info["cycles"] > 0 and isinstance(info["violations"], tuple)
+    assert steps == 5 and truncated and not terminated
+    env.close()
+
+
+def run(env, seed: int, actions: np.ndarray):
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info)]
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a)
+        out.append((obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            break
+    return out
+
+
+def test_reset_seed_makes_the_episode_reproducible_bit_for_bit():
+    env = gym.make("FrankaFCI-v0", channel="loss:0.05")
+    actions = np.random.default_rng(0).uniform(-0.3, 0.3, size=(20, 7)).astype(np.float32)
+    first = run(env, 123, actions)
+    env.reset(seed=999)  # anything in between
+    second = run(env, 123, actions)
+    assert len(first) == len(second)
+    for a, b in zip(first, second, strict=True):
+        for key in ("observation", "achieved_goal", "desired_goal"):
+            assert a[0][key].tobytes() == b[0][key].tobytes()
+        assert a[1:] == b[1:]  # rewards, terminations and infos alike
+
+
+def naive_steps(env, n: int = 2):
+    """Large actions held for the whole step (the first only sets where the motion starts:
+    0.09 rad is inside the 0.1 rad start-pose tolerance)."""
+    for _ in range(n):
+        out = env.step(np.full(7, 0.9, dtype=np.float32))
+        if out[2]:
+            break
+    return out
+
+
+def test_a_naive_policy_under_enforcement_ends_with_a_named_reflex():
+    env = gym.make("FrankaFCI-v0", action_filter="none")
+    env.reset(seed=1)
+    obs, reward, terminated, truncated, info = naive_steps(env)
+    assert terminated and not truncated
+    assert info["robot_mode"] == "kReflex"
+    # a 0.1 rad step in one cycle: the robot names the velocity discontinuity
+    assert "joint_motion_generator_velocity_discontinuity" in info["reflex_reason"]
+    assert info["errors"] == info["reflex_reason"]
+
+
+def test_the_same_policy_without_enforcement_runs_on_and_reports_the_violations():
+    env = gym.make("FrankaFCI-v0", action_filter="none", enforce_motion_limits=False)
+    env.reset(seed=1)
+    obs, reward, terminated, truncated, info = naive_steps(env)
+    assert not terminated
+    assert info["robot_mode"] == "kMove" and info["errors"] == ()
+    assert "joint_motion_generator_velocity_discontinuity" in info["violations"]
+
+
+def test_the_rate_limited_policy_trips_nothing_where_the_naive_one_aborts():
+    # libfranka's low-pass + rate limiter. (At full saturation near a shrinking
+    # velocity envelope libfranka's limiter itself can exceed the jerk bound:
+    # docs/env.md. Half actions stay clear of that.)
+    env = gym.make("FrankaFCI-v0")
+    env.reset(seed=2)
+    for sign in (1, -1, 1, 1, -1):
+        action = np.full(7, 0.5 * sign, dtype=np.float32)
+        obs, reward, terminated, truncated, info = env.step(action)
+        assert not terminated, info
+        assert info["violations"] == ()
+
+
+def test_a_reflex_is_never_a_shortcut_to_a_higher_return():
+    env = gym.make("FrankaFCI-v0", action_filter="none", max_episode_steps=10)
+    env.reset(seed=1)
+    total = 0.0
+    for _ in range(2):
+        _, reward, terminated, _, _ = env.step(np.full(7, 0.9, dtype=np.float32))
+        total += reward
+        if terminated:
+            break
+    assert terminated
+    # the worst full episode of sparse rewards returns -10
+    assert total <= -10.0
+
+
+class ScriptedChannel(Channel):
+    """Drops the datagrams of cycles [start, stop) counted from the episode's first command."""
+
+    def __init__(self, start: int, stop: int) -> None:
+        self.start, self.stop = start, stop
+
+    def reset(self, rng) -> None:
+        super().reset(rng)
+        self.k = 0
+
+    def transmit(self, command):
+        self.k += 1
+        return [] if self.start <= self.k - 1 < self.stop else [command]
+
+
+def test_a_scripted_lossy_channel_shows_lost_cycles_then_communication_violation():
+    env = gym.make("FrankaFCI-v0", channel=ScriptedChannel(50, 60))
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.zeros(7, dtype=np.float32))  # cycles 0..39
+    assert info["lost_cycles"] == 0
+    _, _, terminated, _, info = env.step(np.zeros(7, dtype=np.float32))  # cycles 40..79
+    assert info["lost_cycles"] == 10 and info["longest_lost_run"] == 10
+    assert not terminated
+    assert 0.8 < info["control_command_success_rate"] < 1.0
+    env2 = gym.make("FrankaFCI-v0", channel=ScriptedChannel(50, 80))
+    env2.reset(seed=0)
+    env2.step(np.zeros(7, dtype=np.float32))
+    _, _, terminated, _, info = env2.step(np.zeros(7, dtype=np.float32))
+    assert terminated
+    assert info["reflex_reason"] == ("communication_constraints_violation",)
+
+
+def test_bad_arguments_are_clear_errors():
+    with pytest.raises(ValueError, match="policy_hz"):
+        gym.make("FrankaFCI-v0", policy_hz=30)
+    with pytest.raises(ValueError, match="action_interface"):
+        gym.make("FrankaFCI-v0", action_interface="cartesian_jazz")
+    with pytest.raises(ValueError, match="action_filter"):
+        gym.make("FrankaFCI-v0", action_filter="smooth")
+    env = gym.make("FrankaFCI-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(7, np.nan, dtype=np.float32))
