@@ -1,0 +1,65 @@
+"""Env throughput: steps/s of FrankaFCI-v0 with random actions at a 25 Hz policy.
+
+    python benchmarks/env_rate.py [--seconds S]
+
+One row per action interface (single env, libfranka's rate-limited client, all
+checks on), with cycles/s (40 cycles per step) and the ratio to bare mj_step of
+the same one-arm world in the same run. Episodes that end (reflex or time
+limit) are reset, and resets are counted in the time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.sim.arm import ArmPhysics
+
+
+def env_rate(interface: str, seconds: float) -> tuple[float, int]:
+    env = gym.make("FrankaFCI-v0", action_interface=interface)
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    steps, resets, start = 0, 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        action = rng.uniform(-1, 1, size=7).astype(np.float32)
+        _, _, terminated, truncated, _ = env.step(action)
+        steps += 1
+        if terminated or truncated:
+            env.reset()
+            resets += 1
+    return steps / (time.perf_counter() - start), resets
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=3.0)
+    args = parser.parse_args()
+    physics = ArmPhysics(n_arms=1)
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < args.seconds:
+        for _ in range(100):
+            mujoco.mj_step(physics.model, physics.data)
+        calls += 100
+    bare = calls / (time.perf_counter() - start)
+    print(f"{'row':<34}{'steps/s':>10}{'cycles/s':>12}{'vs mj_step':>12}{'resets':>8}")
+    print(f"{'bare mj_step (one arm)':<34}{'':>10}{bare:>12,.0f}{1.0:>12.2f}{'':>8}")
+    rates = {}
+    for interface in ("joint_position", "joint_velocity", "torque"):
+        steps, resets = env_rate(interface, args.seconds)
+        rates[interface] = steps
+        cycles = steps * 40
+        print(f"{interface:<34}{steps:>10,.0f}{cycles:>12,.0f}{cycles / bare:>12.3f}{resets:>8}")
+    print(
+        f"summary: env_steps_per_s={rates['joint_position']:.0f} "
+        f"cycles_per_s={rates['joint_position'] * 40:.0f}"
+    )
+
+
+if __name__ == "__main__":
+    main()
