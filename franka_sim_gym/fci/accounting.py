@@ -95,7 +95,8 @@ class CycleAccounting:
         self._pos = (self._pos + 1) % self.window
         # While the window fills the divisor is what it holds (never 0 here: an
         # empty window has an empty sum, and 0 / 1 reads 0.0 as between motions).
-        np.clip(self._counted, 1, self.window, out=self._held)
+        np.minimum(self._counted, self.window, out=self._held)
+        np.maximum(self._held, 1, out=self._held)
         np.divide(self._answered_sum, self._held, out=self._rate)
 
     def success_rate(self) -> np.ndarray:

@@ -90,6 +90,9 @@ class FciController:
         #: the motion's opening command has not been judged yet
         self._first = np.zeros(n, dtype=bool)
         self._ee_prev = np.zeros((n, 3))
+        #: the velocity envelope at the reference's q, valid until the reference
+        #: changes outside a cycle (a Move, a reset, a rewind)
+        self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.violations = ViolationLog(n)
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
@@ -258,6 +261,7 @@ class FciController:
                     1,
                     self.table,
                     self.config.start_pose_tolerance,
+                    self._reference_envelope(),
                 )
                 if not count_nonzero(check.error >= 0):
                     ref.record_positions(self._q_c, check.dq, check.ddq, self.writer.message_id)
@@ -267,6 +271,11 @@ class FciController:
                 self._advance_joints(started, have, self._q_c, self._dq_c)
         if m.n_external and count_nonzero(self._have):
             self._advance_torques()
+
+    def _reference_envelope(self) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity envelope at the reference's q (computed last cycle when valid)."""
+        cache = self._envelope_cache
+        return cache if cache is not None else self.table.velocity_envelope(self.reference.q)
 
     def _advance_joints(
         self,
@@ -366,6 +375,7 @@ class FciController:
         # after each rewind the next datagram of an in-order backlog is again that.
         rewind = late & (ids == ref.real_echo + np.uint64(1))
         if count_nonzero(rewind):
+            self._envelope_cache = None
             ref.rewind(rewind)
             never = np.zeros(self.n, dtype=bool)
             self._advance_joints(
@@ -463,7 +473,12 @@ class FciController:
         physics, w, table = self.physics, self.writer, self.table
         margin = self.config.measured_velocity_margin
         dq = physics.dq
-        upper, lower = table.velocity_envelope(physics.q)
+        # One envelope call for two uses: measured q (for 3, now) and the reference
+        # just recorded (the q_prev the next cycle's commands are judged at).
+        n = self.n
+        upper2, lower2 = table.velocity_envelope(np.concatenate((physics.q, self.reference.q)))
+        upper, lower = upper2[:n], lower2[:n]
+        self._envelope_cache = (upper2[n:], lower2[n:])
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
         v_ee = w.O_T_EE[:, 12:15] - self._ee_prev
@@ -622,6 +637,7 @@ class FciController:
         q = self.physics.q[i].copy()
         self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
         self.reference.seed(i, q, int(self.writer.message_id[i]))
+        self._envelope_cache = None
         self.q_hold[i] = q
         self.tau_J_d[i] = 0.0
         # A new motion starts with last_motion_errors clear: it describes the
@@ -714,6 +730,7 @@ class FciController:
         """
         robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
         q = np.asarray(q, dtype=float).reshape(len(robots), 7)
+        self._envelope_cache = None
         self.physics.reset_arms(robots, q)
         for k, i in enumerate(robots.tolist()):
             self.modes.end(i)

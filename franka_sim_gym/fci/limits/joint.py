@@ -98,14 +98,16 @@ class VelocityCheck(NamedTuple):
     ddq: np.ndarray
 
 
-def _position_terms(q_c, q_prev, dq_prev, ddq_prev, q_start, steps, table, start_tolerance):
+def _position_terms(
+    q_c, q_prev, dq_prev, ddq_prev, q_start, steps, table, start_tolerance, envelope=None
+):
     """Per-joint masks of the five rows (the start row None when ``q_start`` is None)."""
     h = interval(steps)
     dq = (q_c - q_prev) / h
     ddq = (dq - dq_prev) / h
     dddq = (ddq - ddq_prev) / h
     # limits.md §4: the envelope is evaluated at the reference (q_d), never at q.
-    upper, lower = table.velocity_envelope(q_prev)
+    upper, lower = table.velocity_envelope(q_prev) if envelope is None else envelope
     masks = [
         # Written as "not inside", so NaN lands here (seed: a non-finite command is
         # "the limits violation of the generator it arrived in", i.e. 12 for q_c).
@@ -128,6 +130,7 @@ def check_joint_position(
     steps: np.ndarray,
     table: RobotTable,
     start_tolerance: float,
+    envelope: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> PositionCheck:
     """Judge n joint-position commands; one latched error per robot.
 
@@ -142,6 +145,7 @@ def check_joint_position(
             at (or a scalar for all robots).
         table: the robot's limits.
         start_tolerance: start-pose tolerance [rad] (seed: 0.1, a sim choice).
+        envelope: ``table.velocity_envelope(q_prev)`` when the caller already has it.
 
     Returns:
         ``PositionCheck(error, dq, ddq)``: error (n,) int64 is 12, 11, 14, 13, 15
@@ -160,6 +164,7 @@ def check_joint_position(
         steps,
         table,
         start_tolerance,
+        envelope,
     )
     if not starting:
         # Mid-motion, the common case: all-or-none. (The start row cannot apply.)
