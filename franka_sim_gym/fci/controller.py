@@ -26,19 +26,18 @@ import logging
 import numpy as np
 
 from ..sim.arm import ArmPhysics
-from ..sim.self_collision import close_link_pairs, closest_link_pair
-from . import limits, setters
+from . import setters
 from ._fast import count_nonzero
 from .accounting import CycleAccounting
 from .config import ControllerConfig
-from .errors import ERROR_COUNT, ERROR_NAMES, Error, error_names
+from .engine import MotionLimitEngine
+from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .reference import JointReference
 from .state import StateWriter
-from .tables import DELTA_T, MAX_LOST_CYCLES
-from .violations import ViolationLog, latched_bits
+from .tables import MAX_LOST_CYCLES
 from .wire import (
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -89,11 +88,9 @@ class FciController:
         self._refused = np.zeros(n, dtype=bool)
         #: the motion's opening command has not been judged yet
         self._first = np.zeros(n, dtype=bool)
-        self._ee_prev = np.zeros((n, 3))
-        #: the velocity envelope at the reference's q, valid until the reference
-        #: changes outside a cycle (a Move, a reset, a rewind)
-        self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
-        self.violations = ViolationLog(n)
+        #: the motion-limit engine (checks, safety controller, communication bound)
+        self.engine = MotionLimitEngine(self)
+        self.violations = self.engine.violations
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         for i in range(n):
@@ -159,7 +156,7 @@ class FciController:
             if count_nonzero(late_joint):
                 # Late datagrams of joint motions are handled on arrival: the one
                 # the extrapolated run is missing rewinds it, the others are judged.
-                self._late_joint_datagrams(commands, late_joint, ids)
+                self.engine.late_joint_datagrams(commands, late_joint, ids)
                 accepted = accepted & ~late_joint
         all_in = count_nonzero(accepted) == n
         if m.n_joint_position:
@@ -194,7 +191,7 @@ class FciController:
         m = self.modes
         w = self.writer
         if m.n_motion:
-            self._advance_commands()
+            self.engine.advance_commands()
         # Physics: the internal joint servo tracks q_d / dq_d under a joint
         # generator and the hold setpoint otherwise; an external controller's
         # torque is applied with gravity added by the actuators.
@@ -208,16 +205,16 @@ class FciController:
             dq_ref = np.where(track, w.dq_d, 0.0)
         moving = m.n_motion > 0
         if moving:
-            self._ee_prev[...] = w.O_T_EE[:, 12:15]
+            self.engine.ee_prev[...] = w.O_T_EE[:, 12:15]
         self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg)
         w.write_measured(self.physics)
         if moving:
             if m.n_motion:
-                self._safety_controller()
+                self.engine.safety_controller()
             acc = self.accounting
             acc.close_cycle(int(count_nonzero(acc.started)))
             if count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
-                self._communication_constraints()
+                self.engine.communication_constraints()
             if count_nonzero(self._finish):
                 for i in np.flatnonzero(self._finish & m.in_motion).tolist():
                     self._end_motion(i, MoveStatus.kSuccess, hold_reference=True)
@@ -228,321 +225,7 @@ class FciController:
         self._publish_rest()
         return self.take_events()
 
-    # -- the commanded signal ------------------------------------------------------------------
-
-    def _advance_commands(self) -> None:
-        """Judge and apply the cycle's commands, or extrapolate the lost cycles.
-
-        Seed "Motion limits and discontinuities": every command — and every
-        extrapolated waypoint, which is checked, never clamped — goes through
-        its generator's precedence table; a violation is logged always and,
-        with enforcement on, the command is not applied and the motion aborts.
-        """
-        m = self.modes
-        n = self.n
-        ref = self.reference
-        if count_nonzero(self._refused):
-            self._judge_non_finite()
-        started = self.accounting.started
-        if m.n_tracking and count_nonzero(started):
-            have = self._have
-            if (
-                m.n_joint_position == n
-                and count_nonzero(have) == n
-                and not count_nonzero(self._first)
-            ):
-                check = limits.check_joint_position(
-                    self._q_c,
-                    ref.q,
-                    ref.dq,
-                    ref.ddq,
-                    False,
-                    ref.q,
-                    1,
-                    self.table,
-                    self.config.start_pose_tolerance,
-                    self._reference_envelope(),
-                )
-                if not count_nonzero(check.error >= 0):
-                    ref.record_positions(self._q_c, check.dq, check.ddq, self.writer.message_id)
-                else:
-                    self._advance_joints(started, have, self._q_c, self._dq_c)
-            else:
-                self._advance_joints(started, have, self._q_c, self._dq_c)
-        if m.n_external and count_nonzero(self._have):
-            self._advance_torques()
-
-    def _reference_envelope(self) -> tuple[np.ndarray, np.ndarray]:
-        """The velocity envelope at the reference's q (computed last cycle when valid)."""
-        cache = self._envelope_cache
-        return cache if cache is not None else self.table.velocity_envelope(self.reference.q)
-
-    def _advance_joints(
-        self,
-        started: np.ndarray,
-        have: np.ndarray,
-        q_c: np.ndarray,
-        dq_c: np.ndarray,
-        echo: np.ndarray | None = None,
-        extrapolate_lost: bool = True,
-    ) -> None:
-        """The general (masked) path: commands, extrapolations and holds of joint motions.
-
-        ``have`` marks the robots whose command (``q_c`` / ``dq_c``, echoing ``echo``,
-        by default the open cycle's id) is applied and recorded as a real sample;
-        with ``extrapolate_lost`` the other started joint motions lose the cycle.
-        """
-        m = self.modes
-        ref = self.reference
-        dt = DELTA_T
-        if echo is None:
-            echo = self.writer.message_id
-        lost = started & ~have & m.tracking
-        if not extrapolate_lost:
-            lost = np.zeros_like(lost)
-        extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
-        # Seed "What the sim does with a lost cycle": one substitute waypoint per
-        # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
-        ex_dq = ref.dq + ref.ddq_frozen * dt
-        ex_q = ref.q + ex_dq * dt
-        h = have[:, None]
-        q_cand = np.where(h, q_c, ex_q)
-        dq_cand = np.where(h, dq_c, ex_dq)
-        first = self._first & have
-        position = (have | extrapolate) & m.joint_position
-        velocity = (have | extrapolate) & m.joint_velocity
-        tol = self.config
-        error = np.full(self.n, limits.NO_ERROR)
-        new_dq, new_ddq = ex_dq, ref.ddq_frozen
-        if count_nonzero(position):
-            args = (
-                q_cand,
-                ref.q.copy(),
-                ref.dq.copy(),
-                ref.ddq.copy(),
-                first,
-                ref.q.copy(),
-                1,
-                self.table,
-                tol.start_pose_tolerance,
-            )
-            pc = limits.check_joint_position(*args)
-            error = np.where(position, pc.error, error)
-            self._judge(error, position, lambda i: limits.describe_joint_position(i, *args))
-            real = (have & m.joint_position)[:, None]
-            new_dq = np.where(real, pc.dq, new_dq)
-            new_ddq = np.where(real, pc.ddq, new_ddq)
-        if count_nonzero(velocity):
-            args = (
-                dq_cand,
-                ref.q.copy(),
-                ref.dq.copy(),
-                ref.ddq.copy(),
-                first,
-                ref.dq.copy(),
-                1,
-                self.table,
-                tol.start_velocity_tolerance,
-            )
-            vc = limits.check_joint_velocity(*args)
-            error = np.where(velocity, vc.error, error)
-            self._judge(error, velocity, lambda i: limits.describe_joint_velocity(i, *args))
-            real = (have & m.joint_velocity)[:, None]
-            new_dq = np.where(real, dq_c, new_dq)
-            new_ddq = np.where(real, vc.ddq, new_ddq)
-            q_cand = np.where((velocity & have)[:, None], ref.q + dq_c * dt, q_cand)
-        # Robots aborted by _judge are no longer tracking: apply to the rest only.
-        apply = (position | velocity) & self.modes.tracking
-        held = lost & ~extrapolate & self.modes.tracking
-        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held, echo)
-        self._first &= ~have
-
-    def _late_joint_datagrams(self, commands: np.ndarray, late: np.ndarray, ids) -> None:
-        """Seed "A datagram that turns up late replaces the guess it stood in for".
-
-        Inside an extrapolated run, the datagram echoing the run's oldest unanswered
-        id throws the run's guesses away and is differenced against the last
-        command that actually arrived, over the one cycle it really travelled in
-        the client's stream, and becomes the new real sample (a backlog draining
-        in order rewinds datagram by datagram). Any other late datagram — a
-        replay, a duplicate, a reordered packet — gets no rewind and never touches
-        the history: it is judged against the reference as it stands (and can
-        trip a spurious discontinuity, as the seed warns), but not applied.
-        """
-        ref = self.reference
-        ids = ids.astype(np.uint64)
-        # The run's oldest unanswered id is the one after the last real command's:
-        # after each rewind the next datagram of an in-order backlog is again that.
-        rewind = late & (ids == ref.real_echo + np.uint64(1))
-        if count_nonzero(rewind):
-            self._envelope_cache = None
-            ref.rewind(rewind)
-            never = np.zeros(self.n, dtype=bool)
-            self._advance_joints(
-                never,
-                rewind,
-                commands["q_c"],
-                commands["dq_c"],
-                echo=ids,
-                extrapolate_lost=False,
-            )
-        judged = late & ~rewind & self.modes.tracking
-        if count_nonzero(judged):
-            self._judge_only(commands, judged)
-
-    def _judge_only(self, commands: np.ndarray, rows: np.ndarray) -> None:
-        """Check commands of ``rows`` against the reference as it stands, without applying."""
-        m, ref, cfg = self.modes, self.reference, self.config
-        position = rows & m.joint_position
-        if count_nonzero(position):
-            args = (
-                commands["q_c"].copy(),
-                ref.q.copy(),
-                ref.dq.copy(),
-                ref.ddq.copy(),
-                False,
-                ref.q.copy(),
-                1,
-                self.table,
-                cfg.start_pose_tolerance,
-            )
-            error = limits.check_joint_position(*args).error
-            self._judge(error, position, lambda i: limits.describe_joint_position(i, *args))
-        velocity = rows & m.joint_velocity
-        if count_nonzero(velocity):
-            args = (
-                commands["dq_c"].copy(),
-                ref.q.copy(),
-                ref.dq.copy(),
-                ref.ddq.copy(),
-                False,
-                ref.dq.copy(),
-                1,
-                self.table,
-                cfg.start_velocity_tolerance,
-            )
-            error = limits.check_joint_velocity(*args).error
-            self._judge(error, velocity, lambda i: limits.describe_joint_velocity(i, *args))
-
-    def _advance_torques(self) -> None:
-        """Judge the arrived torques (34 range, 32 rate); a lost cycle keeps the last one."""
-        m = self.modes
-        rows = self._have & m.external
-        args = (self._tau_c, self.tau_J_d.copy(), self._first & rows, 1, self.table)
-        error = limits.check_torque(*args)
-        if count_nonzero(error[rows] >= 0):
-            self._judge(error, rows, lambda i: limits.describe_torque(i, *args))
-            rows = rows & self.modes.external
-        # A torque is not a waypoint: a lost cycle keeps the last one (seed "What
-        # the sim does with a lost cycle": tau_J_d held).
-        np.copyto(self.tau_J_d, self._tau_c, where=rows[:, None])
-        self._first &= ~(rows & self.modes.torque_only)
-
-    def _judge_non_finite(self) -> None:
-        """Seed: a non-finite command is refused whatever the enforcement, and reported as
-        the limits violation of the generator it arrived in (12 q_c, 13 dq_c, 34 tau_J_d)."""
-        m = self.modes
-        refused = self._refused & m.in_motion
-        error = np.full(self.n, limits.NO_ERROR)
-        error[refused & m.external] = Error.tau_j_range_violation
-        error[refused & m.joint_velocity] = Error.joint_motion_generator_velocity_limits_violation
-        error[refused & m.joint_position] = Error.joint_motion_generator_position_limits_violation
-        self._judge(error, refused, lambda i: "non-finite commanded value (refused)")
-        self._refused[...] = False
-
-    def _judge(self, error: np.ndarray, rows: np.ndarray, describe) -> None:
-        """Log every violation in ``rows``; abort those robots' motions when enforced."""
-        bad = rows & (error >= 0) & self.modes.in_motion
-        if not count_nonzero(bad):
-            return
-        enforce = self.config.enforce_motion_limits
-        for i in np.flatnonzero(bad).tolist():
-            e = int(error[i])
-            described = describe(i)
-            message = described.message() if hasattr(described, "message") else str(described)
-            self.violations.report(i, e, message, enforce)
-            if enforce:
-                self._reflex(i, latched_bits(e))
-
-    # -- the safety controller and the communication bound ------------------------------------
-
-    def _safety_controller(self) -> None:
-        """Seed "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
-        "self_collision_avoidance_violation (2)": on the measured state, every control
-        mode, every cycle of a motion; 4 outranks 3; 2 is independent of both."""
-        physics, w, table = self.physics, self.writer, self.table
-        margin = self.config.measured_velocity_margin
-        dq = physics.dq
-        # One envelope call for two uses: measured q (for 3, now) and the reference
-        # just recorded (the q_prev the next cycle's commands are judged at).
-        n = self.n
-        upper2, lower2 = table.velocity_envelope(np.concatenate((physics.q, self.reference.q)))
-        upper, lower = upper2[:n], lower2[:n]
-        self._envelope_cache = (upper2[n:], lower2[n:])
-        # The measured EE speed at F_T_EE: backward difference of the measured
-        # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
-        v_ee = w.O_T_EE[:, 12:15] - self._ee_prev
-        v_ee *= 1.0 / DELTA_T
-        # Cheap booleans first; the rule functions name the error only on a trip.
-        # Written as "not inside" so that a NaN physics state trips too.
-        fast = ~((dq <= upper + margin) & (dq >= lower - margin))
-        speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
-        close = close_link_pairs(
-            physics.model, physics.data, physics.layout, self.config.self_collision_distance
-        )
-        if not (
-            count_nonzero(fast)
-            or count_nonzero(~(speed2 <= table.v_trans_max**2))
-            or count_nonzero(close)
-        ):
-            return
-        e_joint = limits.check_measured_joint_velocity(dq, physics.q, table, margin)
-        e_cart = limits.check_measured_cartesian_speed(v_ee, table)
-        error = limits.safety_error(e_joint, e_cart)
-        bad = self.modes.in_motion & ((error >= 0) | close)
-        if not count_nonzero(bad):
-            return
-        enforce = self.config.enforce_motion_limits
-        for i in np.flatnonzero(bad).tolist():
-            bits = []
-            if error[i] >= 0:
-                e = int(error[i])
-                if e == int(Error.cartesian_velocity_violation):
-                    d = limits.describe_measured_cartesian_speed(i, v_ee, table)
-                else:
-                    d = limits.describe_measured_joint_velocity(
-                        i, physics.dq, physics.q, table, margin
-                    )
-                self.violations.report(i, e, d.message() if d else ERROR_NAMES[e], enforce)
-                bits.append(e)
-            if close[i]:
-                e = int(Error.self_collision_avoidance_violation)
-                pair = closest_link_pair(physics.model, physics.data, physics.layout, i)
-                where = f"link{pair[1]} / link{pair[2]} at {pair[0] * 1000:.1f} mm" if pair else ""
-                self.violations.report(
-                    i,
-                    e,
-                    f"{where}, limit {self.config.self_collision_distance * 1000:.0f} mm",
-                    enforce,
-                )
-                bits.append(e)
-            if enforce:
-                self._reflex(i, bits)
-
-    def _communication_constraints(self) -> None:
-        """Seed "Enabling the violation": 20 consecutive lost cycles latch 25 (opt-in)."""
-        over = (self.accounting.lost_run >= MAX_LOST_CYCLES) & self.modes.in_motion
-        enforce = self.config.enforce_comm_constraints
-        e = int(Error.communication_constraints_violation)
-        for i in np.flatnonzero(over).tolist():
-            run = int(self.accounting.lost_run[i])
-            self.violations.report(
-                i, e, f"{run} consecutive lost cycles, limit {MAX_LOST_CYCLES}", enforce
-            )
-            if enforce:
-                self._reflex(i, [e])
-
-    def _reflex(self, i: int, bits: list[int]) -> None:
+    def reflex(self, i: int, bits: list[int]) -> None:
         """Abort robot i's motion: latch ``bits``, kReflex, Move answered kReflexAborted
         (after the state carrying the error is sent: events go out after the state)."""
         if not self.modes.in_motion[i]:
@@ -637,7 +320,7 @@ class FciController:
         q = self.physics.q[i].copy()
         self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
         self.reference.seed(i, q, int(self.writer.message_id[i]))
-        self._envelope_cache = None
+        self.engine.invalidate_envelope()
         self.q_hold[i] = q
         self.tau_J_d[i] = 0.0
         # A new motion starts with last_motion_errors clear: it describes the
@@ -730,7 +413,7 @@ class FciController:
         """
         robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
         q = np.asarray(q, dtype=float).reshape(len(robots), 7)
-        self._envelope_cache = None
+        self.engine.invalidate_envelope()
         self.physics.reset_arms(robots, q)
         for k, i in enumerate(robots.tolist()):
             self.modes.end(i)

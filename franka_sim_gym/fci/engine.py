@@ -1,0 +1,340 @@
+"""The motion-limit engine: every command, extrapolated waypoint and measured state judged.
+
+Seed "Motion limits and discontinuities" and "Communication constraints": the
+cycle's commands (and the substitute waypoints of lost cycles) go through their
+generator's precedence table (``limits``) before they are applied; late
+datagrams rewind an extrapolated run or are judged only; the safety controller
+watches the measured state (2, 3, 4); 20 lost cycles are 25. Violations are
+logged always and abort the motion (through the controller's reflex) only when
+enforced. The engine works on the controller's arrays (``self.c``): the
+reference, the cycle's command candidates, the modes and the accounting.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..sim.self_collision import close_link_pairs, closest_link_pair
+from . import limits
+from ._fast import count_nonzero
+from .errors import ERROR_NAMES, Error
+from .tables import DELTA_T, MAX_LOST_CYCLES
+from .violations import ViolationLog, latched_bits
+
+if TYPE_CHECKING:
+    from .controller import FciController
+
+
+class MotionLimitEngine:
+    """Judges what the controller is about to apply, and what the arm did."""
+
+    def __init__(self, controller: FciController) -> None:
+        self.c = controller
+        n = controller.n
+        #: violations logged (once per class per motion) and seen
+        self.violations = ViolationLog(n)
+        #: the measured EE position of the previous cycle (for the EE speed)
+        self.ee_prev = np.zeros((n, 3))
+        # The velocity envelope at the reference's q, valid until the reference
+        # changes outside a cycle (a Move, a reset, a rewind).
+        self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
+
+    def invalidate_envelope(self) -> None:
+        """The reference changed outside a cycle: recompute the envelope when needed."""
+        self._envelope_cache = None
+
+    def advance_commands(self) -> None:
+        """Judge and apply the cycle's commands, or extrapolate the lost cycles.
+
+        Seed "Motion limits and discontinuities": every command — and every
+        extrapolated waypoint, which is checked, never clamped — goes through
+        its generator's precedence table; a violation is logged always and,
+        with enforcement on, the command is not applied and the motion aborts.
+        """
+        m = self.c.modes
+        n = self.c.n
+        ref = self.c.reference
+        if count_nonzero(self.c._refused):
+            self._judge_non_finite()
+        started = self.c.accounting.started
+        if m.n_tracking and count_nonzero(started):
+            have = self.c._have
+            if (
+                m.n_joint_position == n
+                and count_nonzero(have) == n
+                and not count_nonzero(self.c._first)
+            ):
+                check = limits.check_joint_position(
+                    self.c._q_c,
+                    ref.q,
+                    ref.dq,
+                    ref.ddq,
+                    False,
+                    ref.q,
+                    1,
+                    self.c.table,
+                    self.c.config.start_pose_tolerance,
+                    self._reference_envelope(),
+                )
+                if not count_nonzero(check.error >= 0):
+                    ref.record_positions(self.c._q_c, check.dq, check.ddq, self.c.writer.message_id)
+                else:
+                    self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
+            else:
+                self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
+        if m.n_external and count_nonzero(self.c._have):
+            self._advance_torques()
+
+    def _reference_envelope(self) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity envelope at the reference's q (computed last cycle when valid)."""
+        cache = self._envelope_cache
+        return cache if cache is not None else self.c.table.velocity_envelope(self.c.reference.q)
+
+    def _advance_joints(
+        self,
+        started: np.ndarray,
+        have: np.ndarray,
+        q_c: np.ndarray,
+        dq_c: np.ndarray,
+        echo: np.ndarray | None = None,
+        extrapolate_lost: bool = True,
+    ) -> None:
+        """The general (masked) path: commands, extrapolations and holds of joint motions.
+
+        ``have`` marks the robots whose command (``q_c`` / ``dq_c``, echoing ``echo``,
+        by default the open cycle's id) is applied and recorded as a real sample;
+        with ``extrapolate_lost`` the other started joint motions lose the cycle.
+        """
+        m = self.c.modes
+        ref = self.c.reference
+        dt = DELTA_T
+        if echo is None:
+            echo = self.c.writer.message_id
+        lost = started & ~have & m.tracking
+        if not extrapolate_lost:
+            lost = np.zeros_like(lost)
+        extrapolate = lost & (self.c.accounting.lost_run < MAX_LOST_CYCLES)
+        # Seed "What the sim does with a lost cycle": one substitute waypoint per
+        # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
+        ex_dq = ref.dq + ref.ddq_frozen * dt
+        ex_q = ref.q + ex_dq * dt
+        h = have[:, None]
+        q_cand = np.where(h, q_c, ex_q)
+        dq_cand = np.where(h, dq_c, ex_dq)
+        first = self.c._first & have
+        position = (have | extrapolate) & m.joint_position
+        velocity = (have | extrapolate) & m.joint_velocity
+        new_dq, new_ddq = ex_dq, ref.ddq_frozen
+        if count_nonzero(position):
+            pc = self._judge_positions(q_cand, position, first)
+            real = (have & m.joint_position)[:, None]
+            new_dq = np.where(real, pc.dq, new_dq)
+            new_ddq = np.where(real, pc.ddq, new_ddq)
+        if count_nonzero(velocity):
+            vc = self._judge_velocities(dq_cand, velocity, first)
+            real = (have & m.joint_velocity)[:, None]
+            new_dq = np.where(real, dq_c, new_dq)
+            new_ddq = np.where(real, vc.ddq, new_ddq)
+            q_cand = np.where((velocity & have)[:, None], ref.q + dq_c * dt, q_cand)
+        # Robots aborted by _judge are no longer tracking: apply to the rest only.
+        apply = (position | velocity) & self.c.modes.tracking
+        held = lost & ~extrapolate & self.c.modes.tracking
+        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held, echo)
+        self.c._first &= ~have
+
+    def late_joint_datagrams(self, commands: np.ndarray, late: np.ndarray, ids) -> None:
+        """Seed "A datagram that turns up late replaces the guess it stood in for".
+
+        Inside an extrapolated run, the datagram echoing the run's oldest unanswered
+        id throws the run's guesses away and is differenced against the last
+        command that actually arrived, over the one cycle it really travelled in
+        the client's stream, and becomes the new real sample (a backlog draining
+        in order rewinds datagram by datagram). Any other late datagram — a
+        replay, a duplicate, a reordered packet — gets no rewind and never touches
+        the history: it is judged against the reference as it stands (and can
+        trip a spurious discontinuity, as the seed warns), but not applied.
+        """
+        ref = self.c.reference
+        ids = ids.astype(np.uint64)
+        # The run's oldest unanswered id is the one after the last real command's:
+        # after each rewind the next datagram of an in-order backlog is again that.
+        rewind = late & (ids == ref.real_echo + np.uint64(1))
+        if count_nonzero(rewind):
+            self.invalidate_envelope()
+            ref.rewind(rewind)
+            never = np.zeros(self.c.n, dtype=bool)
+            self._advance_joints(
+                never,
+                rewind,
+                commands["q_c"],
+                commands["dq_c"],
+                echo=ids,
+                extrapolate_lost=False,
+            )
+        judged = late & ~rewind & self.c.modes.tracking
+        if count_nonzero(judged):
+            self._judge_only(commands, judged)
+
+    def _judge_only(self, commands: np.ndarray, rows: np.ndarray) -> None:
+        """Check commands of ``rows`` against the reference as it stands, without applying."""
+        m = self.c.modes
+        if count_nonzero(rows & m.joint_position):
+            self._judge_positions(commands["q_c"], rows & m.joint_position, False)
+        if count_nonzero(rows & m.joint_velocity):
+            self._judge_velocities(commands["dq_c"], rows & m.joint_velocity, False)
+
+    def _judge_positions(self, q_c, rows, first) -> limits.PositionCheck:
+        """q_c of ``rows`` judged against the reference over one cycle: logged, enforced."""
+        ref = self.c.reference
+        args = (
+            q_c,
+            ref.q,
+            ref.dq,
+            ref.ddq,
+            first,
+            ref.q,
+            1,
+            self.c.table,
+            self.c.config.start_pose_tolerance,
+        )
+        check = limits.check_joint_position(*args)
+        self._judge(check.error, rows, lambda i: limits.describe_joint_position(i, *args))
+        return check
+
+    def _judge_velocities(self, dq_c, rows, first) -> limits.VelocityCheck:
+        """dq_c of ``rows`` judged against the reference over one cycle: logged, enforced."""
+        ref = self.c.reference
+        args = (
+            dq_c,
+            ref.q,
+            ref.dq,
+            ref.ddq,
+            first,
+            ref.dq,
+            1,
+            self.c.table,
+            self.c.config.start_velocity_tolerance,
+        )
+        check = limits.check_joint_velocity(*args)
+        self._judge(check.error, rows, lambda i: limits.describe_joint_velocity(i, *args))
+        return check
+
+    def _advance_torques(self) -> None:
+        """Judge the arrived torques (34 range, 32 rate); a lost cycle keeps the last one."""
+        m = self.c.modes
+        rows = self.c._have & m.external
+        args = (self.c._tau_c, self.c.tau_J_d.copy(), self.c._first & rows, 1, self.c.table)
+        error = limits.check_torque(*args)
+        if count_nonzero(error[rows] >= 0):
+            self._judge(error, rows, lambda i: limits.describe_torque(i, *args))
+            rows = rows & self.c.modes.external
+        # A torque is not a waypoint: a lost cycle keeps the last one (seed "What
+        # the sim does with a lost cycle": tau_J_d held).
+        np.copyto(self.c.tau_J_d, self.c._tau_c, where=rows[:, None])
+        self.c._first &= ~(rows & self.c.modes.torque_only)
+
+    def _judge_non_finite(self) -> None:
+        """Seed: a non-finite command is refused whatever the enforcement, and reported as
+        the limits violation of the generator it arrived in (12 q_c, 13 dq_c, 34 tau_J_d)."""
+        m = self.c.modes
+        refused = self.c._refused & m.in_motion
+        error = np.full(self.c.n, limits.NO_ERROR)
+        error[refused & m.external] = Error.tau_j_range_violation
+        error[refused & m.joint_velocity] = Error.joint_motion_generator_velocity_limits_violation
+        error[refused & m.joint_position] = Error.joint_motion_generator_position_limits_violation
+        self._judge(error, refused, lambda i: "non-finite commanded value (refused)")
+        self.c._refused[...] = False
+
+    def _judge(self, error: np.ndarray, rows: np.ndarray, describe) -> None:
+        """Log every violation in ``rows``; abort those robots' motions when enforced."""
+        bad = rows & (error >= 0) & self.c.modes.in_motion
+        if not count_nonzero(bad):
+            return
+        enforce = self.c.config.enforce_motion_limits
+        for i in np.flatnonzero(bad).tolist():
+            e = int(error[i])
+            described = describe(i)
+            message = described.message() if hasattr(described, "message") else str(described)
+            self.violations.report(i, e, message, enforce)
+            if enforce:
+                self.c.reflex(i, latched_bits(e))
+
+    # -- the safety controller and the communication bound ------------------------------------
+
+    def safety_controller(self) -> None:
+        """Seed "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
+        "self_collision_avoidance_violation (2)": on the measured state, every control
+        mode, every cycle of a motion; 4 outranks 3; 2 is independent of both."""
+        physics, w, table = self.c.physics, self.c.writer, self.c.table
+        margin = self.c.config.measured_velocity_margin
+        dq = physics.dq
+        # One envelope call for two uses: measured q (for 3, now) and the reference
+        # just recorded (the q_prev the next cycle's commands are judged at).
+        n = self.c.n
+        upper2, lower2 = table.velocity_envelope(np.concatenate((physics.q, self.c.reference.q)))
+        upper, lower = upper2[:n], lower2[:n]
+        self._envelope_cache = (upper2[n:], lower2[n:])
+        # The measured EE speed at F_T_EE: backward difference of the measured
+        # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
+        v_ee = w.O_T_EE[:, 12:15] - self.ee_prev
+        v_ee *= 1.0 / DELTA_T
+        # Cheap booleans first; the rule functions name the error only on a trip.
+        # Written as "not inside" so that a NaN physics state trips too.
+        fast = ~((dq <= upper + margin) & (dq >= lower - margin))
+        speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
+        close = close_link_pairs(
+            physics.model, physics.data, physics.layout, self.c.config.self_collision_distance
+        )
+        if not (
+            count_nonzero(fast)
+            or count_nonzero(~(speed2 <= table.v_trans_max**2))
+            or count_nonzero(close)
+        ):
+            return
+        e_joint = limits.check_measured_joint_velocity(dq, physics.q, table, margin)
+        e_cart = limits.check_measured_cartesian_speed(v_ee, table)
+        error = limits.safety_error(e_joint, e_cart)
+        bad = self.c.modes.in_motion & ((error >= 0) | close)
+        if not count_nonzero(bad):
+            return
+        enforce = self.c.config.enforce_motion_limits
+        for i in np.flatnonzero(bad).tolist():
+            bits = []
+            if error[i] >= 0:
+                e = int(error[i])
+                if e == int(Error.cartesian_velocity_violation):
+                    d = limits.describe_measured_cartesian_speed(i, v_ee, table)
+                else:
+                    d = limits.describe_measured_joint_velocity(
+                        i, physics.dq, physics.q, table, margin
+                    )
+                self.violations.report(i, e, d.message() if d else ERROR_NAMES[e], enforce)
+                bits.append(e)
+            if close[i]:
+                e = int(Error.self_collision_avoidance_violation)
+                pair = closest_link_pair(physics.model, physics.data, physics.layout, i)
+                where = f"link{pair[1]} / link{pair[2]} at {pair[0] * 1000:.1f} mm" if pair else ""
+                self.violations.report(
+                    i,
+                    e,
+                    f"{where}, limit {self.c.config.self_collision_distance * 1000:.0f} mm",
+                    enforce,
+                )
+                bits.append(e)
+            if enforce:
+                self.c.reflex(i, bits)
+
+    def communication_constraints(self) -> None:
+        """Seed "Enabling the violation": 20 consecutive lost cycles latch 25 (opt-in)."""
+        over = (self.c.accounting.lost_run >= MAX_LOST_CYCLES) & self.c.modes.in_motion
+        enforce = self.c.config.enforce_comm_constraints
+        e = int(Error.communication_constraints_violation)
+        for i in np.flatnonzero(over).tolist():
+            run = int(self.c.accounting.lost_run[i])
+            self.violations.report(
+                i, e, f"{run} consecutive lost cycles, limit {MAX_LOST_CYCLES}", enforce
+            )
+            if enforce:
+                self.c.reflex(i, [e])
