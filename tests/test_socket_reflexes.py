@@ -67,3 +67,11 @@ def test_without_enforcement_the_step_is_only_logged(serve, client):
     assert r["current_errors_after"] == "[]"
     assert "controller_torque_discontinuity" in server.log()
     assert "(not enforced)" in server.log()
+
+
+def test_the_environment_variable_turns_enforcement_on(serve, client):
+    server = serve(env={"FRANKA_SIM_ENFORCE_MOTION_LIMITS": "1"})
+    r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90)
+    assert "exception" not in r, r
+    assert r["error"] is not None and '["controller_torque_discontinuity"]' in r["error"]
+    assert "enforce motion limits: True" in server.log()
