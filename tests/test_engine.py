@@ -41,3 +41,22 @@ def test_fast_path_agrees_with_check_joint_position(joint, q_offset, velocity, a
         q_c, ref.q, ref.dq, ref.ddq, False, ref.q, 1, TABLE, 0.1
     ).error
     assert fast == (rule[0] == limits.NO_ERROR)
+
+
+@settings(max_examples=100, deadline=None)
+@given(answers=st.lists(st.booleans(), min_size=1, max_size=260))
+def test_one_robot_accounting_matches_the_batched_arithmetic(answers):
+    from franka_sim_gym.fci.accounting import CycleAccounting
+
+    one, two = CycleAccounting(1), CycleAccounting(2)  # n = 2 takes the array path
+    for acc in (one, two):
+        acc.start_motion(0, 0)
+        acc.started[0] = True
+    for answered in answers:
+        one.answered[0] = two.answered[0] = answered
+        one.close_cycle(1)
+        two.close_cycle(1)
+        assert one.success_rate()[0] == two.success_rate()[0]
+        assert one.lost_run[0] == two.lost_run[0]
+        assert one.longest_lost_run[0] == two.longest_lost_run[0]
+        assert one.lost_total[0] == two.lost_total[0]

@@ -69,6 +69,9 @@ class CycleAccounting:
 
     def close_cycle(self, n_started: int) -> None:
         """Close the open cycle for the robots whose accounting is open (``n_started`` of them)."""
+        if self.n == 1:
+            self._close_cycle_one(n_started)
+            return
         answered = self.answered
         column = self._ring[:, self._pos]  # the oldest entry, about to be replaced
         if n_started == self.n:  # every robot counts: no masks
@@ -98,6 +101,34 @@ class CycleAccounting:
         np.minimum(self._counted, self.window, out=self._held)
         np.maximum(self._held, 1, out=self._held)
         np.divide(self._answered_sum, self._held, out=self._rate)
+
+    def _close_cycle_one(self, n_started: int) -> None:
+        """One robot: the same bookkeeping on Python scalars (a dozen numpy calls on
+        size-1 arrays cost ~10 us a cycle; item reads and writes cost ~1.5 us)."""
+        answered = bool(self.answered[0])
+        self.answered[0] = False
+        pos = self._pos
+        self._pos = (pos + 1) % self.window
+        if not n_started:
+            return  # a robot not counting keeps its cleared window
+        ring = self._ring
+        old = bool(ring[0, pos])
+        ring[0, pos] = answered
+        total = int(self._answered_sum[0]) + answered - old
+        self._answered_sum[0] = total
+        counted = int(self._counted[0]) + 1
+        self._counted[0] = counted
+        if answered:
+            self.lost_run[0] = 0
+        else:
+            run = int(self.lost_run[0]) + 1
+            self.lost_run[0] = run
+            self.lost_total[0] += 1
+            if run > self.longest_lost_run[0]:
+                self.longest_lost_run[0] = run
+        held = counted if counted < self.window else self.window
+        self._held[0] = held
+        self._rate[0] = total / held
 
     def success_rate(self) -> np.ndarray:
         """control_command_success_rate per robot: answered / cycles held by the window."""
