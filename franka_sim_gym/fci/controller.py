@@ -84,6 +84,8 @@ class FciController:
         self._tau_c = np.zeros((n, 7))
         self._have = np.zeros(n, dtype=bool)
         self._finish = np.zeros(n, dtype=bool)
+        self._all_true = np.ones(n, dtype=bool)
+        self._all_true.setflags(write=False)
         #: a non-finite command arrived (refused whatever the enforcement)
         self._refused = np.zeros(n, dtype=bool)
         #: the motion's opening command has not been judged yet
@@ -488,7 +490,11 @@ class FciController:
         m = self.modes
         n = self.n
         if m.n_joint_position == n:
-            return np.isfinite(commands["q_c"]).all(axis=1)
+            q_c = commands["q_c"]
+            finite = np.isfinite(q_c)
+            if count_nonzero(finite) == finite.size:  # the common case, without a reduce
+                return self._all_true
+            return finite.all(axis=1)
         if m.n_external == n and m.n_torque_only == n:
             return np.isfinite(commands["tau_J_d"]).all(axis=1)
         ok = np.ones(n, dtype=bool)

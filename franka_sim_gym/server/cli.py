@@ -1,4 +1,5 @@
-"""`franka-sim-gym serve`: the simulated FR3 for libfranka clients (TCP 1337 + UDP).
+"""`franka-sim-gym serve`: the simulated FR3 for libfranka clients (TCP 1337 + UDP),
+with the Franka Hand beside it (TCP 1338 + UDP) unless --no-gripper.
 
 Flags and environment variables carry the seed's names; a flag wins over its
 FRANKA_SIM_* variable.
@@ -8,11 +9,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from pathlib import Path
 
 from ..fci.config import ControllerConfig
 from ..fci.protocol import COMMAND_PORT
+from .gripper_server import GRIPPER_PORT, GripperServer
 from .robot_server import RobotServer, ServerOptions
 
 
@@ -66,6 +69,17 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
     serve.add_argument("--urdf", type=Path, default=None, help="URDF served by GetRobotModel")
     serve.add_argument("-v", "--vis", action="store_true", help="open the MuJoCo viewer")
     serve.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
+    serve.add_argument(
+        "--no-gripper", action="store_true", help="do not serve the Franka Hand on port 1338"
+    )
+    serve.add_argument(
+        "--gripper-object-width",
+        type=float,
+        default=None,
+        metavar="W",
+        help="a rigid virtual object W m wide between the fingers "
+        "(env FRANKA_SIM_GRIPPER_OBJECT_WIDTH; default: nothing graspable)",
+    )
 
 
 def serve(args: argparse.Namespace) -> int:
@@ -86,9 +100,24 @@ def serve(args: argparse.Namespace) -> int:
     if args.urdf is not None and not args.urdf.is_file():
         print(f"franka-sim-gym serve: --urdf {args.urdf}: no such file", file=sys.stderr)
         return 2
+    try:
+        gripper = _gripper_server(args)
+    except ValueError as exc:
+        print(f"franka-sim-gym serve: {exc}", file=sys.stderr)
+        return 2
     server = RobotServer(config, ServerOptions(host=args.host, port=args.port, urdf=args.urdf))
     if args.vis:
         server.open_viewer()
+    if gripper is not None:
+        try:
+            gripper.start()
+        except OSError as exc:
+            print(
+                f"franka-sim-gym serve: cannot serve the gripper on {args.host}:{GRIPPER_PORT}: "
+                f"{exc} (--no-gripper serves the arm alone)",
+                file=sys.stderr,
+            )
+            return 1
     try:
         server.serve_forever()
     except OSError as exc:
@@ -96,7 +125,25 @@ def serve(args: argparse.Namespace) -> int:
             f"franka-sim-gym serve: cannot serve on {args.host}:{args.port}: {exc}", file=sys.stderr
         )
         return 1
+    finally:
+        if gripper is not None:
+            gripper.stop()
     return 0
+
+
+def _gripper_server(args: argparse.Namespace) -> GripperServer | None:
+    """The Franka Hand on port 1338 of the same host, unless --no-gripper (seed "Gripper
+    fidelity"); --gripper-object-width wins over FRANKA_SIM_GRIPPER_OBJECT_WIDTH."""
+    if args.no_gripper:
+        return None
+    width = args.gripper_object_width
+    if width is None and os.environ.get("FRANKA_SIM_GRIPPER_OBJECT_WIDTH", "").strip():
+        text = os.environ["FRANKA_SIM_GRIPPER_OBJECT_WIDTH"]
+        try:
+            width = float(text)
+        except ValueError:
+            raise ValueError(f"FRANKA_SIM_GRIPPER_OBJECT_WIDTH={text!r} is not a number") from None
+    return GripperServer(host=args.host, port=GRIPPER_PORT, object_width=width)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -99,6 +99,11 @@ class ArmPhysics:
             a.view is None
             for a in (self._qpos, self._qvel, self._actuator, self._bias, self._gravcomp)
         )
+        sites = np.asarray(lay.flange_site)
+        # One arm (or evenly spaced sites): a slice, i.e. a view, instead of a fancy index.
+        step = int(sites[1] - sites[0]) if n_arms > 1 else 1
+        evenly = step > 0 and np.array_equal(sites, sites[0] + step * np.arange(n_arms))
+        self._flange_sites = slice(int(sites[0]), int(sites[-1]) + 1, step) if evenly else sites
         self._effective_inertia = self._home_inertia()
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
@@ -207,9 +212,8 @@ class ArmPhysics:
     def flange_pose_raw(self) -> tuple[np.ndarray, np.ndarray]:
         """Flange (link8) position (n, 3) in each arm's base frame, and its rotation as
         MuJoCo's row-major (n, 9) xmat (arm bases are not rotated)."""
-        sites = self.layout.flange_site
-        pos = self.data.site_xpos[sites]
-        pos -= self.base_pos
+        sites = self._flange_sites
+        pos = self.data.site_xpos[sites] - self.base_pos
         return pos, self.data.site_xmat[sites]
 
     def flange_pose(self) -> tuple[np.ndarray, np.ndarray]:
