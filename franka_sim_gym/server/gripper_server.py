@@ -1,0 +1,415 @@
+"""The Franka Hand behind libfranka's gripper protocol v3 (TCP 1338 + UDP GripperState).
+
+Wire format: fci-wire-protocol.md §10 (10-byte header with a u16 command;
+Connect/Homing/Grasp/Move/Stop of 14/10/50/26/10 bytes; replies carry a u16
+status; a 23-byte GripperState datagram). Statuses and what libfranka makes of
+them: errors.md §2.4. Behaviour: state-and-command-fidelity.md "Gripper
+fidelity".
+
+Threads:
+
+* an accept thread serves one client at a time (a second is refused and logged);
+* the session's reader thread decodes frames and posts requests; it never
+  blocks on a running command, so a Stop sent mid-Grasp is read at once;
+* a timer thread applies the posted requests, steps :class:`FrankaHand` at
+  ``STEP_HZ``, answers each command when its action finishes, and broadcasts
+  GripperState at ``BROADCAST_HZ`` to (client IP, udp_port from Connect).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable
+from enum import IntEnum
+
+import numpy as np
+
+from ..fci.protocol import Frame, FrameDecoder, FramingError
+from ..fci.wire import GRIPPER_STATE_DTYPE
+from ..sim.gripper import TEMPERATURE_C, FrankaHand, Outcome
+from .logging_util import RateLimitedLog
+
+log = logging.getLogger("franka_sim_gym.gripper")
+
+GRIPPER_PORT = 1338  # fci-wire-protocol.md §10
+VERSION = 3  # fci-wire-protocol.md §10: gripper server version 3
+HEADER = struct.Struct("<HII")  # §10.1: command u16, command_id u32, size u32 (total)
+#: Our bound on one request: the largest real one (Grasp) is 50 bytes.
+MAX_REQUEST_SIZE = 256
+STEP_HZ = 250  # model step rate (our choice: 4 ms resolution on a motion)
+BROADCAST_HZ = 60.0  # seed "Gripper fidelity": GripperState over UDP at 60 Hz
+_STATUS = struct.Struct("<H")
+_CONNECT_REQ = struct.Struct("<HH")  # version, udp_port
+_GRASP_REQ = struct.Struct("<ddddd")  # width, epsilon inner, epsilon outer, speed, force
+_MOVE_REQ = struct.Struct("<dd")  # width, speed
+
+
+class Command(IntEnum):
+    """§10.2 command ids."""
+
+    kConnect = 0
+    kHoming = 1
+    kGrasp = 2
+    kMove = 3
+    kStop = 4
+
+
+class Status(IntEnum):
+    """§10.2 status of Homing/Grasp/Move/Stop (Connect: 0 success, 1 incompatible)."""
+
+    kSuccess = 0
+    kFail = 1
+    kUnsuccessful = 2
+    kAborted = 3
+
+
+#: §10.2 total request sizes, header included.
+REQUEST_SIZE = {
+    Command.kConnect: 14,
+    Command.kHoming: 10,
+    Command.kGrasp: 50,
+    Command.kMove: 26,
+    Command.kStop: 10,
+}
+
+
+def encode_reply(command: int, command_id: int, status: int, version: int | None = None) -> bytes:
+    """A reply: header, u16 status, and for Connect the u16 server version (§10.2)."""
+    body = _STATUS.pack(status) + (b"" if version is None else _STATUS.pack(version))
+    return HEADER.pack(command, command_id, HEADER.size + len(body)) + body
+
+
+class GripperSession:
+    """The TCP side of the one connected gripper client."""
+
+    def __init__(self, server: GripperServer, sock: socket.socket, peer: tuple[str, int]) -> None:
+        self.server = server
+        self.sock = sock
+        self.peer = peer
+        self.udp_port: int | None = None
+        self._send_lock = threading.Lock()
+        self._decoder = FrameDecoder(max_message_size=MAX_REQUEST_SIZE, header=HEADER)
+        self.thread = threading.Thread(target=self._run, name=f"gripper-{peer}", daemon=True)
+
+    def reply(self, command: int, command_id: int, status: int, version: int | None = None):
+        with self._send_lock:
+            try:
+                self.sock.sendall(encode_reply(command, command_id, int(status), version))
+            except OSError as exc:
+                log.info("gripper client %s: reply not delivered (%s)", self.peer, exc)
+
+    def close(self) -> None:
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+
+    def _run(self) -> None:
+        try:
+            while True:
+                try:
+                    data = self.sock.recv(4096)
+                except OSError as exc:
+                    log.info("gripper client %s: connection error (%s)", self.peer, exc)
+                    break
+                if not data:
+                    break
+                for item in self._decoder.feed(data):
+                    if isinstance(item, FramingError):
+                        # Every request is answered: libfranka has no reply timeout.
+                        log.warning(
+                            "gripper client %s: bad-frame (command %d, id %d): %s: answered kFail",
+                            self.peer,
+                            item.command,
+                            item.command_id,
+                            item.reason,
+                        )
+                        self.reply(item.command, item.command_id, Status.kFail)
+                    else:
+                        self._dispatch(item)
+        finally:
+            try:
+                self.sock.close()
+            except OSError:
+                pass
+            self.server.session_closed(self)
+
+    def _fail(self, frame: Frame, reason: str, message: str) -> None:
+        """Answer status 1: kFail, or for Connect kIncompatibleLibraryVersion (+ version)."""
+        connect = frame.command == Command.kConnect
+        log.warning(
+            "gripper client %s: %s (command %d, id %d): %s: answered %s",
+            self.peer,
+            reason,
+            frame.command,
+            frame.command_id,
+            message,
+            "kIncompatibleLibraryVersion" if connect else "kFail",
+        )
+        self.reply(frame.command, frame.command_id, 1, VERSION if connect else None)
+
+    def _dispatch(self, frame: Frame) -> None:
+        try:
+            command = Command(frame.command)
+        except ValueError:
+            self._fail(frame, "unknown-command", f"no gripper command {frame.command}")
+            return
+        size = HEADER.size + len(frame.payload)
+        if size != REQUEST_SIZE[command]:
+            self._fail(
+                frame, "wrong-size", f"{command.name} is {REQUEST_SIZE[command]} bytes, got {size}"
+            )
+            return
+        if command == Command.kConnect:
+            version, udp_port = _CONNECT_REQ.unpack(frame.payload)
+            if version != VERSION:
+                log.warning(
+                    "gripper client %s: library version %d is not %d: answered "
+                    "kIncompatibleLibraryVersion",
+                    self.peer,
+                    version,
+                    VERSION,
+                )
+                self.reply(frame.command, frame.command_id, 1, VERSION)
+                return
+            self.udp_port = udp_port
+            self.reply(frame.command, frame.command_id, 0, VERSION)
+            log.info("gripper client %s connected (UDP port %d)", self.peer, udp_port)
+            self.server.client_connected(self)
+            return
+        if self.udp_port is None:
+            self._fail(frame, "before-connect", f"{command.name} before Connect")
+            return
+        if command == Command.kGrasp:
+            args = _GRASP_REQ.unpack(frame.payload)
+        elif command == Command.kMove:
+            args = _MOVE_REQ.unpack(frame.payload)
+        else:
+            args = ()
+        self.server.submit(self, command, frame.command_id, args)
+
+
+class GripperServer:
+    """Serves one simulated Franka Hand to one libfranka gripper client at a time.
+
+    Args:
+        host: bind address (the robot server's).
+        port: TCP port (1338; libfranka takes no port argument).
+        object_width: a rigid virtual object between the fingers [m], or None.
+    """
+
+    def __init__(
+        self, host: str = "127.0.0.1", port: int = GRIPPER_PORT, object_width: float | None = None
+    ) -> None:
+        self.host, self.port = host, port
+        self.hand = FrankaHand(object_width=object_width)
+        self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._pending: dict[int, tuple[GripperSession, Command, int]] = {}
+        self._session: GripperSession | None = None
+        self._session_lock = threading.Lock()
+        self._client_addr: tuple[str, int] | None = None
+        self._running = threading.Event()
+        self._wake = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._udp_log = RateLimitedLog(log)
+        self._state = np.zeros(1, dtype=GRIPPER_STATE_DTYPE)
+        self._message_id = 0
+
+    # -- lifecycle ----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Bind the sockets and start the threads."""
+        self._tcp = socket.create_server((self.host, self.port))
+        self._tcp.settimeout(0.2)
+        self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._udp.bind((self.host, 0))
+        self._running.set()
+        for target, name in ((self._timer_loop, "gripper-timer"), (self._accept, "gripper-accept")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        log.info(
+            "serving the Franka Hand (gripper protocol v%d) on %s:%d (object width: %s)",
+            VERSION,
+            self.host,
+            self.port,
+            self.hand.object_width,
+        )
+
+    def stop(self) -> None:
+        """Stop the threads and close every socket."""
+        self._running.clear()
+        with self._session_lock:
+            session = self._session
+        if session is not None:
+            session.close()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        self._tcp.close()
+        self._udp.close()
+        log.info("gripper server stopped")
+
+    # -- TCP side -----------------------------------------------------------------------------
+
+    def _accept(self) -> None:
+        while self._running.is_set():
+            try:
+                sock, peer = self._tcp.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                break
+            with self._session_lock:
+                busy = self._session is not None
+                if not busy:
+                    self._session = GripperSession(self, sock, peer)
+                    session = self._session
+            if busy:
+                log.warning(
+                    "refusing a second gripper client from %s:%d: a gripper client is already "
+                    "connected (one gripper client at a time)",
+                    *peer,
+                )
+                sock.close()
+                continue
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            session.thread.start()
+
+    def client_connected(self, session: GripperSession) -> None:
+        addr = (session.peer[0], int(session.udp_port))
+        self._post(lambda: setattr(self, "_client_addr", addr))
+
+    def session_closed(self, session: GripperSession) -> None:
+        log.info("gripper client %s disconnected", session.peer)
+
+        def forget() -> None:
+            self._client_addr = None
+            self._pending = {k: v for k, v in self._pending.items() if v[0] is not session}
+
+        # Posted before the slot frees, so it runs before the next client's Connect.
+        self._post(forget)
+        with self._session_lock:
+            if self._session is session:
+                self._session = None
+
+    def submit(self, session: GripperSession, command: Command, command_id: int, args) -> None:
+        """Apply a decoded request on the timer thread (the reader never waits for it)."""
+
+        def apply() -> None:
+            try:
+                self._apply(session, command, command_id, args)
+            except Exception:  # every request is answered: libfranka has no reply timeout
+                log.exception("gripper %s (id %d) failed; answered kFail", command.name, command_id)
+                session.reply(command, command_id, Status.kFail)
+
+        self._post(apply)
+
+    def _apply(self, session: GripperSession, command: Command, command_id: int, args) -> None:
+        hand = self.hand
+        try:
+            if command == Command.kHoming:
+                action = hand.homing()
+            elif command == Command.kMove:
+                width, speed = args
+                action = hand.move(width, speed)
+            elif command == Command.kGrasp:
+                width, eps_inner, eps_outer, speed, force = args
+                action = hand.grasp(width, speed, force, eps_inner, eps_outer)
+            else:  # kStop: halts in place; the interrupted command is answered below
+                hand.stop()
+                self._answer_finished()
+                session.reply(command, command_id, Status.kSuccess)
+                return
+        except ValueError as exc:
+            # A command the hand cannot execute: kFail, libfranka raises
+            # CommandException "Command failed!" (seed "Command coverage").
+            log.warning(
+                "gripper client %s: invalid-argument in %s (id %d): %s: answered kFail",
+                session.peer,
+                command.name,
+                command_id,
+                exc,
+            )
+            session.reply(command, command_id, Status.kFail)
+            return
+        self._answer_finished()  # a command preempted by this one
+        self._pending[action] = (session, command, command_id)
+
+    def _answer_finished(self) -> None:
+        for action, outcome in self.hand.take_finished():
+            entry = self._pending.pop(action, None)
+            if entry is None:
+                continue
+            session, command, command_id = entry
+            # A Stop aborts the running Grasp/Move: we answer it kAborted. What the
+            # real hand answers here (kAborted or kUnsuccessful) is not documented
+            # (fci-wire-protocol.md §10.2).
+            session.reply(command, command_id, _STATUS_OF[outcome])
+
+    # -- the timer ----------------------------------------------------------------------------
+
+    def _post(self, apply) -> None:
+        """Hand a request to the timer thread and wake it."""
+        self._requests.put(apply)
+        self._wake.set()
+
+    def _timer_loop(self) -> None:
+        """Step the hand at 250 Hz while the fingers move, else only as often as the
+        60 Hz broadcast needs (and not at all with no client), so an idle gripper
+        server costs the robot's 1 kHz tick nothing; a request wakes it at once."""
+        dt = 1.0 / STEP_HZ
+        last = next_broadcast = time.perf_counter()
+        while self._running.is_set():
+            while True:
+                try:
+                    apply = self._requests.get_nowait()
+                except queue.Empty:
+                    break
+                try:
+                    apply()
+                except Exception:  # a request must never kill the timer thread
+                    log.exception("gripper request failed")
+            now = time.perf_counter()
+            self.hand.step(min(now - last, 0.1))  # the model moves by the time that passed
+            last = now
+            self._answer_finished()
+            if now >= next_broadcast:
+                next_broadcast = max(next_broadcast + 1.0 / BROADCAST_HZ, now - 0.1)
+                self._broadcast()
+            if self.hand.busy:
+                timeout = dt
+            elif self._client_addr is not None:
+                timeout = max(0.0, next_broadcast - time.perf_counter())
+            else:
+                timeout = 0.1
+            self._wake.wait(timeout)
+            self._wake.clear()
+
+    def _broadcast(self) -> None:
+        """§10.3 GripperState; message_id is this loop's counter (seed)."""
+        self._message_id = (self._message_id + 1) & 0xFFFFFFFF
+        addr = self._client_addr
+        if addr is None:
+            return
+        state = self._state[0]
+        state["message_id"] = self._message_id
+        state["width"] = self.hand.width
+        state["max_width"] = self.hand.max_width
+        state["is_grasped"] = self.hand.is_grasped
+        state["temperature"] = TEMPERATURE_C
+        try:
+            self._udp.sendto(self._state.tobytes(), addr)
+        except OSError as exc:
+            self._udp_log.warning("udp-send-failed", "gripper state not sent to %s: %s", addr, exc)
+
+
+_STATUS_OF = {
+    Outcome.SUCCESS: Status.kSuccess,
+    Outcome.UNSUCCESSFUL: Status.kUnsuccessful,
+    Outcome.ABORTED: Status.kAborted,
+}

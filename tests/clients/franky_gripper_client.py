@@ -1,0 +1,73 @@
+"""franky Gripper scenarios (franky-control 2.0.0), each run in its own process.
+
+`python franky_gripper_client.py SCENARIO HOST` prints one JSON line as its
+last line. franky and pylibfranka cannot share a process (their pybind11 types
+collide), hence this second script beside gripper_client.py. franky's
+``*_async`` calls return a future without holding the GIL, which is what lets
+one connection send Stop while a Move is outstanding.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import franky
+
+
+def state_dict(gripper: franky.Gripper) -> dict:
+    return {
+        "width": gripper.width,
+        "max_width": gripper.max_width,
+        "is_grasped": gripper.is_grasped,
+    }
+
+
+def scenario_homing_move(host: str) -> dict:
+    gripper = franky.Gripper(host)
+    homing = gripper.homing()
+    after_homing = gripper.width
+    start = time.monotonic()
+    move = gripper.move(0.04, 0.05)
+    seconds = time.monotonic() - start
+    return {
+        "homing": homing,
+        "width_after_homing": after_homing,
+        "move": move,
+        "move_seconds": seconds,
+        "opened": gripper.open(0.1),
+        **state_dict(gripper),
+    }
+
+
+def scenario_stop_mid_move(host: str) -> dict:
+    """Close from 8 cm towards 0 at 2 cm/s; stop() on the same connection after 0.3 s."""
+    gripper = franky.Gripper(host)
+    gripper.homing()
+    start_width = gripper.width
+    future = gripper.move_async(0.0, 0.02)
+    time.sleep(0.3)
+    stop = gripper.stop()
+    try:
+        move: object = future.get()
+    except Exception as exc:  # the interrupted command's answer
+        move = f"{type(exc).__name__}: {exc}"
+    width_at_stop = gripper.width
+    time.sleep(0.5)
+    return {
+        "start_width": start_width,
+        "stop": stop,
+        "move": move,
+        "width_at_stop": width_at_stop,
+        **state_dict(gripper),
+    }
+
+
+if __name__ == "__main__":
+    name, host = sys.argv[1], sys.argv[2]
+    try:
+        result = globals()[f"scenario_{name}"](host)
+    except Exception as exc:  # the test reads the exception type and text
+        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
+    print(json.dumps(result), flush=True)

@@ -1,0 +1,104 @@
+"""pylibfranka Gripper scenarios, each run in its own process by the socket tests.
+
+`python gripper_client.py SCENARIO HOST` prints one JSON line (the scenario's
+result) as its last line; an exception becomes {"exception_type", "exception"}.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+import pylibfranka as fr
+
+
+def state_dict(gripper: fr.Gripper) -> dict:
+    state = gripper.read_once()
+    return {
+        "width": state.width,
+        "max_width": state.max_width,
+        "is_grasped": state.is_grasped,
+        "temperature": state.temperature,
+    }
+
+
+def timed(call) -> tuple[object, float]:
+    start = time.monotonic()
+    result = call()
+    return result, time.monotonic() - start
+
+
+def scenario_homing(host: str) -> dict:
+    gripper = fr.Gripper(host)
+    ok, seconds = timed(gripper.homing)
+    return {
+        "ok": ok,
+        "seconds": seconds,
+        "version": gripper.server_version(),
+        **state_dict(gripper),
+    }
+
+
+def scenario_move(host: str) -> dict:
+    """Open fully, then move to 4 cm at 2 cm/s: 2 s if the speed is honoured."""
+    gripper = fr.Gripper(host)
+    gripper.move(0.08, 0.1)
+    ok, seconds = timed(lambda: gripper.move(0.04, 0.02))
+    return {"ok": ok, "seconds": seconds, **state_dict(gripper)}
+
+
+def scenario_grasp(host: str) -> dict:
+    """grasp(0.04) at 5 cm/s from fully open."""
+    gripper = fr.Gripper(host)
+    gripper.move(0.08, 0.1)
+    ok, seconds = timed(lambda: gripper.grasp(0.04, 0.05, 20.0))
+    return {"ok": ok, "seconds": seconds, **state_dict(gripper)}
+
+
+def scenario_grasp_zero(host: str) -> dict:
+    gripper = fr.Gripper(host)
+    ok = gripper.grasp(0.0, 0.1, 20.0)
+    return {"ok": ok, **state_dict(gripper)}
+
+
+def scenario_out_of_stroke(host: str) -> dict:
+    """A width beyond the stroke raises; the connection keeps working afterwards."""
+    gripper = fr.Gripper(host)
+    errors = []
+    for call in (lambda: gripper.move(0.1, 0.1), lambda: gripper.grasp(-0.01, 0.1, 20.0)):
+        try:
+            call()
+            errors.append(None)
+        except Exception as exc:
+            errors.append(f"{type(exc).__name__}: {exc}")
+    return {"errors": errors, "homing_after": gripper.homing(), **state_dict(gripper)}
+
+
+def scenario_hold(host: str) -> dict:
+    """Hold one connection for HOLD_SECONDS, reading the state and moving now and then."""
+    gripper = fr.Gripper(host)
+    reads, deadline = 0, time.monotonic() + float(os.environ.get("HOLD_SECONDS", "3"))
+    while time.monotonic() < deadline:
+        gripper.read_once()
+        reads += 1
+    ok = gripper.move(0.05, 0.1)
+    return {"reads": reads, "move_after": ok, **state_dict(gripper)}
+
+
+def scenario_connect_only(host: str) -> dict:
+    try:
+        gripper = fr.Gripper(host)
+        return {"error": None, **state_dict(gripper)}
+    except Exception as exc:
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+if __name__ == "__main__":
+    name, host = sys.argv[1], sys.argv[2]
+    try:
+        result = globals()[f"scenario_{name}"](host)
+    except Exception as exc:  # the test reads the exception type and text
+        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
+    print(json.dumps(result), flush=True)
