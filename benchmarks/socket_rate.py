@@ -34,9 +34,19 @@ def cpu_seconds(pid: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--server-args", default="", help='extra serve flags, e.g. "--no-gripper"')
     args = parser.parse_args()
     server = subprocess.Popen(
-        [sys.executable, "-m", "franka_sim_gym.server", "--host", HOST, "--log-level", "WARNING"],
+        [
+            sys.executable,
+            "-m",
+            "franka_sim_gym.server",
+            "--host",
+            HOST,
+            "--log-level",
+            "WARNING",
+            *args.server_args.split(),
+        ],
         cwd=ROOT,
     )
     try:
