@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..sim.self_collision import close_link_pairs, closest_link_pair
-from . import limits
+from . import extrapolation, limits
 from ._fast import count_nonzero
 from .errors import ERROR_NAMES, Error
 from .tables import DELTA_T, MAX_LOST_CYCLES
@@ -143,8 +143,7 @@ class MotionLimitEngine:
         extrapolate = lost & (self.c.accounting.lost_run < MAX_LOST_CYCLES)
         # Seed "What the sim does with a lost cycle": one substitute waypoint per
         # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
-        ex_dq = ref.dq + ref.ddq_frozen * dt
-        ex_q = ref.q + ex_dq * dt
+        ex_q, ex_dq = extrapolation.position_step(ref.q, ref.dq, ref.ddq_frozen, dt)
         h = have[:, None]
         q_cand = np.where(h, q_c, ex_q)
         dq_cand = np.where(h, dq_c, ex_dq)
