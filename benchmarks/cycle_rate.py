@@ -72,7 +72,15 @@ def motion_rate(n: int, seconds: float) -> float:
         ctrl.receive(commands, mask)
         ctrl.step()
 
-    return rate(cycle, seconds)
+    cycles = rate(cycle, seconds)
+    # The cycle accounting alone (success-rate window, lost runs), every robot counting.
+    accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
+    ACCOUNTING_SHARE[n] = cycles / accounting
+    return cycles
+
+
+#: per n: the accounting's share of one motion cycle
+ACCOUNTING_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -89,6 +97,8 @@ def main() -> None:
     print(f"{'row':<42}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
     for name, n, cycles in rows:
         print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
+    for n, share in ACCOUNTING_SHARE.items():
+        print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
     n1 = rows[2][2]
     n16 = rows[5][2] * 16
     print(

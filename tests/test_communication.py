@@ -187,3 +187,18 @@ def test_comm_violation_is_independent_of_the_motion_limit_switch():
     for _ in range(20):
         c2.send(deliver=False)
     assert c2.move_statuses() == [MoveStatus.kReflexAborted]
+
+
+def test_a_late_datagram_is_applied_to_the_servo_but_never_recorded():
+    ctrl, c, q0 = started(enforce=False)
+    for k in range(0, 50):
+        c.send(q_c=stream(q0, k))
+    late_id = int(c.state["message_id"]) - 3  # echoes a state the history is built on
+    late_q = stream(q0, 49) + 0.001  # its intent
+    deliver_backlog(ctrl, c, [(late_id, late_q)])
+    # the cycle was lost: the history (q_d) is the extrapolated reference ...
+    np.testing.assert_allclose(ctrl.reference.q[0], stream(q0, 50), atol=1e-12)
+    # ... and the servo was handed the late command's intent
+    np.testing.assert_array_equal(ctrl.servo_q[0], late_q)
+    c.send(q_c=stream(q0, 51))  # the next command is differenced against the history
+    np.testing.assert_array_equal(ctrl.servo_q[0], ctrl.reference.q[0])

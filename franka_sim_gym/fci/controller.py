@@ -205,6 +205,10 @@ class FciController:
             track = m.tracking[:, None]
             q_ref = np.where(track, w.q_d, self.q_hold)
             dq_ref = np.where(track, w.dq_d, 0.0)
+        if m.n_tracking:
+            q_ref, dq_ref = self.engine.servo_reference(q_ref, dq_ref)
+        #: what the joint servo was given this cycle (for tests and viewers)
+        self.servo_q = q_ref
         moving = m.n_motion > 0
         if moving:
             self.engine.ee_prev[...] = w.O_T_EE[:, 12:15]

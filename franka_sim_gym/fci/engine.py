@@ -42,6 +42,10 @@ class MotionLimitEngine:
         # The velocity envelope at the reference's q, valid until the reference
         # changes outside a cycle (a Move, a reset, a rewind).
         self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
+        #: late datagrams applied (not recorded) this cycle: the servo's target
+        self.late = np.zeros(n, dtype=bool)
+        self.late_q = np.zeros((n, 7))
+        self.late_dq = np.zeros((n, 7))
         # The fused mid-motion q_c check: [q_c | dq | ddq | dddq] against stacked bounds
         # (the joint range, the envelope — filled per cycle —, the acceleration and
         # jerk limits of the robot's table).
@@ -200,6 +204,35 @@ class MotionLimitEngine:
         judged = late & ~rewind & self.c.modes.tracking
         if count_nonzero(judged):
             self._judge_only(commands, judged)
+            self._apply_late(commands, judged & self.c.modes.tracking)
+
+    def _apply_late(self, commands: np.ndarray, rows: np.ndarray) -> None:
+        """Seed: a late datagram "is still applied — within a cycle a late command is the
+        freshest intent there is" — but "never becomes a sample of your trajectory". It
+        is dispatched to the servo this cycle (unless a fresh command supersedes it) and
+        not recorded: the published q_d stays the history the next command is judged at."""
+        if not count_nonzero(rows):
+            return
+        m, ref = self.c.modes, self.c.reference
+        position = (rows & m.joint_position)[:, None]
+        velocity = (rows & m.joint_velocity)[:, None]
+        np.copyto(self.late_q, commands["q_c"], where=position)
+        np.copyto(self.late_dq, 0.0, where=position)
+        np.copyto(self.late_q, ref.q + commands["dq_c"] * DELTA_T, where=velocity)
+        np.copyto(self.late_dq, commands["dq_c"], where=velocity)
+        self.late |= rows
+
+    def servo_reference(
+        self, q_ref: np.ndarray, dq_ref: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The servo's target this cycle: late intents where no fresh command arrived."""
+        late = self.late & ~self.c._have
+        self.late[...] = False
+        if not count_nonzero(late):
+            return q_ref, dq_ref
+        rows = late[:, None]
+        dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
+        return np.where(rows, self.late_q, q_ref), np.where(rows, self.late_dq, dq)
 
     def _judge_only(self, commands: np.ndarray, rows: np.ndarray) -> None:
         """Check commands of ``rows`` against the reference as it stands, without applying."""
