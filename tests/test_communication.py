@@ -36,8 +36,11 @@ def test_constant_acceleration_stream_is_extrapolated_onto_its_own_waypoints(gap
         c.send(q_c=stream(q0, k))
     for j in range(1, gap + 1):
         c.send(deliver=False)
-        # the substitute waypoint is the stream's own next waypoint (to double rounding)
-        np.testing.assert_allclose(ctrl.reference.q[0], stream(q0, 29 + j), rtol=0, atol=1e-12)
+        # the substitute waypoint is the stream's own next waypoint: bit for bit as
+        # published (float32), and to double rounding (~1e-15) in the float64 history
+        expected = stream(q0, 29 + j)
+        assert c.state["q_d"].tobytes() == expected.astype(np.float32).tobytes()
+        np.testing.assert_allclose(ctrl.reference.q[0], expected, rtol=0, atol=1e-12)
     for k in range(30 + gap, 40 + gap):
         c.send(q_c=stream(q0, k))
     assert c.state["robot_mode"] == RobotMode.kMove
