@@ -277,6 +277,8 @@ class FciController:
         elif m.n_motion < self.n:
             np.copyto(w.q_d, physics.q, where=~m.in_motion[:, None])
         w.publish(self.accounting.success_rate())
+        if m.n_tracking:
+            self.reference.remember(int(w.message_id[0]))
 
     # -- requests (between cycles) --------------------------------------------------------------
 

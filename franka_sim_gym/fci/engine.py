@@ -201,9 +201,19 @@ class MotionLimitEngine:
                 echo=ids,
                 extrapolate_lost=False,
             )
+            # The sample stands for state e + 1; the history must stand for the last
+            # published state: guess the cycles in between again, from the real sample
+            # (a later datagram of the backlog rewinds them in turn).
+            behind = self.c.writer.message_id.astype(np.int64) - ids.astype(np.int64) - 1
+            behind = np.where(rewind, behind, 0)
+            for j in range(int(behind.max())):
+                rows = rewind & (behind > j) & self.c.modes.tracking
+                if not count_nonzero(rows):
+                    break
+                self._advance_joints(rows, never, commands["q_c"], commands["dq_c"])
         judged = late & ~rewind & self.c.modes.tracking
         if count_nonzero(judged):
-            self._judge_only(commands, judged)
+            self._judge_only(commands, judged, ids)
             self._apply_late(commands, judged & self.c.modes.tracking)
 
     def _apply_late(self, commands: np.ndarray, rows: np.ndarray) -> None:
@@ -234,22 +244,30 @@ class MotionLimitEngine:
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
         return np.where(rows, self.late_q, q_ref), np.where(rows, self.late_dq, dq)
 
-    def _judge_only(self, commands: np.ndarray, rows: np.ndarray) -> None:
-        """Check commands of ``rows`` against the reference as it stands, without applying."""
+    def _judge_only(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
+        """Check late commands of ``rows`` without recording them: each against the
+        reference published in the state it answers, over one cycle — what it would
+        have been judged against on time (a client that skipped states, or whose
+        datagram was delayed, is not charged for the extrapolation that went on
+        meanwhile). Older than the ring (a replay): the reference as it stands."""
         m = self.c.modes
+        current = self.c.writer.message_id
+        history = self.c.reference.published(np.where(rows, ids, current), int(current[0]))
         if count_nonzero(rows & m.joint_position):
-            self._judge_positions(commands["q_c"], rows & m.joint_position, False)
+            self._judge_positions(commands["q_c"], rows & m.joint_position, False, history)
         if count_nonzero(rows & m.joint_velocity):
-            self._judge_velocities(commands["dq_c"], rows & m.joint_velocity, False)
+            self._judge_velocities(commands["dq_c"], rows & m.joint_velocity, False, history)
 
-    def _judge_positions(self, q_c, rows, first) -> limits.PositionCheck:
-        """q_c of ``rows`` judged against the reference over one cycle: logged, enforced."""
+    def _judge_positions(self, q_c, rows, first, history=None) -> limits.PositionCheck:
+        """q_c of ``rows`` judged over one cycle against ``history`` (q, dq, ddq), by
+        default the reference as it stands: logged, enforced."""
         ref = self.c.reference
+        q, dq, ddq = history if history is not None else (ref.q, ref.dq, ref.ddq)
         args = (
             q_c,
-            ref.q,
-            ref.dq,
-            ref.ddq,
+            q,
+            dq,
+            ddq,
             first,
             ref.q,
             1,
@@ -260,14 +278,15 @@ class MotionLimitEngine:
         self._judge(check.error, rows, lambda i: limits.describe_joint_position(i, *args))
         return check
 
-    def _judge_velocities(self, dq_c, rows, first) -> limits.VelocityCheck:
-        """dq_c of ``rows`` judged against the reference over one cycle: logged, enforced."""
+    def _judge_velocities(self, dq_c, rows, first, history=None) -> limits.VelocityCheck:
+        """dq_c of ``rows`` judged over one cycle against ``history`` (default: as it stands)."""
         ref = self.c.reference
+        q, dq, ddq = history if history is not None else (ref.q, ref.dq, ref.ddq)
         args = (
             dq_c,
-            ref.q,
-            ref.dq,
-            ref.ddq,
+            q,
+            dq,
+            ddq,
             first,
             ref.dq,
             1,

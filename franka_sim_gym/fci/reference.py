@@ -16,6 +16,10 @@ import numpy as np
 from ._fast import count_nonzero
 from .tables import DELTA_T
 
+#: published references kept for judging late datagrams: more than the 20 cycles
+#: after which a motion stops being extrapolated (a later datagram is a replay)
+RING = 32
+
 _RATE = 1.0 / DELTA_T
 
 
@@ -41,6 +45,28 @@ class JointReference:
         self._real_q = np.zeros_like(q)
         self._real_dq = np.zeros_like(q)
         self._real_ddq = np.zeros_like(q)
+        # The references the last RING published states carried (by message id), so
+        # a late datagram is judged against the reference of the state it answers.
+        self._ring = np.zeros((3, n, RING, 7))
+
+    def remember(self, message_id: int) -> None:
+        """Store the reference as published in state ``message_id``."""
+        k = message_id % RING
+        ring = self._ring
+        ring[0, :, k] = self.q
+        ring[1, :, k] = self.dq
+        ring[2, :, k] = self.ddq
+
+    def published(self, ids: np.ndarray, current: int) -> tuple[np.ndarray, ...] | None:
+        """(q, dq, ddq) as published in state ``ids[i]`` for each robot, (n, 7) each;
+        None when some id is older than the ring (the caller uses the reference as it
+        stands). ``current`` is the last published id."""
+        ids = ids.astype(np.int64)
+        if np.any(current - ids >= RING):
+            return None
+        rows = np.arange(ids.shape[0])
+        k = ids % RING
+        return tuple(self._ring[j, rows, k] for j in range(3))
 
     def seed(self, i: int, q: np.ndarray, echo: int) -> None:
         """Start robot i's motion at rest at ``q`` (a new Move); ``echo``: the last published id."""
