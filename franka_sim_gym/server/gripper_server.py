@@ -32,6 +32,7 @@ import numpy as np
 from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, Outcome
+from .client_slot import ClientSlot
 from .logging_util import RateLimitedLog
 
 log = logging.getLogger("franka_sim_gym.gripper")
@@ -210,8 +211,7 @@ class GripperServer:
         self.hand = FrankaHand(object_width=object_width)
         self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._pending: dict[int, tuple[GripperSession, Command, int]] = {}
-        self._session: GripperSession | None = None
-        self._session_lock = threading.Lock()
+        self._slot = ClientSlot("gripper ", lambda sock, peer: GripperSession(self, sock, peer))
         self._client_addr: tuple[str, int] | None = None
         self._running = threading.Event()
         self._wake = threading.Event()
@@ -229,7 +229,8 @@ class GripperServer:
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((self.host, 0))
         self._running.set()
-        for target, name in ((self._timer_loop, "gripper-timer"), (self._accept, "gripper-accept")):
+        accept = lambda: self._slot.accept_loop(self._tcp, self._running)  # noqa: E731
+        for target, name in ((self._timer_loop, "gripper-timer"), (accept, "gripper-accept")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
@@ -244,10 +245,7 @@ class GripperServer:
     def stop(self) -> None:
         """Stop the threads and close every socket."""
         self._running.clear()
-        with self._session_lock:
-            session = self._session
-        if session is not None:
-            session.close()
+        self._slot.close()
         for thread in self._threads:
             thread.join(timeout=2.0)
         self._tcp.close()
@@ -255,30 +253,6 @@ class GripperServer:
         log.info("gripper server stopped")
 
     # -- TCP side -----------------------------------------------------------------------------
-
-    def _accept(self) -> None:
-        while self._running.is_set():
-            try:
-                sock, peer = self._tcp.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                break
-            with self._session_lock:
-                busy = self._session is not None
-                if not busy:
-                    self._session = GripperSession(self, sock, peer)
-                    session = self._session
-            if busy:
-                log.warning(
-                    "refusing a second gripper client from %s:%d: a gripper client is already "
-                    "connected (one gripper client at a time)",
-                    *peer,
-                )
-                sock.close()
-                continue
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            session.thread.start()
 
     def client_connected(self, session: GripperSession) -> None:
         addr = (session.peer[0], int(session.udp_port))
@@ -293,9 +267,7 @@ class GripperServer:
 
         # Posted before the slot frees, so it runs before the next client's Connect.
         self._post(forget)
-        with self._session_lock:
-            if self._session is session:
-                self._session = None
+        self._slot.release(session)
 
     def submit(self, session: GripperSession, command: Command, command_id: int, args) -> None:
         """Apply a decoded request on the timer thread (the reader never waits for it)."""

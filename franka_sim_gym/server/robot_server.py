@@ -35,6 +35,7 @@ from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
 from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
+from .client_slot import ClientSlot
 from .logging_util import RateLimitedLog
 from .session import ClientSession
 
@@ -73,9 +74,8 @@ class RobotServer:
         self.physics = ArmPhysics(n_arms=1)
         self.controller = FciController(self.physics, self.config)
         self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
-        self._session: ClientSession | None = None
+        self._slot = ClientSlot("", lambda sock, peer: ClientSession(self, sock, peer))
         self._client_addr: tuple[str, int] | None = None
-        self._session_lock = threading.Lock()
         self._pending_move: tuple[ClientSession, int] | None = None
         self._pending_recovery: tuple[ClientSession, int] | None = None
         self._running = threading.Event()
@@ -102,7 +102,8 @@ class RobotServer:
         self._udp.bind((host, 0))
         self._udp.setblocking(False)
         self._running.set()
-        for target, name in ((self._tick_loop, "fci-tick"), (self._accept_loop, "fci-accept")):
+        accept = lambda: self._slot.accept_loop(self._tcp, self._running)  # noqa: E731
+        for target, name in ((self._tick_loop, "fci-tick"), (accept, "fci-accept")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
             self._threads.append(thread)
@@ -118,10 +119,7 @@ class RobotServer:
     def stop(self) -> None:
         """Stop the threads and close every socket."""
         self._running.clear()
-        with self._session_lock:
-            session = self._session
-        if session is not None:
-            session.close()
+        self._slot.close()
         for thread in self._threads:
             thread.join(timeout=2.0)
         self._tcp.close()
@@ -145,30 +143,6 @@ class RobotServer:
 
     # -- TCP side -----------------------------------------------------------------------------
 
-    def _accept_loop(self) -> None:
-        while self._running.is_set():
-            try:
-                sock, peer = self._tcp.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                break
-            with self._session_lock:
-                busy = self._session is not None
-                if not busy:
-                    session = ClientSession(self, sock, peer)
-                    self._session = session
-            if busy:
-                log.warning(
-                    "refusing a second client from %s:%d: a client is already connected "
-                    "(one FCI client at a time)",
-                    *peer,
-                )
-                sock.close()
-                continue
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            session.thread.start()
-
     def client_connected(self, session: ClientSession) -> None:
         """Connect succeeded: stream states to (peer IP, UDP port from Connect)."""
         addr = (session.peer[0], int(session.udp_port))
@@ -185,9 +159,7 @@ class RobotServer:
             if self._pending_recovery and self._pending_recovery[0] is session:
                 self._pending_recovery = None
             self.controller.end_session(0)
-            with self._session_lock:
-                if self._session is session:
-                    self._session = None
+            self._slot.release(session)
 
         self._requests.put(reset)
 
@@ -305,14 +277,20 @@ class RobotServer:
                 self._udp_log.warning(
                     "datagram-from-unknown-address",
                     "ignored a %d-byte datagram from %s:%d (connected client: %s)",
-                    size, addr[0], addr[1], client,
+                    size,
+                    addr[0],
+                    addr[1],
+                    client,
                 )
                 continue
             if size != ROBOT_COMMAND_SIZE:
                 self._udp_log.warning(
                     "datagram-wrong-size",
                     "ignored a %d-byte datagram from %s:%d: a RobotCommand is %d bytes",
-                    size, addr[0], addr[1], ROBOT_COMMAND_SIZE,
+                    size,
+                    addr[0],
+                    addr[1],
+                    ROBOT_COMMAND_SIZE,
                 )
                 continue
             self._command_buffer[:] = buffer[:ROBOT_COMMAND_SIZE]
