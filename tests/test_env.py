@@ -168,3 +168,15 @@ def test_bad_arguments_are_clear_errors():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.full(7, np.nan, dtype=np.float32))
+
+
+def test_rgb_array_renders_the_arm_and_the_goal():
+    env = gym.make("FrankaFCI-v0", render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    env.step(np.zeros(7, dtype=np.float32))
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 10  # not a blank image
+    red = (frame[..., 0] > 150) & (frame[..., 1] < 80) & (frame[..., 2] < 80)
+    assert red.sum() > 10  # the goal marker is in view
+    env.close()

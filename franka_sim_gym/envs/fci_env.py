@@ -11,6 +11,7 @@ because the controller raised a reflex, and ``info`` names it.
 from __future__ import annotations
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 from gymnasium import spaces
 
@@ -25,6 +26,7 @@ from ..fci.wire import (
     RobotMode,
 )
 from ..sim.arm import ArmPhysics
+from ..sim.render import OffscreenRenderer
 from ..sim.world import HOME_Q
 from .channel import Channel, make_channel
 from .commands import CommandGenerator
@@ -59,10 +61,12 @@ class FrankaFCIEnv(gym.Env):
         reset_noise: half-width [rad] of the uniform noise added to each joint of
             the home pose at reset (default 0.05).
         robot: "fr3" (default) or "fer" limit tables.
-        render_mode: None (no rendering in this version).
+        render_mode: None, "rgb_array" (MuJoCo offscreen: EGL unless MUJOCO_GL says
+            otherwise) or "human" (MuJoCo's viewer; needs a display).
+        width, height: the rgb_array frame size [px].
     """
 
-    metadata = {"render_modes": [], "render_fps": 25}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}
 
     def __init__(
         self,
@@ -78,6 +82,8 @@ class FrankaFCIEnv(gym.Env):
         reset_noise: float = 0.05,
         robot: str = "fr3",
         render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
     ) -> None:
         cycles = 1000.0 / policy_hz
         if policy_hz <= 0 or abs(cycles - round(cycles)) > 1e-9:
@@ -86,8 +92,12 @@ class FrankaFCIEnv(gym.Env):
             raise ValueError(
                 f"unknown action_interface {action_interface!r}: expected one of {tuple(_MOVE)}"
             )
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported yet")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            modes = self.metadata["render_modes"]
+            raise ValueError(f"render_mode {render_mode!r}: expected None or one of {modes}")
+        self.width, self.height = int(width), int(height)
+        self._renderer = None
+        self._viewer = None
         self.action_interface = action_interface
         self.cycles_per_step = int(round(cycles))
         self.max_episode_steps = int(max_episode_steps)
@@ -196,6 +206,46 @@ class FrankaFCIEnv(gym.Env):
             reward += self.task.worst_step_reward * (remaining + 1)
         truncated = (not terminated) and self._steps >= self.max_episode_steps
         return obs, reward, terminated, truncated, info
+
+    def render(self):
+        """An RGB frame (rgb_array) of the arm and the goal, or a viewer sync (human)."""
+        physics = self.controller.physics
+        if self.render_mode == "human":
+            if self._viewer is None:
+                from mujoco import viewer
+
+                self._viewer = viewer.launch_passive(physics.model, physics.data)
+            self._viewer.sync()
+            return None
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = OffscreenRenderer(physics.model, self.width, self.height)
+            camera = self._renderer.camera
+            camera.lookat[:] = physics.base_pos[0] + (0.35, 0.0, 0.4)
+            camera.distance, camera.azimuth, camera.elevation = 1.6, 135, -20
+        renderer = self._renderer
+        renderer.update_scene(physics.data)
+        scene = renderer.scene
+        if scene.ngeom < scene.maxgeom:  # the goal: a translucent red sphere
+            mujoco.mjv_initGeom(
+                scene.geoms[scene.ngeom],
+                mujoco.mjtGeom.mjGEOM_SPHERE,
+                np.array([self.task.distance_threshold, 0, 0]),
+                physics.base_pos[0] + self._goal,
+                np.eye(3).ravel(),
+                np.array([1.0, 0.1, 0.1, 0.6], dtype=np.float32),
+            )
+            scene.ngeom += 1
+        return renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
 
     def compute_reward(self, achieved_goal, desired_goal, info):
         """Vectorised reward (SB3's HER relabels goals with it)."""
