@@ -180,3 +180,32 @@ def test_rgb_array_renders_the_arm_and_the_goal():
     red = (frame[..., 0] > 150) & (frame[..., 1] < 80) & (frame[..., 2] < 80)
     assert red.sum() > 10  # the goal marker is in view
     env.close()
+
+
+def test_the_gripper_dimension_drives_the_hand_at_its_speed():
+    env = gym.make("FrankaFCI-v0", gripper=True, gripper_speed=0.1)
+    assert env.action_space.shape == (8,)
+    obs, _ = env.reset(seed=0)
+    assert obs["observation"].shape == (18,)
+    assert obs["observation"][-1] == pytest.approx(0.08, abs=1e-3)  # open
+    action = np.zeros(8, dtype=np.float32)
+    action[7] = -1.0  # close
+    for _ in range(5):  # 0.2 s at 0.1 m/s: 2 cm
+        obs, _, terminated, _, info = env.step(action)
+        assert not terminated, info
+    assert obs["observation"][-1] == pytest.approx(0.06, abs=0.005)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_the_mounted_hand_is_in_the_arm_dynamics():
+    # fr3-model.md §6 / the model's hand: joint 4 holds 18.96 Nm bare, ~22.26 Nm with the hand
+    bare, hand = gym.make("FrankaFCI-v0"), gym.make("FrankaFCI-v0", gripper=True)
+    torques = []
+    for env in (bare, hand):
+        env.reset(seed=0, options=None)
+        env.unwrapped.reset_noise = 0.0
+        env.reset(seed=0)
+        _, _, _, _, _ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+        torques.append(float(env.unwrapped.controller.states[0]["tau_J"][3]))
+    assert torques[0] == pytest.approx(18.96, abs=0.3)
+    assert torques[1] - torques[0] == pytest.approx(3.3, abs=0.3)

@@ -26,6 +26,7 @@ from ..fci.wire import (
     RobotMode,
 )
 from ..sim.arm import ArmPhysics
+from ..sim.gripper import MAX_WIDTH, FrankaHand
 from ..sim.render import OffscreenRenderer
 from ..sim.world import HOME_Q
 from .channel import Channel, make_channel
@@ -64,6 +65,11 @@ class FrankaFCIEnv(gym.Env):
         render_mode: None, "rgb_array" (MuJoCo offscreen: EGL unless MUJOCO_GL says
             otherwise) or "human" (MuJoCo's viewer; needs a display).
         width, height: the rgb_array frame size [px].
+        gripper: mount the Franka Hand (its mass is then in the arm's dynamics) and add
+            an eighth action, the commanded opening width (-1 closed … 1 open, 0.08 m),
+            applied through the same hand model as the gripper server (the fingers move
+            at ``gripper_speed``); the observation gains the measured width.
+        gripper_speed: finger speed of the width command [m/s] (default 0.1).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}
@@ -84,6 +90,8 @@ class FrankaFCIEnv(gym.Env):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
+        gripper: bool = False,
+        gripper_speed: float = 0.1,
     ) -> None:
         cycles = 1000.0 / policy_hz
         if policy_hz <= 0 or abs(cycles - round(cycles)) > 1e-9:
@@ -109,22 +117,30 @@ class FrankaFCIEnv(gym.Env):
             enforce_motion_limits=enforce_motion_limits,
             enforce_comm_constraints=enforce_comm_constraints,
         )
-        self.controller = FciController(ArmPhysics(n_arms=1), self.config)
+        self.gripper = bool(gripper)
+        self.gripper_speed = float(gripper_speed)
+        self.hand = FrankaHand() if self.gripper else None
+        self.controller = FciController(ArmPhysics(n_arms=1, hand=self.gripper), self.config)
         self.channel = make_channel(channel)
         self.commands = CommandGenerator(
             action_interface, action_filter, self.cycles_per_step, self.config.table
         )
         table = self.config.table
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(7,), dtype=np.float32)
+        self.action_space = spaces.Box(
+            -1.0, 1.0, shape=(8 if self.gripper else 7,), dtype=np.float32
+        )
         q_lo = (table.q_lower - 0.2).astype(np.float32)
         q_hi = (table.q_upper + 0.2).astype(np.float32)
         dq_hi = np.full(7, 20.0, dtype=np.float32)  # measured speed is bounded by physics
         box = np.full(3, 2.0, dtype=np.float32)  # the FR3 reaches ~0.9 m; EE frames may add
+        width = (
+            [np.zeros(1, np.float32), np.full(1, MAX_WIDTH, np.float32)] if gripper else [[], []]
+        )
         self.observation_space = spaces.Dict(
             {
                 "observation": spaces.Box(
-                    np.concatenate([q_lo, -dq_hi, -box]),
-                    np.concatenate([q_hi, dq_hi, box]),
+                    np.concatenate([q_lo, -dq_hi, -box, width[0]]).astype(np.float32),
+                    np.concatenate([q_hi, dq_hi, box, width[1]]).astype(np.float32),
                     dtype=np.float32,
                 ),
                 "achieved_goal": spaces.Box(-box, box, dtype=np.float32),
@@ -150,6 +166,8 @@ class FrankaFCIEnv(gym.Env):
         ctrl = self.controller
         ctrl.reset(0, q)
         ctrl.violations.take()
+        if self.gripper:
+            self.hand = FrankaHand()  # open (the physics fingers were reset open too)
         self.channel.reset(rng)
         self.commands.reset()
         controller_mode, generator = _MOVE[self.action_interface]
@@ -165,9 +183,14 @@ class FrankaFCIEnv(gym.Env):
         return self._observation(), self._info(lost=0, violations=())
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float64).reshape(7)
+        action = np.asarray(action, dtype=np.float64).reshape(self.action_space.shape)
         if not np.all(np.isfinite(action)):
             raise ValueError(f"action must be finite, got {action}")
+        if self.gripper:
+            target = (np.clip(action[7], -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH
+            if abs(target - self.hand.width) > 1e-6:
+                self.hand.move(target, self.gripper_speed)
+            action = action[:7]
         ctrl = self.controller
         state = ctrl.states
         self.commands.begin_step(action[None, :], state)
@@ -188,6 +211,9 @@ class FrankaFCIEnv(gym.Env):
             lost += not answered
             self._lost_run = 0 if answered else self._lost_run + 1
             self._longest_lost = max(self._longest_lost, self._lost_run)
+            if self.gripper:
+                self.hand.step(1e-3)
+                ctrl.physics.set_finger_width(0, self.hand.width)
             events = ctrl.step()
             self.cycles += 1
             if any(e.kind is EventKind.MOVE_FINISHED for e in events):
@@ -259,7 +285,10 @@ class FrankaFCIEnv(gym.Env):
     def _observation(self) -> dict:
         s = self.controller.states[0]
         ee = self._ee_position()
-        obs = np.concatenate([s["q"], s["dq"], ee]).astype(np.float32)
+        parts = [s["q"], s["dq"], ee]
+        if self.gripper:
+            parts.append(self.controller.physics.finger_width()[:1])
+        obs = np.concatenate(parts).astype(np.float32)
         space = self.observation_space["observation"]
         np.clip(obs, space.low, space.high, out=obs)  # the bounds are the bounds
         return {

@@ -144,6 +144,7 @@ class ArmPhysics:
         if lay.finger_qpos_adr is not None:
             self.data.qpos[lay.finger_qpos_adr[arms]] = FINGER_OPEN
             self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
+            self.data.ctrl[lay.finger_actuator[arms]] = FINGER_OPEN
         mujoco.mj_forward(self.model, self.data)
         self._refresh()
 
@@ -158,6 +159,19 @@ class ArmPhysics:
         # qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone.
         self.tau_J = self._actuator.get()
         np.subtract(self._bias.get(), self._gravcomp.get(), out=self.coriolis)
+
+    def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
+        """Target opening width [m] of the hands of ``arms`` (the fingers' position servo
+        takes half of it per finger: models/hand.xml)."""
+        if self.layout.finger_actuator is None:
+            raise ValueError("no hand is mounted (ArmPhysics(hand=True) mounts one)")
+        self.data.ctrl[self.layout.finger_actuator[arms]] = np.asarray(width) / 2.0
+
+    def finger_width(self) -> np.ndarray:
+        """(n,) measured opening width [m]: the two finger joints summed."""
+        if self.layout.finger_qpos_adr is None:
+            raise ValueError("no hand is mounted")
+        return self.data.qpos[self.layout.finger_qpos_adr].sum(axis=1)
 
     @property
     def time(self) -> float:
