@@ -5,12 +5,19 @@ VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check -q
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test train lint bench clean
 
+# torch==2.13.0 first: that CPU wheel is on these machines; any other torch pulls
+# gigabytes of CUDA packages (stable-baselines3 in the test and train extras needs it).
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
+	$(PIP) install torch==2.13.0
 	$(PIP) install -e '.[test]'
+	touch $@
+
+$(VENV)/.train: $(VENV)/.installed
+	$(PIP) install -e '.[train]'
 	touch $@
 
 demo: $(VENV)/.installed
@@ -19,6 +26,9 @@ demo: $(VENV)/.installed
 test: $(VENV)/.installed
 	$(PY) -m ruff check franka_sim_gym tests examples benchmarks
 	$(PY) -m pytest -q
+
+train: $(VENV)/.train
+	$(PY) examples/train_sb3.py --out runs/reach
 
 bench: $(VENV)/.installed
 	$(PY) benchmarks/cycle_rate.py
