@@ -30,30 +30,18 @@ def make_model(algo: str, env, seed: int, log_dir: Path):
 
     torch.set_num_threads(1)  # 2-core machines: the env and the learner share them
     common = dict(policy="MultiInputPolicy", env=env, seed=seed, verbose=0)
-    her = dict(
+    # Off-policy learners relabel goals with HER (the env's vectorised compute_reward).
+    off_policy = dict(
         replay_buffer_class=HerReplayBuffer,
         replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
+        learning_starts=300,
+        batch_size=256,
+        gamma=0.95,
+        learning_rate=1e-3,
+        policy_kwargs=dict(net_arch=[128, 128]),
     )
-    if algo == "sac":
-        model = SAC(
-            **common,
-            **her,
-            learning_starts=300,
-            batch_size=256,
-            gamma=0.95,
-            learning_rate=1e-3,
-            policy_kwargs=dict(net_arch=[128, 128]),
-        )
-    elif algo == "td3":
-        model = TD3(
-            **common,
-            **her,
-            learning_starts=300,
-            batch_size=256,
-            gamma=0.95,
-            learning_rate=1e-3,
-            policy_kwargs=dict(net_arch=[128, 128]),
-        )
+    if algo in ("sac", "td3"):
+        model = {"sac": SAC, "td3": TD3}[algo](**common, **off_policy)
     elif algo == "ppo":
         model = PPO(**common, n_steps=512, batch_size=128, gamma=0.95)
     else:
