@@ -197,12 +197,14 @@ class FrankaFCIEnv(gym.Env):
         field = _FIELD[self.action_interface]
         lost = 0
         aborted = False
+        # Only the id and the active field change from cycle to cycle (the rest of the
+        # command stays zero, as libfranka sends it).
+        command = self._command
+        command_id, command_field = command["message_id"], command[field]
         for k in range(self.cycles_per_step):
-            command = self._command
-            command[0] = np.zeros((), dtype=ROBOT_COMMAND_DTYPE)
             open_cycle = state["message_id"][0]
-            command["message_id"][0] = open_cycle
-            command[field][0] = self.commands.command(state, k)[0]
+            command_id[0] = open_cycle
+            command_field[0] = self.commands.command(state, k)[0]
             answered = False
             for delivered in self.channel.transmit(command):
                 answered |= bool(delivered["message_id"][0] == open_cycle)
