@@ -74,3 +74,18 @@ class ClientSlot:
             session = self.session
         if session is not None:
             session.close()
+
+
+def stop_serving(
+    running: threading.Event,
+    slot: ClientSlot,
+    threads: list[threading.Thread],
+    *sockets: socket.socket,
+) -> None:
+    """A server's shutdown: stop its loops, close its client, join its threads, close sockets."""
+    running.clear()
+    slot.close()
+    for thread in threads:
+        thread.join(timeout=2.0)
+    for sock in sockets:
+        sock.close()

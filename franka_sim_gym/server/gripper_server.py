@@ -32,7 +32,7 @@ import numpy as np
 from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, Outcome
-from .client_slot import ClientSlot
+from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
 
 log = logging.getLogger("franka_sim_gym.gripper")
@@ -244,12 +244,7 @@ class GripperServer:
 
     def stop(self) -> None:
         """Stop the threads and close every socket."""
-        self._running.clear()
-        self._slot.close()
-        for thread in self._threads:
-            thread.join(timeout=2.0)
-        self._tcp.close()
-        self._udp.close()
+        stop_serving(self._running, self._slot, self._threads, self._tcp, self._udp)
         log.info("gripper server stopped")
 
     # -- TCP side -----------------------------------------------------------------------------

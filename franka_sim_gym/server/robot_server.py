@@ -35,7 +35,7 @@ from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
 from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
-from .client_slot import ClientSlot
+from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
 from .session import ClientSession
 
@@ -118,12 +118,7 @@ class RobotServer:
 
     def stop(self) -> None:
         """Stop the threads and close every socket."""
-        self._running.clear()
-        self._slot.close()
-        for thread in self._threads:
-            thread.join(timeout=2.0)
-        self._tcp.close()
-        self._udp.close()
+        stop_serving(self._running, self._slot, self._threads, self._tcp, self._udp)
         if self._viewer is not None:
             self._viewer.close()
         log.info("server stopped")
