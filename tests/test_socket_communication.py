@@ -3,9 +3,21 @@ is counted in cycles the robot published and nobody answered."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 pytestmark = pytest.mark.socket
+
+
+def _motion_summaries(log: str) -> list[tuple[str, int, int]]:
+    """(status, lost, longest run) of every motion the server logged as ended."""
+    return [
+        (m[1], int(m[2]), int(m[3]))
+        for m in re.finditer(
+            r"motion ended: (\w+) after \d+ cycles; lost (\d+) \(longest run (\d+)\)", log
+        )
+    ]
 
 
 def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serve, client):
@@ -15,12 +27,35 @@ def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serv
     assert r["error"] is not None and '["communication_constraints_violation"]' in r["error"]
     assert r["mode_after"] == "Reflex"
     assert r["next_motion_final_mode"] == "Idle"  # after recovery the next motion runs
+    server.stop()
+    # The 20th lost cycle aborts (the bound is counted in cycles), the next motion is clean.
+    (status, _, longest), (next_status, *_) = _motion_summaries(server.log())
+    assert (status, longest, next_status) == ("kReflexAborted", 20, "kSuccess")
 
 
-def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
-    server = serve("--enforce-comm-constraints")
-    r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "10"}, timeout=60)
-    assert "exception" not in r, r
-    assert r["error"] is None
-    assert r["mode_after"] == "Idle"
-    assert "communication_constraints_violation" not in server.log()
+def test_a_client_silent_for_a_few_ms_is_not_aborted(serve, client):
+    """Fewer than 20 consecutive lost cycles are extrapolated, never aborted.
+
+    Wall-clock silence only bounds the lost run from below: a loaded machine can
+    stall the client for longer. What the robot promises is stated in cycles, so
+    the assertion is too: the server's own count of the longest run decides, and
+    an attempt where a stall pushed that run to 20 proves nothing and is repeated.
+    """
+    for _attempt in range(3):
+        server = serve("--enforce-comm-constraints")
+        r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "5"}, timeout=60)
+        assert "exception" not in r, r
+        server.stop()
+        summaries = _motion_summaries(server.log())
+        assert len(summaries) == 2, server.log()  # the silent motion, then the next one
+        status, lost, longest = summaries[0]
+        if longest >= 20:  # the machine stalled the client past the bound: inconclusive
+            assert status == "kReflexAborted" and r["error"] is not None
+            continue
+        assert longest >= 5, summaries  # the silence really went unanswered
+        assert status == "kSuccess", summaries
+        assert r["error"] is None
+        assert r["mode_after"] == "Idle"
+        assert "communication_constraints_violation" not in server.log()
+        return
+    pytest.fail("three attempts stalled the client for 20 cycles; the machine is too loaded")

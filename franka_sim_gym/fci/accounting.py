@@ -63,6 +63,14 @@ class CycleAccounting:
         self.motion_first_id[i] = _NO_MOTION
         self._rate[i] = 0.0
 
+    def motion_summary(self, i: int) -> tuple[int, int, int]:
+        """(cycles counted, cycles lost, longest lost run) of robot i's running motion."""
+        return (
+            int(self._counted[i]),
+            int(self.lost_total[i]),
+            int(self.longest_lost_run[i]),
+        )
+
     def rearm(self, i: int) -> None:
         """AutomaticErrorRecovery re-arms the lost-cycle bound."""
         self.lost_run[i] = 0

@@ -457,10 +457,12 @@ class FciController:
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
         self.modes.end(i, robot_mode)
         self._clear_commanded(i)
-        self.accounting.stop_motion(i)
+        accounting = self.accounting
+        summary = accounting.motion_summary(i)
+        accounting.stop_motion(i)
         self._have[i] = self._finish[i] = self._first[i] = self._refused[i] = False
         self._write_modes(i)
-        self._events.append(Event(i, EventKind.MOVE_FINISHED, int(status)))
+        self._events.append(Event(i, EventKind.MOVE_FINISHED, int(status), *summary))
 
     def _clear_commanded(self, i: int) -> None:
         """Between motions nothing is commanded: dq_d, ddq_d, tau_J_d read zero."""

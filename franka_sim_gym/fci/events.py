@@ -28,3 +28,8 @@ class Event:
     robot: int
     kind: EventKind
     status: int
+    #: For MOVE_FINISHED: the ended motion's cycle accounting (seed "The cycle
+    #: contract"), so a server can log what the motion's link was like.
+    cycles: int = 0
+    lost_cycles: int = 0
+    longest_lost_run: int = 0

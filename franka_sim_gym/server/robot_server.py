@@ -293,6 +293,14 @@ class RobotServer:
 
     def _deliver_events(self, events) -> None:
         for event in events:
+            if event.kind is EventKind.MOVE_FINISHED:
+                log.info(
+                    "motion ended: %s after %d cycles; lost %d (longest run %d)",
+                    p.MoveStatus(event.status).name,
+                    event.cycles,
+                    event.lost_cycles,
+                    event.longest_lost_run,
+                )
             if event.kind is EventKind.MOVE_FINISHED and self._pending_move is not None:
                 session, command_id = self._pending_move
                 self._pending_move = None
