@@ -26,13 +26,14 @@ import logging
 import numpy as np
 
 from ..sim.arm import ArmPhysics
-from . import setters
+from . import frames, setters
 from ._fast import count_nonzero
 from .accounting import CycleAccounting
 from .config import ControllerConfig
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
+from .limits import cartesian as cartesian_rules
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .reference import JointReference
@@ -88,6 +89,8 @@ class FciController:
         self._all_true.setflags(write=False)
         #: a non-finite command arrived (refused whatever the enforcement)
         self._refused = np.zeros(n, dtype=bool)
+        #: of those, a Cartesian command refused for its elbow alone (named 17)
+        self._refused_elbow = np.zeros(n, dtype=bool)
         #: the motion's opening command has not been judged yet
         self._first = np.zeros(n, dtype=bool)
         #: the motion-limit engine (checks, safety controller, communication bound)
@@ -153,6 +156,11 @@ class FciController:
             self._refused |= refused
             accepted = accepted & finite
         self.accounting.answered |= fresh
+        if late is not None and m.n_cartesian:
+            # A late Cartesian datagram is not applied: the cycle it answered was
+            # extrapolated and the next fresh command is judged against that (the
+            # rewind of joint motions is not implemented for poses; docs/robot-state.md).
+            accepted = accepted & ~(late & m.cartesian)
         if late is not None and m.n_tracking:
             late_joint = late & m.tracking & accepted
             if count_nonzero(late_joint):
@@ -167,6 +175,8 @@ class FciController:
             self._take(self._dq_c, commands["dq_c"], accepted, all_in)
         if m.n_external:
             self._take(self._tau_c, commands["tau_J_d"], accepted, all_in)
+        if m.n_cartesian:
+            self.engine.cartesian.take(commands, accepted)
         self._have |= accepted
         self.accounting.started |= accepted
         if m.n_torque_only == 0:
@@ -207,6 +217,8 @@ class FciController:
             dq_ref = np.where(track, w.dq_d, 0.0)
         if m.n_tracking:
             q_ref, dq_ref = self.engine.servo_reference(q_ref, dq_ref)
+        if m.n_cartesian:
+            q_ref, dq_ref = self.engine.cartesian.servo(q_ref, dq_ref)
         #: what the joint servo was given this cycle (for tests and viewers)
         self.servo_q = q_ref
         moving = m.n_motion > 0
@@ -276,6 +288,8 @@ class FciController:
             w.q_d[...] = physics.q  # between motions q_d is the measured q
         elif m.n_motion < self.n:
             np.copyto(w.q_d, physics.q, where=~m.in_motion[:, None])
+        if m.n_cartesian:
+            self.engine.cartesian.publish()
         w.publish(self.accounting.success_rate())
         if m.n_tracking:
             self.reference.remember(int(w.message_id[0]))
@@ -314,13 +328,8 @@ class FciController:
         if gen == MoveMotionGeneratorMode.kNone and ctrl != MoveControllerMode.kExternalController:
             log.warning("robot %d: Move rejected: no motion generator, no external controller", i)
             return MoveStatus.kInvalidArgumentRejected
-        cartesian = (
-            MoveMotionGeneratorMode.kCartesianPosition,
-            MoveMotionGeneratorMode.kCartesianVelocity,
-        )
-        if gen in cartesian or use_async_motion_generator:
-            what = "the asynchronous generator" if use_async_motion_generator else gen.name
-            log.warning("robot %d: Move rejected: %s is not implemented in this build", i, what)
+        if use_async_motion_generator:
+            log.warning("robot %d: Move rejected: the asynchronous generator is not implemented", i)
             return MoveStatus.kCommandNotPossibleRejected
         if self.modes.in_motion[i]:
             log.info("robot %d: Move during a Move: the running motion is preempted", i)
@@ -338,6 +347,8 @@ class FciController:
         self._have[i] = self._finish[i] = self._refused[i] = False
         self._first[i] = True
         self.violations.begin_motion(i)
+        if self.modes.cartesian[i]:
+            self.engine.cartesian.start(i)
         self._write_modes(i)
         return MoveStatus.kMotionStarted
 
@@ -450,8 +461,13 @@ class FciController:
         if hold_reference and generator in (JOINT_POSITION, JOINT_VELOCITY):
             # A finished joint motion is held where it was commanded to end.
             self.q_hold[i] = self.reference.q[i]
+        elif hold_reference and self.modes.cartesian[i]:
+            # ... and a finished Cartesian motion where its last pose solved to.
+            self.q_hold[i] = self.engine.cartesian.q_ik[i]
         else:
             self.q_hold[i] = self.physics.q[i]
+        if self.modes.cartesian[i]:
+            self.engine.cartesian.end(i)
         if robot_mode is None:
             mode = int(self.modes.robot_mode[i])
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
@@ -512,6 +528,18 @@ class FciController:
             ok &= ~m.joint_velocity | np.isfinite(commands["dq_c"]).all(axis=1)
         if m.n_external:
             ok &= ~m.external | np.isfinite(commands["tau_J_d"]).all(axis=1)
+        if m.n_cartesian_position:
+            # 31: libfranka's isHomogeneousTransformation (NaN fails it too).
+            pose_ok = cartesian_rules.is_homogeneous(frames.from_wire(commands["O_T_EE_c"]))
+            ok &= ~m.cartesian_position | pose_ok
+        if m.n_cartesian_velocity:
+            ok &= ~m.cartesian_velocity | np.isfinite(commands["O_dP_EE_c"]).all(axis=1)
+        if m.n_cartesian:
+            elbow_ok = ~commands["valid_elbow"].astype(bool) | np.isfinite(commands["elbow_c"]).all(
+                axis=1
+            )
+            self._refused_elbow |= m.cartesian & ok & ~elbow_ok
+            ok &= ~m.cartesian | elbow_ok
         return ok
 
     def _log_unanswerable(self, bogus: np.ndarray, ids: np.ndarray) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 from ..sim.self_collision import close_link_pairs, closest_link_pair
 from . import extrapolation, limits
 from ._fast import count_nonzero
+from .cartesian import CartesianGenerators
 from .errors import ERROR_NAMES, Error
 from .tables import DELTA_T, MAX_LOST_CYCLES
 from .violations import ViolationLog, latched_bits
@@ -58,6 +59,8 @@ class MotionLimitEngine:
         self._lower = np.tile(
             np.concatenate([t.q_lower, np.zeros(7), -t.ddq_max, -t.dddq_max]), (n, 1)
         )
+        #: the Cartesian generators (their history, checks and IK)
+        self.cartesian = CartesianGenerators(self)
 
     def invalidate_envelope(self) -> None:
         """The reference changed outside a cycle: recompute the envelope when needed."""
@@ -91,6 +94,8 @@ class MotionLimitEngine:
                     self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
             else:
                 self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
+        if m.n_cartesian and count_nonzero(started):
+            self.cartesian.advance(started)
         if m.n_external and count_nonzero(self.c._have):
             self._advance_torques()
 
@@ -320,11 +325,30 @@ class MotionLimitEngine:
         error[refused & m.external] = Error.tau_j_range_violation
         error[refused & m.joint_velocity] = Error.joint_motion_generator_velocity_limits_violation
         error[refused & m.joint_position] = Error.joint_motion_generator_position_limits_violation
-        self._judge(error, refused, lambda i: "non-finite commanded value (refused)")
+        # Cartesian: a pose that is no homogeneous transformation (NaN included) is 31,
+        # refused whatever the enforcement; a non-finite twist 18, a non-finite elbow 17.
+        error[refused & m.cartesian_velocity] = (
+            Error.cartesian_motion_generator_velocity_limits_violation
+        )
+        error[refused & m.cartesian_position] = (
+            Error.cartesian_position_motion_generator_invalid_frame
+        )
+        elbow = self.c._refused_elbow & refused
+        error[elbow] = Error.cartesian_motion_generator_elbow_limit_violation
+        self.c._refused_elbow[...] = False
+
+        def describe(i: int) -> str:
+            if error[i] == Error.cartesian_position_motion_generator_invalid_frame:
+                return "O_T_EE_c is not a homogeneous transformation (refused)"
+            return "non-finite commanded value (refused)"
+
+        self._judge(error, refused, describe)
         self.c._refused[...] = False
 
-    def _judge(self, error: np.ndarray, rows: np.ndarray, describe) -> None:
-        """Log every violation in ``rows``; abort those robots' motions when enforced."""
+    def _judge(self, error: np.ndarray, rows: np.ndarray, describe, extra=None) -> None:
+        """Log every violation in ``rows``; abort those robots' motions when enforced.
+
+        ``extra`` maps a robot to further bits its one abort latches (29 with 30)."""
         bad = rows & (error >= 0) & self.c.modes.in_motion
         if not count_nonzero(bad):
             return
@@ -334,8 +358,13 @@ class MotionLimitEngine:
             described = describe(i)
             message = described.message() if hasattr(described, "message") else str(described)
             self.violations.report(i, e, message, enforce)
+            bits = latched_bits(e)
+            if extra and i in extra:
+                for b in extra[i]:
+                    self.violations.report(i, b, message, enforce)
+                bits = bits + extra[i]
             if enforce:
-                self.c.reflex(i, latched_bits(e))
+                self.c.reflex(i, bits)
 
     # -- the safety controller and the communication bound ------------------------------------
 

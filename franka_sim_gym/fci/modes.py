@@ -15,6 +15,8 @@ from .wire import ControllerMode, MotionGeneratorMode, RobotMode
 
 JOINT_POSITION = int(MotionGeneratorMode.kJointPosition)
 JOINT_VELOCITY = int(MotionGeneratorMode.kJointVelocity)
+CARTESIAN_POSITION = int(MotionGeneratorMode.kCartesianPosition)
+CARTESIAN_VELOCITY = int(MotionGeneratorMode.kCartesianVelocity)
 NONE = int(MotionGeneratorMode.kNone)
 IDLE = int(MotionGeneratorMode.kIdle)
 EXTERNAL = int(ControllerMode.kExternalController)
@@ -57,6 +59,10 @@ class Modes:
         self.joint_velocity = self.in_motion & (gen == JOINT_VELOCITY)
         #: a joint generator drives the internal servo's reference
         self.tracking = self.joint_position | self.joint_velocity
+        #: a Cartesian generator drives the servo through IK (fci/cartesian.py)
+        self.cartesian_position = self.in_motion & (gen == CARTESIAN_POSITION)
+        self.cartesian_velocity = self.in_motion & (gen == CARTESIAN_VELOCITY)
+        self.cartesian = self.cartesian_position | self.cartesian_velocity
         self.external = self.in_motion & (ctrl == EXTERNAL)
         #: an external controller with no motion generator (startTorqueControl)
         self.torque_only = self.in_motion & (gen == NONE)
@@ -64,6 +70,9 @@ class Modes:
         self.n_joint_position = int(np.count_nonzero(self.joint_position))
         self.n_joint_velocity = int(np.count_nonzero(self.joint_velocity))
         self.n_tracking = self.n_joint_position + self.n_joint_velocity
+        self.n_cartesian_position = int(np.count_nonzero(self.cartesian_position))
+        self.n_cartesian_velocity = int(np.count_nonzero(self.cartesian_velocity))
+        self.n_cartesian = self.n_cartesian_position + self.n_cartesian_velocity
         self.n_external = int(np.count_nonzero(self.external))
         self.n_torque_only = int(np.count_nonzero(self.torque_only))
         #: what physics.step takes for ``external``: None, True or a mask

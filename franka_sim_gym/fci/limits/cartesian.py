@@ -1,0 +1,334 @@
+"""Cartesian motion generators: the O_T_EE_c rows, the O_dP_EE_c rows, the elbow and the
+joint side of a Cartesian command (seed "What is checked, and what it latches").
+
+Rows in precedence order (the first row that trips is the error latched):
+
+==================  ===============================================  =====
+O_T_EE_c            homogeneous transformation (refused always)       31
+O_T_EE_c            first pose within 0.05 m / 0.1 rad of O_T_EE      16
+elbow_c             first elbow within 0.1 rad of q[2], same sign     22
+elbow_c             the branch flag elbow_c[1] never flips            21
+O_T_EE_c            ||a|| <= 9 m/s^2, ||alpha|| <= 17 rad/s^2         19
+O_T_EE_c            ||v|| <= 3 m/s, ||omega|| <= 2.5 rad/s            18
+O_T_EE_c            ||jerk|| <= 4500 m/s^3, 8500 rad/s^3              20
+IK of O_T_EE_c      per-joint change of velocity / dt                 29
+IK of O_T_EE_c      per-joint change of acceleration / dt             30
+elbow_c             joint-3 range, velocity, acceleration, jerk       17
+==================  ===============================================  =====
+
+==================  ===============================================  =====
+O_dP_EE_c           ||a|| <= 9 m/s^2, ||alpha|| <= 17 rad/s^2         20
+O_dP_EE_c           ||jerk|| <= 4500 m/s^3, 8500 rad/s^3              20
+O_dP_EE_c           ||v|| <= 3 m/s, ||omega|| <= 2.5 rad/s            18
+IK of O_dP_EE_c     per-joint acceleration and jerk                   30
+elbow_c             the branch flag never flips                       21
+elbow_c             joint-3 range, velocity, acceleration, jerk       17
+==================  ===============================================  =====
+
+The Cartesian limits are norms of the translational and rotational halves
+(seed: "that is how limitRate treats O_dP_EE_c"), with no 0.99 factor on the
+rotation (seed "Two deliberate departures"). The orientation's derivatives
+are taken in the body frame — the frame the lost-cycle law composes the
+rotation increment in (seed: "rotation composed on the right") — so an
+extrapolated pose stream is differenced onto its own frozen acceleration.
+
+All functions are pure and batch-first; derivatives are backward Euler over
+``steps * dt`` as for q_c (seed "The difference formulas").
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...sim.kinematics import rotation_log
+from ..errors import Error
+from ..tables import RobotTable
+from ._common import NO_ERROR, Violation, interval
+
+_E = Error
+
+#: Seed "Cartesian pose ..." rows after 31 (which is refused on arrival, like a NaN).
+POSE_CODES = np.array(
+    [
+        _E.cartesian_position_motion_generator_start_pose_invalid,  # 16
+        _E.cartesian_motion_generator_start_elbow_invalid,  # 22
+        _E.cartesian_motion_generator_elbow_sign_inconsistent,  # 21
+        _E.cartesian_motion_generator_velocity_discontinuity,  # 19 acceleration
+        _E.cartesian_motion_generator_velocity_limits_violation,  # 18 velocity
+        _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 jerk
+        _E.cartesian_motion_generator_joint_velocity_discontinuity,  # 29 IK acceleration
+        _E.cartesian_motion_generator_joint_acceleration_discontinuity,  # 30 IK jerk
+        _E.cartesian_motion_generator_elbow_limit_violation,  # 17
+    ],
+    dtype=np.int64,
+)
+POSE_ROWS = (
+    "start pose",
+    "start elbow",
+    "elbow sign",
+    "acceleration",
+    "velocity",
+    "jerk",
+    "IK joint acceleration",
+    "IK joint jerk",
+    "elbow",
+)
+
+#: Seed "Cartesian velocity" rows: "everything shifts by one" — both differences are 20.
+TWIST_CODES = np.array(
+    [
+        _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 acceleration
+        _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 jerk
+        _E.cartesian_motion_generator_velocity_limits_violation,  # 18 velocity
+        _E.cartesian_motion_generator_joint_acceleration_discontinuity,  # 30 IK acc. and jerk
+        _E.cartesian_motion_generator_elbow_sign_inconsistent,  # 21
+        _E.cartesian_motion_generator_elbow_limit_violation,  # 17
+    ],
+    dtype=np.int64,
+)
+TWIST_ROWS = ("acceleration", "jerk", "velocity", "IK joint acceleration", "elbow sign", "elbow")
+
+#: Column of the IK-acceleration row (29) in POSE_CODES; 30 follows it. A command
+#: that breaks both latches both bits (seed: "latched together with 29").
+POSE_IK_ROW = 6
+
+
+class Twist(NamedTuple):
+    """Translational and rotational halves of a derivative, (n, 3) each."""
+
+    linear: np.ndarray
+    angular: np.ndarray
+
+
+class PoseDerivatives(NamedTuple):
+    """Backward differences of a commanded pose against its history."""
+
+    v: np.ndarray
+    omega: np.ndarray
+    a: np.ndarray
+    alpha: np.ndarray
+    jerk: np.ndarray
+    zeta: np.ndarray  # rotational jerk
+
+
+class ElbowDerivatives(NamedTuple):
+    """Backward differences of elbow_c[0] (n,) each."""
+
+    v: np.ndarray
+    a: np.ndarray
+    jerk: np.ndarray
+
+
+class CartesianCheck(NamedTuple):
+    """Result of a Cartesian check: the latched error and every row that tripped."""
+
+    #: (n,) int64 latched Error index, or -1
+    error: np.ndarray
+    #: (n, rows) bool: which rows tripped (gated by first / later)
+    tripped: np.ndarray
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.einsum("ij,ij->i", x, x))
+
+
+def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """(n,) error of the first tripped row of each robot, -1 where none."""
+    first = np.argmax(tripped, axis=1)
+    return np.where(tripped.any(axis=1), codes[first], NO_ERROR)
+
+
+def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
+    """(n,) libfranka's isHomogeneousTransformation on (n, 4, 4) row-major poses.
+
+    Bottom row exactly [0, 0, 0, 1]; every row and column of the rotation block of
+    unit norm within ``tol`` (libfranka-client-behaviour.md §9). NaN fails.
+    """
+    bottom = (T[:, 3, 0] == 0.0) & (T[:, 3, 1] == 0.0) & (T[:, 3, 2] == 0.0) & (T[:, 3, 3] == 1.0)
+    R = T[:, :3, :3]
+    rows = np.abs(np.sqrt(np.einsum("nij,nij->ni", R, R)) - 1.0) <= tol
+    cols = np.abs(np.sqrt(np.einsum("nij,nij->nj", R, R)) - 1.0) <= tol
+    return bottom & rows.all(axis=1) & cols.all(axis=1) & np.isfinite(T).all(axis=(1, 2))
+
+
+def pose_derivatives(
+    T_c: np.ndarray,
+    T_prev: np.ndarray,
+    v_prev: np.ndarray,
+    omega_prev: np.ndarray,
+    a_prev: np.ndarray,
+    alpha_prev: np.ndarray,
+    steps,
+) -> PoseDerivatives:
+    """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
+    rotation as the body-frame rotation vector of R_prev^T R_c per interval."""
+    h = interval(steps)
+    v = (T_c[:, :3, 3] - T_prev[:, :3, 3]) / h
+    omega = rotation_log(T_prev[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]) / h
+    a = (v - v_prev) / h
+    alpha = (omega - omega_prev) / h
+    return PoseDerivatives(v, omega, a, alpha, (a - a_prev) / h, (alpha - alpha_prev) / h)
+
+
+def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
+    """Backward differences of elbow_c[0] against its history."""
+    h = np.reshape(interval(steps), -1)
+    v = (e_c - e_prev) / h
+    a = (v - de_prev) / h
+    return ElbowDerivatives(v, a, (a - dde_prev) / h)
+
+
+def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps):
+    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c)."""
+    h = interval(steps)
+    dq = (q_ik - q_prev) / h
+    ddq = (dq - dq_prev) / h
+    return dq, ddq, (ddq - ddq_prev) / h
+
+
+def _elbow_rows(table: RobotTable, e_c, d: ElbowDerivatives, later: np.ndarray):
+    """Row 17: elbow[0] outside joint 3's range (always), or its velocity, acceleration
+    or jerk over the kMaxElbow* limits (after the first command)."""
+    out_of_range = ~((e_c >= table.q_lower[2]) & (e_c <= table.q_upper[2]))
+    too_fast = (
+        (np.abs(d.v) > table.v_elbow_max)
+        | (np.abs(d.a) > table.a_elbow_max)
+        | (np.abs(d.jerk) > table.j_elbow_max)
+    )
+    return out_of_range | (later & too_fast)
+
+
+def check_cartesian_pose(
+    d: PoseDerivatives,
+    first: np.ndarray,
+    T_c: np.ndarray,
+    T_measured: np.ndarray,
+    has_elbow: np.ndarray,
+    had_elbow: np.ndarray,
+    elbow_c: np.ndarray,
+    elbow_prev_flag: np.ndarray,
+    elbow_measured: np.ndarray,
+    de: ElbowDerivatives,
+    ik_ddq: np.ndarray,
+    ik_dddq: np.ndarray,
+    ik_checked: np.ndarray,
+    table: RobotTable,
+    scale: float,
+    translation_tolerance: float,
+    rotation_tolerance: float,
+    elbow_tolerance: float,
+) -> CartesianCheck:
+    """Judge n O_T_EE_c commands (31 is judged on arrival); one latched error per robot.
+
+    Args:
+        d: the pose's derivatives (:func:`pose_derivatives`).
+        first: (n,) the motion's opening command: the start rows replace the
+            derivative rows (the history is rebased at rest on it).
+        T_c, T_measured: (n, 4, 4) commanded and measured (O_T_EE) poses.
+        has_elbow / had_elbow: (n,) this / the previous command carries an elbow.
+        elbow_c: (n, 2) commanded elbow; elbow_prev_flag (n,) the previous flag;
+            elbow_measured (n, 2) the measured (q[2], sign q[3]).
+        de: elbow_c[0]'s derivatives (used where has_elbow and had_elbow).
+        ik_ddq, ik_dddq: (n, 7) the IK solution's acceleration and jerk; checked where
+            ``ik_checked`` (the solver converged and the joint history is warm).
+        table, scale: the robot's limits; the joint-side tables' scale.
+        translation_tolerance, rotation_tolerance, elbow_tolerance: start checks.
+    """
+    first = np.asarray(first, dtype=bool)
+    later = ~first
+    if first.any():
+        dp = _norm(T_c[:, :3, 3] - T_measured[:, :3, 3])
+        dr = _norm(rotation_log(T_measured[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]))
+        start_pose = first & ((dp > translation_tolerance) | (dr > rotation_tolerance))
+    else:
+        start_pose = first
+    start_elbow = (
+        first
+        & has_elbow
+        & (
+            (np.abs(elbow_c[:, 0] - elbow_measured[:, 0]) > elbow_tolerance)
+            | (elbow_c[:, 1] != elbow_measured[:, 1])
+        )
+    )
+    continuing = later & has_elbow & had_elbow
+    sign = continuing & (elbow_c[:, 1] != elbow_prev_flag)
+    acc = later & ((_norm(d.a) > table.a_trans_max) | (_norm(d.alpha) > table.a_rot_max))
+    vel = later & ((_norm(d.v) > table.v_trans_max) | (_norm(d.omega) > table.v_rot_max))
+    jerk = later & ((_norm(d.jerk) > table.j_trans_max) | (_norm(d.zeta) > table.j_rot_max))
+    ik29 = ik_checked & (np.abs(ik_ddq) > table.ik_ddq_max * scale).any(axis=1)
+    ik30 = ik_checked & (np.abs(ik_dddq) > table.ik_dddq_max * scale).any(axis=1)
+    if has_elbow.any():
+        elbow = has_elbow & _elbow_rows(table, elbow_c[:, 0], de, continuing)
+    else:
+        elbow = has_elbow
+    tripped = np.stack([start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow], axis=1)
+    return CartesianCheck(select(tripped, POSE_CODES), tripped)
+
+
+def check_cartesian_velocity(
+    twist: np.ndarray,
+    dtwist: np.ndarray,
+    ddtwist: np.ndarray,
+    first: np.ndarray,
+    has_elbow: np.ndarray,
+    had_elbow: np.ndarray,
+    elbow_c: np.ndarray,
+    elbow_prev_flag: np.ndarray,
+    de: ElbowDerivatives,
+    ik_ddq: np.ndarray,
+    ik_dddq: np.ndarray,
+    ik_checked: np.ndarray,
+    table: RobotTable,
+    scale: float,
+) -> CartesianCheck:
+    """Judge n O_dP_EE_c commands; one latched error per robot.
+
+    ``twist`` (n, 6) is [v, omega] in the base frame; ``dtwist`` / ``ddtwist`` its
+    backward differences against the published O_dP_EE_c history (zero at rest, so
+    the opening twist is an acceleration from standstill, as on the robot).
+    """
+    first = np.asarray(first, dtype=bool)
+    continuing = ~first & has_elbow & had_elbow
+    acc = (_norm(dtwist[:, :3]) > table.a_trans_max) | (_norm(dtwist[:, 3:]) > table.a_rot_max)
+    jerk = (_norm(ddtwist[:, :3]) > table.j_trans_max) | (_norm(ddtwist[:, 3:]) > table.j_rot_max)
+    vel = (_norm(twist[:, :3]) > table.v_trans_max) | (_norm(twist[:, 3:]) > table.v_rot_max)
+    ik30 = ik_checked & (
+        (np.abs(ik_ddq) > table.ik_ddq_max * scale).any(axis=1)
+        | (np.abs(ik_dddq) > table.ik_dddq_max * scale).any(axis=1)
+    )
+    sign = continuing & (elbow_c[:, 1] != elbow_prev_flag)
+    elbow = has_elbow & _elbow_rows(table, elbow_c[:, 0], de, continuing)
+    tripped = np.stack([acc, jerk, vel, ik30, sign, elbow], axis=1)
+    return CartesianCheck(select(tripped, TWIST_CODES), tripped)
+
+
+def describe_cartesian(i: int, error: int, row: str, quantities: dict) -> Violation:
+    """The log line's record for robot i: the row that tripped and its worst quantity.
+
+    ``quantities`` maps a row name to one or more candidates (signal, value (n,) or
+    (n, 7), limit, unit); the candidate furthest over its limit is reported (a row
+    such as "velocity" judges a translational and a rotational half).
+    """
+    candidates = quantities[row]
+    if isinstance(candidates, tuple):
+        candidates = [candidates]
+    best = None
+    for signal, value, limit, unit in candidates:
+        value, limit = np.asarray(value, dtype=np.float64), np.asarray(limit, dtype=np.float64)
+        if limit.ndim == value.ndim and limit.ndim > 0:  # a per-robot bound
+            limit = limit[i]
+        value = np.atleast_1d(value[i])
+        limit = np.broadcast_to(np.atleast_1d(limit), value.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(limit != 0, np.abs(value) / np.abs(limit), np.abs(value))
+        j = int(np.nanargmax(ratio)) if np.isfinite(ratio).any() else 0
+        score = float(ratio[j]) if np.isfinite(ratio[j]) else np.inf
+        if best is None or score > best[0]:
+            joint = j if value.size == 7 else -1
+            best = (
+                score,
+                Violation(error, signal, joint, float(value[j]), float(limit[j]), unit, row),
+            )
+    return best[1]

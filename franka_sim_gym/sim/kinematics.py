@@ -1,0 +1,233 @@
+"""Forward kinematics, the end-effector Jacobian and damped differential IK of n arms.
+
+The Cartesian motion generators are judged and driven in joint space (seed
+"The joint side of a Cartesian command (29, 30)"): every commanded pose is
+solved to a joint configuration by damped Gauss-Newton from the previous
+cycle's solution, at the end-effector frame the arm is driven in (F_T_EE,
+SetNEToEE included). The kinematics are MuJoCo's own, on a second MjData of
+the physics model, so the pose the IK solves for is exactly the pose the
+simulated arm reaches — no second kinematic model to drift from the first.
+
+Batch-first: every call handles all n arms of the world (one ``mj_kinematics``
+for the whole world per iteration, the Jacobian assembled for every arm at
+once from MuJoCo's joint anchors and axes).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from .world import ArmLayout
+
+#: Joint 3 is the FR3's redundancy angle (seed "RobotState fields": elbow[0] = q[2]).
+ELBOW_JOINT = 2
+
+
+class IkResult(NamedTuple):
+    """What :meth:`ArmKinematics.solve` returns."""
+
+    #: (n, 7) joint positions.
+    q: np.ndarray
+    #: (n,) bool: the pose error fell below the tolerance.
+    converged: np.ndarray
+    #: (n,) the remaining position error [m] and rotation error [rad].
+    position_error: np.ndarray
+    rotation_error: np.ndarray
+
+
+def rotation_log(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices to (..., 3) rotation vectors (axis * angle).
+
+    The angle is atan2(|vee|, (trace - 1) / 2), exact over [0, pi]; the axis is the
+    skew part's direction, except within 1e-6 of pi, where the skew part vanishes
+    and the axis comes from the symmetric part.
+    """
+    vee = np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
+    two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
+    two_cos = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0
+    angle = np.arctan2(two_sin, two_cos)
+    # angle / (2 sin angle) -> 1/2 + angle^2 / 12 as the angle -> 0.
+    scale = np.where(two_sin > 1e-12, angle / np.where(two_sin > 1e-12, two_sin, 1.0), 0.5)
+    out = vee * scale[..., None]
+    near_pi = np.pi - angle < 1e-6
+    if near_pi.any():
+        sym = (R[near_pi] + np.eye(3)) * 0.5
+        k = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
+        axis = sym[np.arange(len(k)), :, k]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        out[near_pi] = axis * angle[near_pi][..., None]
+    return out
+
+
+def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
+    """(..., 3) rotation vectors to (..., 3, 3) matrices (Rodrigues)."""
+    angle = np.linalg.norm(rotvec, axis=-1)
+    small = angle < 1e-8
+    safe = np.where(small, 1.0, angle)
+    kx, ky, kz = (rotvec[..., i] for i in range(3))
+    zero = np.zeros_like(kx)
+    K = np.stack(
+        [
+            np.stack([zero, -kz, ky], -1),
+            np.stack([kz, zero, -kx], -1),
+            np.stack([-ky, kx, zero], -1),
+        ],
+        -2,
+    )
+    a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
+    b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def _rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(n, 3) sin(angle) * axis of R_target R^T: zero exactly where the rotations agree.
+
+    Cheaper than the logarithm and with the same zero, so Gauss-Newton converges
+    to the same solution; its magnitude is the angle to within 0.2 % below 0.1 rad.
+    """
+    E = R_target @ R.transpose(0, 2, 1)
+    return 0.5 * (E[:, _VEE_A, _VEE_B] - E[:, _VEE_B, _VEE_A])
+
+
+_VEE_A = np.array([2, 0, 1])
+_VEE_B = np.array([1, 2, 0])
+
+
+class ArmKinematics:
+    """Kinematics of the n arms of a world, on a private MjData (physics is not touched).
+
+    Args:
+        model: the compiled world (``world.build_world``).
+        layout: its arm layout.
+        damping: Levenberg-Marquardt damping lambda of the IK step; small, so the
+            fixed point is the exact solution (damping only tames singular steps).
+        max_iterations: Gauss-Newton updates per solve at most.
+        tolerance: the pose error [m, rad] under which a solution counts as converged.
+            A Gauss-Newton residual is smooth along a smooth trajectory (it scales
+            with the square of the per-cycle step), so the joint-side checks, which
+            difference solutions three times over 1 ms, do not see it.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        layout: ArmLayout,
+        damping: float = 1e-4,
+        max_iterations: int = 8,
+        tolerance: float = 1e-7,
+    ) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.layout = layout
+        self.n = layout.n
+        self.damping = damping
+        self.max_iterations = max_iterations
+        self.tolerance = tolerance
+        joint_of_qpos = {int(model.jnt_qposadr[j]): j for j in range(model.njnt)}
+        self._joints = np.array(
+            [[joint_of_qpos[int(a)] for a in row] for row in layout.qpos_adr], dtype=np.intp
+        )
+        self._sites = np.asarray(layout.flange_site, dtype=np.intp)
+        self._base = np.asarray(layout.base_pos, dtype=np.float64)
+        self._qpos = layout.qpos_adr
+        self._eye6 = np.eye(6) * damping**2
+        # The last evaluation, reused when the next solve starts where it ended.
+        self._cached_q = np.full((self.n, 7), np.nan)
+        self._cached: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
+        """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q."""
+        if self._cached is not None and np.array_equal(q, self._cached_q):
+            return self._cached
+        d = self.data
+        d.qpos[self._qpos] = q
+        mujoco.mj_kinematics(self.model, d)
+        p_world = d.site_xpos[self._sites]
+        R = d.site_xmat[self._sites].reshape(self.n, 3, 3)
+        if F_T_EE is not None:
+            p_world = p_world + (R @ F_T_EE[:, :3, 3:])[..., 0]
+            R = R @ F_T_EE[:, :3, :3]
+        p = p_world - self._base
+        axes = d.xaxis[self._joints]  # (n, 7, 3), base frame = world frame (bases unrotated)
+        lever = p_world[:, None, :] - d.xanchor[self._joints]
+        J = np.empty((self.n, 6, 7))
+        # Linear part: axis x (EE point - joint anchor), written out (np.cross is slow here).
+        a0, a1, a2 = axes[..., 0], axes[..., 1], axes[..., 2]
+        l0, l1, l2 = lever[..., 0], lever[..., 1], lever[..., 2]
+        np.subtract(a1 * l2, a2 * l1, out=J[:, 0, :])
+        np.subtract(a2 * l0, a0 * l2, out=J[:, 1, :])
+        np.subtract(a0 * l1, a1 * l0, out=J[:, 2, :])
+        J[:, 3:, :] = axes.transpose(0, 2, 1)
+        self._cached_q[...] = q
+        self._cached = (p, R, J)
+        return self._cached
+
+    def forward(self, q: np.ndarray, F_T_EE: np.ndarray | None = None) -> np.ndarray:
+        """(n, 4, 4) end-effector poses in each arm's base frame at joint positions q."""
+        p, R, _ = self._evaluate(np.asarray(q, dtype=np.float64), F_T_EE)
+        T = np.zeros((self.n, 4, 4))
+        T[:, :3, :3] = R
+        T[:, :3, 3] = p
+        T[:, 3, 3] = 1.0
+        return T
+
+    def jacobian(self, q: np.ndarray, F_T_EE: np.ndarray | None = None) -> np.ndarray:
+        """(n, 6, 7) geometric Jacobian (linear; angular, base frame) at the EE frame."""
+        return self._evaluate(np.asarray(q, dtype=np.float64), F_T_EE)[2].copy()
+
+    def solve(
+        self,
+        target: np.ndarray,
+        q_init: np.ndarray,
+        F_T_EE: np.ndarray | None = None,
+        elbow: np.ndarray | None = None,
+        rows: np.ndarray | None = None,
+    ) -> IkResult:
+        """Damped Gauss-Newton from ``q_init`` to the (n, 4, 4) ``target`` poses.
+
+        Args:
+            target: commanded EE poses in the base frame (row-major 4x4).
+            q_init: (n, 7) start (the previous cycle's solution).
+            F_T_EE: (n, 4, 4) flange-to-EE transforms, None for identity.
+            elbow: (n,) joint-3 angles to hold fixed (NaN where the elbow is free:
+                ``valid_elbow`` false), or None for every elbow free.
+            rows: (n,) bool, the arms to solve (others keep ``q_init``).
+        """
+        q = np.array(q_init, dtype=np.float64, copy=True)
+        active = np.ones(self.n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        fixed = None
+        if elbow is not None:
+            fixed = active & np.isfinite(elbow)
+            if fixed.any():
+                q[fixed, ELBOW_JOINT] = elbow[fixed]
+            else:
+                fixed = None
+        p_t, R_t = target[:, :3, 3], target[:, :3, :3]
+        e = np.empty((self.n, 6))
+        for iteration in range(self.max_iterations + 1):
+            p, R, J = self._evaluate(q, F_T_EE)
+            np.subtract(p_t, p, out=e[:, :3])
+            e[:, 3:] = _rotation_error(R_t, R)
+            e_pos = np.sqrt(np.einsum("ij,ij->i", e[:, :3], e[:, :3]))
+            e_rot = np.sqrt(np.einsum("ij,ij->i", e[:, 3:], e[:, 3:]))
+            converged = (e_pos <= self.tolerance) & (e_rot <= self.tolerance)
+            todo = active & ~converged
+            if iteration == self.max_iterations or not todo.any():
+                break
+            if fixed is not None:
+                J = J.copy()
+                J[fixed, :, ELBOW_JOINT] = 0.0
+            JJt = J @ J.transpose(0, 2, 1)
+            JJt += self._eye6
+            y = np.linalg.solve(JJt, e[..., None])
+            step = (J.transpose(0, 2, 1) @ y)[..., 0]
+            if not todo.all():
+                step[~todo] = 0.0
+            q += step
+        return IkResult(q, converged | ~active, e_pos, e_rot)
