@@ -147,6 +147,56 @@ def scenario_recover(host: str) -> dict:
     }
 
 
+def scenario_cartesian_motion(host: str) -> dict:
+    """CartesianMotion 5 cm along the EE's own x (a relative target) at 0.2 of the dynamics."""
+    robot = connect(host)
+    before = affine_matrix(robot.state.O_T_EE)
+    error = None
+    try:
+        target = franky.CartesianState(franky.Affine([0.05, 0.0, 0.0]))
+        robot.move(
+            franky.CartesianMotion(
+                target, franky.ReferenceType.Relative, franky.RelativeDynamicsFactor(0.2)
+            )
+        )
+    except Exception as exc:  # reported to the test
+        error = f"{type(exc).__name__}: {exc}"
+    time.sleep(0.2)
+    state = robot.state
+    return {
+        "before": before,
+        "after": affine_matrix(state.O_T_EE),
+        "robot_mode": state.robot_mode.name,
+        "error": error,
+    }
+
+
+def scenario_cartesian_velocity_motion(host: str) -> dict:
+    """CartesianVelocityMotion: 2 cm/s along base z held for 0.5 s, then stopped."""
+    robot = connect(host)
+    before = affine_matrix(robot.state.O_T_EE)
+    error = None
+    try:
+        twist = franky.Twist([0.0, 0.0, 0.02])
+        robot.move(
+            franky.CartesianVelocityMotion(
+                franky.RobotVelocity(twist),
+                duration=franky.Duration(500),
+                relative_dynamics_factor=franky.RelativeDynamicsFactor(0.2),
+            )
+        )
+    except Exception as exc:  # reported to the test
+        error = f"{type(exc).__name__}: {exc}"
+    time.sleep(0.2)
+    state = robot.state
+    return {
+        "before": before,
+        "after": affine_matrix(state.O_T_EE),
+        "robot_mode": state.robot_mode.name,
+        "error": error,
+    }
+
+
 if __name__ == "__main__":
     name, host = sys.argv[1], sys.argv[2]
     try:

@@ -440,6 +440,98 @@ def scenario_silence(host: str) -> dict:
     }
 
 
+def scenario_cartesian_pose(host: str) -> dict:
+    """The shape of libfranka's cartesian_pose_example: the EE swings on an arc in the
+    x-z plane, angle = pi/4 (1 - cos(pi t / T)), radius 5 cm (ends 5 cm +x, 5 cm -z)."""
+    robot = connect(host)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
+    duration, radius = 2.5, 0.05
+    t, pose0, error = 0.0, None, None
+    try:
+        while True:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            if pose0 is None:
+                pose0 = list(state.O_T_EE_c)
+            angle = math.pi / 4 * (1 - math.cos(math.pi * min(t, duration) / duration))
+            pose = list(pose0)
+            pose[12] += radius * math.sin(angle)
+            pose[14] += radius * (math.cos(angle) - 1)
+            command = fr.CartesianPose(pose)
+            if t >= duration:
+                command.motion_finished = True
+                control.writeOnce(command)
+                break
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    time.sleep(0.3)
+    after = robot.read_once()
+    return {
+        "error": error,
+        "pose_start": pose0,
+        "O_T_EE_after": list(after.O_T_EE),
+        "robot_mode": after.robot_mode.name,
+    }
+
+
+def scenario_cartesian_velocity(host: str) -> dict:
+    """The shape of libfranka's cartesian_velocity_example: v = v_max/2 (1 - cos(2 pi t / T))
+    along (cos 45deg, 0, -sin 45deg) for one period: a 5 cm twist integral."""
+    robot = connect(host)
+    before = list(robot.read_once().O_T_EE)
+    control = robot.start_cartesian_velocity_control(fr.ControllerMode.JointImpedance)
+    period_s, v_max, angle = 2.0, 0.05, math.pi / 4
+    t, error, echo = 0.0, None, []
+    try:
+        while True:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            echo.append((list(state.O_dP_EE_c), list(state.O_T_EE_d)))
+            v = v_max / 2 * (1 - math.cos(2 * math.pi * min(t, period_s) / period_s))
+            command = fr.CartesianVelocities(
+                [math.cos(angle) * v, 0, -math.sin(angle) * v, 0, 0, 0]
+            )
+            if t >= period_s:
+                command.motion_finished = True
+                control.writeOnce(command)
+                break
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    time.sleep(0.3)
+    after = robot.read_once()
+    mid = echo[len(echo) // 2]
+    return {
+        "error": error,
+        "O_T_EE_before": before,
+        "O_T_EE_after": list(after.O_T_EE),
+        "O_dP_EE_c_mid": mid[0],
+        "O_T_EE_d_mid": mid[1],
+        "expected_displacement": v_max / 2 * period_s,
+        "robot_mode": after.robot_mode.name,
+    }
+
+
+def scenario_cartesian_start_off(host: str) -> dict:
+    """A pose motion whose first pose is 15 cm off the robot's."""
+    robot = connect(host)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
+    error = None
+    try:
+        for _ in range(100):
+            state, _period = control.readOnce()
+            pose = list(state.O_T_EE_c)
+            pose[12] += 0.15
+            control.writeOnce(fr.CartesianPose(pose))
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    return {"error": error, "robot_mode": robot.read_once().robot_mode.name}
+
+
 if __name__ == "__main__":
     name, host = sys.argv[1], sys.argv[2]
     try:
