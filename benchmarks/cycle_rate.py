@@ -3,9 +3,11 @@
     python benchmarks/cycle_rate.py [--seconds S]
 
 Rows: bare mj_step of the world (n = 1 and n = 16 arms), the controller idle
-(idle hold), and during a joint-position motion (one q_c per arm per cycle,
-delivered in-process). Each row reports cycles/s, arm-cycles/s and the ratio
-to bare mj_step of the same world. One core, nothing else running.
+(idle hold), and during a joint-position, a Cartesian-pose and a Cartesian-
+velocity motion (one command per arm per cycle, delivered in-process; the
+Cartesian ones solved to joint space by the differential IK every cycle).
+Each row reports cycles/s, arm-cycles/s and the ratio to bare mj_step of the
+same world. One core, nothing else running.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ from franka_sim_gym.sim.arm import ArmPhysics
 
 IMPEDANCE = MoveControllerMode.kJointImpedance
 JOINT_POSITION = MoveMotionGeneratorMode.kJointPosition
+CARTESIAN_POSITION = MoveMotionGeneratorMode.kCartesianPosition
+CARTESIAN_VELOCITY = MoveMotionGeneratorMode.kCartesianVelocity
 
 
 def rate(fn, seconds: float) -> float:
@@ -85,6 +89,40 @@ def motion_rate(n: int, seconds: float) -> float:
     return cycles
 
 
+def cartesian_rate(n: int, seconds: float, generator) -> float:
+    """A Cartesian motion: a 4 s cosine of 5 cm along x, as poses or as their twist."""
+    ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
+    for i in range(n):
+        ctrl.move(i, int(IMPEDANCE), int(generator))
+    for _ in range(2):
+        ctrl.step()
+    period = 4000
+    t = np.arange(period) * 1e-3
+    commands = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
+    if generator == CARTESIAN_POSITION:
+        pose0 = ctrl.states["O_T_EE_d"].astype(np.float64)
+        waypoints = np.repeat(pose0[None], period, axis=0)
+        waypoints[:, :, 12] += (0.025 * (1 - np.cos(2 * np.pi * t / 4.0)))[:, None]
+        field = commands["O_T_EE_c"]
+    else:
+        waypoints = np.zeros((period, n, 6))
+        waypoints[:, :, 0] = (0.025 * 2 * np.pi / 4.0 * np.sin(2 * np.pi * t / 4.0))[:, None]
+        field = commands["O_dP_EE_c"]
+    mask = np.ones(n, dtype=bool)
+    message_id = commands["message_id"]
+    published = ctrl.states["message_id"]
+    k = [0]
+
+    def cycle() -> None:
+        k[0] += 1
+        field[...] = waypoints[k[0] % period]
+        message_id[...] = published
+        ctrl.receive(commands, mask)
+        ctrl.step()
+
+    return rate(cycle, seconds)
+
+
 #: per n: the accounting's share of one motion cycle
 ACCOUNTING_SHARE: dict[int, float] = {}
 
@@ -100,16 +138,24 @@ def main() -> None:
         rows.append((f"bare mj_step, n={n}", n, bare[n]))
         rows.append((f"controller idle, n={n}", n, idle_rate(n, args.seconds)))
         rows.append((f"controller joint-position motion, n={n}", n, motion_rate(n, args.seconds)))
+        pose = cartesian_rate(n, args.seconds, CARTESIAN_POSITION)
+        rows.append((f"controller Cartesian-pose motion, n={n}", n, pose))
+        twist = cartesian_rate(n, args.seconds, CARTESIAN_VELOCITY)
+        rows.append((f"controller Cartesian-velocity motion, n={n}", n, twist))
     print(f"{'row':<42}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
     for name, n, cycles in rows:
         print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
     for n, share in ACCOUNTING_SHARE.items():
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
-    n1 = rows[2][2]
-    n16 = rows[5][2] * 16
+    by_name = {name: cycles for name, _, cycles in rows}
+    n1 = by_name["controller joint-position motion, n=1"]
+    n16 = by_name["controller joint-position motion, n=16"] * 16
+    pose1 = by_name["controller Cartesian-pose motion, n=1"]
+    pose16 = by_name["controller Cartesian-pose motion, n=16"] * 16
     print(
         f"summary: mj_step_per_s={bare[1]:.0f} n1_cycles_per_s={n1:.0f} "
-        f"n16_arm_cycles_per_s={n16:.0f}"
+        f"n16_arm_cycles_per_s={n16:.0f} cartesian_n1_cycles_per_s={pose1:.0f} "
+        f"cartesian_n16_arm_cycles_per_s={pose16:.0f}"
     )
 
 

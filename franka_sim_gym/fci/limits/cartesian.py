@@ -200,6 +200,25 @@ def _elbow_rows(table: RobotTable, e_c, d: ElbowDerivatives, later: np.ndarray):
     return out_of_range | (later & too_fast)
 
 
+def _pose_limits2(table: RobotTable) -> np.ndarray:
+    """Squared limits of [a, alpha, v, omega, jerk, zeta] (the 19, 18, 20 rows)."""
+    cached = _LIMITS2.get(table.name)
+    if cached is None:
+        limits = (
+            table.a_trans_max,
+            table.a_rot_max,
+            table.v_trans_max,
+            table.v_rot_max,
+            table.j_trans_max,
+            table.j_rot_max,
+        )
+        cached = _LIMITS2[table.name] = np.square(np.array(limits))
+    return cached
+
+
+_LIMITS2: dict[str, np.ndarray] = {}
+
+
 def check_cartesian_pose(
     d: PoseDerivatives,
     first: np.ndarray,
@@ -254,15 +273,22 @@ def check_cartesian_pose(
     )
     continuing = later & has_elbow & had_elbow
     sign = continuing & (elbow_c[:, 1] != elbow_prev_flag)
-    acc = later & ((_norm(d.a) > table.a_trans_max) | (_norm(d.alpha) > table.a_rot_max))
-    vel = later & ((_norm(d.v) > table.v_trans_max) | (_norm(d.omega) > table.v_rot_max))
-    jerk = later & ((_norm(d.jerk) > table.j_trans_max) | (_norm(d.zeta) > table.j_rot_max))
+    # The six norms at once: [a, alpha, v, omega, jerk, zeta] against their limits.
+    halves = np.stack([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], axis=1)
+    over = ~(np.einsum("nkj,nkj->nk", halves, halves) <= _pose_limits2(table))  # NaN trips
+    over &= later[:, None]
+    acc = over[:, 0] | over[:, 1]
+    vel = over[:, 2] | over[:, 3]
+    jerk = over[:, 4] | over[:, 5]
     ik29 = ik_checked & (np.abs(ik_ddq) > table.ik_ddq_max * scale).any(axis=1)
     ik30 = ik_checked & (np.abs(ik_dddq) > table.ik_dddq_max * scale).any(axis=1)
     if has_elbow.any():
         elbow = has_elbow & _elbow_rows(table, elbow_c[:, 0], de, continuing)
     else:
         elbow = has_elbow
+    if not (first.any() or has_elbow.any() or over.any() or ik29.any() or ik30.any()):
+        # Mid-motion, no elbow, nothing over: the common case, without the selection.
+        return CartesianCheck(np.full(first.shape[0], NO_ERROR, np.int64), None)
     tripped = np.stack([start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow], axis=1)
     return CartesianCheck(select(tripped, POSE_CODES), tripped)
 
