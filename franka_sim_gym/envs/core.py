@@ -371,8 +371,10 @@ def _names(bits: np.ndarray) -> np.ndarray:
 
 
 def info_row(info: dict[str, np.ndarray], i: int) -> dict:
-    """One arm's info as a single env reports it (Python scalars and tuples)."""
+    """One arm's info as a single env reports it (Python scalars and tuples); the vector
+    layout's ``_key`` masks are left out."""
     return {
         key: (value[i] if value.dtype == object else value[i].item())
         for key, value in info.items()
+        if not key.startswith("_")
     }
