@@ -2,14 +2,8 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import numpy as np
 import pytest
-
-from .conftest import ROOT
 
 sb3 = pytest.importorskip("stable_baselines3")
 
@@ -67,33 +61,3 @@ def test_ppo_trains_on_the_batched_env():
     model = PPO("MultiInputPolicy", env, n_steps=64, batch_size=64, n_epochs=1, seed=0)
     model.learn(total_timesteps=256)
     assert model.num_timesteps >= 256
-
-
-def test_train_sb3_takes_num_envs(tmp_path):
-    out = tmp_path / "run"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "examples" / "train_sb3.py"),
-            "--num-envs",
-            "4",
-            "--steps",
-            "400",
-            "--evals",
-            "1",
-            "--eval-episodes",
-            "1",
-            "--out",
-            str(out),
-            "--env-kwargs",
-            '{"max_episode_steps": 10}',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=ROOT,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stdout.strip().splitlines()[-1].startswith("eval: success_rate=")
-    assert (out / "model.zip").is_file()

@@ -15,7 +15,6 @@ import mujoco
 import numpy as np
 
 from ..sim.render import OffscreenRenderer
-from .channel import Channel
 from .core import FciBatch, info_row
 
 
@@ -54,22 +53,10 @@ class FrankaFCIEnv(gym.Env):
 
     def __init__(
         self,
-        action_interface: str = "joint_position",
-        action_filter: str = "limit_rate",
-        policy_hz: float = 25.0,
-        max_episode_steps: int = 50,
-        reward_type: str = "sparse",
-        distance_threshold: float = 0.05,
-        enforce_motion_limits: bool = True,
-        enforce_comm_constraints: bool = True,
-        channel: Channel | str | None = None,
-        reset_noise: float = 0.05,
-        robot: str = "fr3",
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
-        gripper: bool = False,
-        gripper_speed: float = 0.1,
+        **kwargs,
     ) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             modes = self.metadata["render_modes"]
@@ -79,29 +66,16 @@ class FrankaFCIEnv(gym.Env):
         self._viewer = None
         self.render_mode = render_mode
         #: the batched core with one arm: the vector env runs the same code with n arms
-        self.core = FciBatch(
-            1,
-            action_interface=action_interface,
-            action_filter=action_filter,
-            policy_hz=policy_hz,
-            max_episode_steps=max_episode_steps,
-            reward_type=reward_type,
-            distance_threshold=distance_threshold,
-            enforce_motion_limits=enforce_motion_limits,
-            enforce_comm_constraints=enforce_comm_constraints,
-            channel=channel,
-            reset_noise=reset_noise,
-            robot=robot,
-            gripper=gripper,
-            gripper_speed=gripper_speed,
-        )
+        # Every other knob (and its default) is the batched core's: one list of them for
+        # the single and the vector env; an unknown one is a TypeError naming it.
+        self.core = FciBatch(1, **kwargs)
         core = self.core
         self.controller = core.controller
         self.config = core.config
         self.task = core.task
         self.commands = core.commands
         self.channel = core.channels[0]
-        self.action_interface = action_interface
+        self.action_interface = core.action_interface
         self.cycles_per_step = core.cycles_per_step
         self.max_episode_steps = core.max_episode_steps
         self.gripper = core.gripper
