@@ -6,6 +6,10 @@ One row per action interface (single env, libfranka's rate-limited client, all
 checks on), with cycles/s (40 cycles per step) and the ratio to bare mj_step of
 the same one-arm world in the same run. Episodes that end (reflex or time
 limit) are reset, and resets are counted in the time.
+
+Then the native batched vector env (joint position) at N = 16 and 64 arms in one
+world: env steps/s and arm-cycles/s (one core), the ratio to N single envs in a
+Gymnasium SyncVectorEnv, and to bare mj_step of the same N-arm world.
 """
 
 from __future__ import annotations
@@ -36,6 +40,29 @@ def env_rate(interface: str, seconds: float) -> tuple[float, int]:
     return steps / (time.perf_counter() - start), resets
 
 
+def vector_rate(n: int, mode: str, seconds: float) -> float:
+    """Env steps/s (arm-steps: n per call) of n arms, batched or in a SyncVectorEnv."""
+    env = gym.make_vec("FrankaFCI-v0", num_envs=n, vectorization_mode=mode)
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        env.step(rng.uniform(-1, 1, size=(n, 7)).astype(np.float32))  # autoresets included
+        calls += 1
+    return calls * n / (time.perf_counter() - start)
+
+
+def bare_rate(n: int, seconds: float) -> float:
+    """mj_step calls/s of the n-arm world."""
+    physics = ArmPhysics(n_arms=n)
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for _ in range(20):
+            mujoco.mj_step(physics.model, physics.data)
+        calls += 20
+    return calls / (time.perf_counter() - start)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0)
@@ -55,9 +82,26 @@ def main() -> None:
         rates[interface] = steps
         cycles = steps * 40
         print(f"{interface:<34}{steps:>10,.0f}{cycles:>12,.0f}{cycles / bare:>12.3f}{resets:>8}")
+    print()
+    print(
+        f"{'batched (joint position)':<26}{'env steps/s':>12}{'arm-cycles/s':>14}"
+        f"{'vs Sync':>9}{'vs mj_step':>12}"
+    )
+    batched = {}
+    for n in (16, 64):
+        bare = bare_rate(n, args.seconds) * n  # arm-steps/s
+        sync = vector_rate(n, "sync", args.seconds)
+        steps = batched[n] = vector_rate(n, "vector_entry_point", args.seconds)
+        for name, rate in ((f"SyncVectorEnv, N={n}", sync), (f"batched, N={n}", steps)):
+            print(
+                f"{name:<26}{rate:>12,.0f}{rate * 40:>14,.0f}"
+                f"{rate / sync:>9.1f}{rate * 40 / bare:>12.3f}"
+            )
+        print(f"{f'bare mj_step, N={n}':<26}{'':>12}{bare:>14,.0f}{'':>9}{1.0:>12.3f}")
     print(
         f"summary: env_steps_per_s={rates['joint_position']:.0f} "
-        f"cycles_per_s={rates['joint_position'] * 40:.0f}"
+        f"cycles_per_s={rates['joint_position'] * 40:.0f} "
+        f"batched_arm_cycles_per_s={batched[64] * 40:.0f}"
     )
 
 

@@ -2,6 +2,7 @@
 
     python examples/train_sb3.py --out runs/reach            # SAC + HER (default)
     python examples/train_sb3.py --algo ppo --steps 50000 --out runs/ppo
+    python examples/train_sb3.py --num-envs 16 --out runs/reach16   # 16 arms, one world
 
 Writes to --out: model.zip, progress.csv (SB3's logger), eval.csv, and
 success_reflex.png (when matplotlib is installed). Ends with one line
@@ -100,12 +101,23 @@ def main() -> None:
     parser.add_argument("--evals", type=int, default=4, help="evaluations during training")
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--num-envs",
+        type=int,
+        default=1,
+        help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world)",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON, e.g. '{\"policy_hz\": 10}'")
     parser.add_argument("--out", type=Path, default=Path("runs/reach"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = json.loads(args.env_kwargs)
-    env = gym.make("FrankaFCI-v0", **kwargs)
+    if args.num_envs > 1:
+        from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv
+
+        env = FrankaFCISB3VecEnv(args.num_envs, **kwargs)
+    else:
+        env = gym.make("FrankaFCI-v0", **kwargs)
     eval_env = gym.make("FrankaFCI-v0", **kwargs)
     model = make_model(args.algo, env, args.seed, args.out)
     start = time.perf_counter()

@@ -118,6 +118,18 @@ def run_client(
     return json.loads(lines[-1])
 
 
+def run_python(script: Path, *args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
+    """Run a script of this repository in a child process (the repository on its path)."""
+    return subprocess.run(
+        [sys.executable, str(script), *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+
+
 @pytest.fixture
 def client():
     return run_client

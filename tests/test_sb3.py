@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import gymnasium as gym
 import pytest
 
 import franka_sim_gym  # noqa: F401
 from franka_sim_gym.envs import IDS
 
-from .conftest import ROOT
+from .conftest import ROOT, run_python
 
 sb3 = pytest.importorskip("stable_baselines3")
 
@@ -26,28 +22,22 @@ def test_sb3_check_env_passes_for_every_id(env_id):
     env.close()
 
 
-def test_train_sb3_runs_end_to_end_and_saves_a_model(tmp_path):
+@pytest.mark.parametrize("arms", [[], ["--num-envs", "4"]], ids=["single", "batched"])
+def test_train_sb3_runs_end_to_end_and_saves_a_model(tmp_path, arms):
     out = tmp_path / "run"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "examples" / "train_sb3.py"),
-            "--steps",
-            "400",
-            "--evals",
-            "1",
-            "--eval-episodes",
-            "2",
-            "--out",
-            str(out),
-            "--env-kwargs",
-            '{"max_episode_steps": 10}',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=ROOT,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    proc = run_python(
+        ROOT / "examples" / "train_sb3.py",
+        *arms,
+        "--steps",
+        "400",
+        "--evals",
+        "1",
+        "--eval-episodes",
+        "2",
+        "--out",
+        str(out),
+        "--env-kwargs",
+        '{"max_episode_steps": 10}',
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     last = proc.stdout.strip().splitlines()[-1]

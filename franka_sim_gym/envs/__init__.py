@@ -7,6 +7,10 @@ heavy is imported until an env is made):
 * ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``, ``FrankaFCITorque-v0``
   — one id per action interface (every constructor argument of
   ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed to ``gym.make``).
+
+Every id also has a native batched vector env (N arms in one MuJoCo world):
+``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
+(``franka_sim_gym.envs.vector_env.FrankaFCIVectorEnv``).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 _ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
+_VECTOR_ENTRY = "franka_sim_gym.envs.vector_env:FrankaFCIVectorEnv"
 IDS = {
     "FrankaFCI-v0": {"action_interface": "joint_position"},
     "FrankaFCIJointPosition-v0": {"action_interface": "joint_position"},
@@ -26,7 +31,9 @@ def register_envs() -> None:
     """Register every id (idempotent)."""
     for env_id, kwargs in IDS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=_ENTRY, kwargs=kwargs)
+            gym.register(
+                id=env_id, entry_point=_ENTRY, vector_entry_point=_VECTOR_ENTRY, kwargs=kwargs
+            )
 
 
 register_envs()

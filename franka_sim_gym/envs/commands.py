@@ -63,6 +63,8 @@ class CommandGenerator:
         cycles_per_step: cycles between two policy actions.
         table: the robot whose limits the rate limiter uses (libfranka's own).
         scale: the meaning of a unit action.
+        cutoff: the low-pass filter's cutoff frequency [Hz].
+        n: how many robots (the leading axis of actions, states and commands).
     """
 
     def __init__(
@@ -73,6 +75,7 @@ class CommandGenerator:
         table: RobotTable = FR3,
         scale: ActionScale | None = None,
         cutoff: float = cf.LOWPASS_DEFAULT_CUTOFF,
+        n: int = 1,
     ) -> None:
         if interface not in INTERFACES:
             raise ValueError(f"unknown action interface {interface!r}: expected {INTERFACES}")
@@ -86,11 +89,15 @@ class CommandGenerator:
         self.cutoff = cutoff
         self._start = None
         self._target = None
-        self._first = True
+        #: per robot: its motion's first command is still to be sent (no reference yet)
+        self._first = np.ones(n, dtype=bool)
+        self._n_first = n
 
-    def reset(self) -> None:
-        """A new motion: the first command is not filtered against a reference."""
-        self._first = True
+    def reset(self, robots: np.ndarray | None = None) -> None:
+        """New motions for ``robots`` (all when None): their first command is not filtered
+        against a reference."""
+        self._first[slice(None) if robots is None else robots] = True
+        self._n_first = int(np.count_nonzero(self._first))
 
     def begin_step(self, action: np.ndarray, state: np.ndarray) -> None:
         """Fix the step's target from the action (n, 7) in [-1, 1] and the current state."""
@@ -105,21 +112,32 @@ class CommandGenerator:
             self._start = state["tau_J_d"].astype(np.float64)
             self._target = a * np.asarray(self.scale.torque)
 
-    def command(self, state: np.ndarray, k: int) -> np.ndarray:
-        """The (n, 7) command for cycle ``k`` (0-based) of the step, given the newest state."""
+    def command(self, state: np.ndarray, k: int, sent: np.ndarray | None = None) -> np.ndarray:
+        """The (n, 7) command for cycle ``k`` (0-based) of the step, given the newest state.
+
+        ``sent`` marks the robots whose command is actually sent this cycle (None: all);
+        a robot's first-command status ends only with a command sent.
+        """
         if self.action_filter == "none":
             out = self._target
         elif self.action_filter == "interpolate":
             out = cf.interpolate(self._start, self._target, (k + 1) / self.cycles_per_step)
         else:
             out = self._filtered(state)
-        self._first = False
+        if self._n_first:
+            if sent is None:
+                self._first[...] = False
+            else:
+                self._first &= ~sent
+            self._n_first = int(np.count_nonzero(self._first))
         return out
 
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         target = self._target
         if self.interface == "joint_position":
-            ref = target if self._first else state["q_d"].astype(np.float64)
+            ref = state["q_d"].astype(np.float64)
+            if self._n_first:
+                ref = np.where(self._first[:, None], target, ref)
         elif self.interface == "joint_velocity":
             ref = state["dq_d"].astype(np.float64)
         else:

@@ -1,0 +1,71 @@
+"""The reach observation: its space, and how it is built from a robot state.
+
+One implementation for every way in: the single env, the batched vector env
+(both through envs/core.py) and the deploy script
+(examples/deploy_pylibfranka.py, which builds it from pylibfranka's RobotState),
+so a policy sees the same numbers in training and on the robot.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from ..fci.tables import RobotTable
+from ..sim.gripper import MAX_WIDTH
+
+#: Bound of every Cartesian coordinate [m]: the FR3 reaches ~0.9 m; EE frames may add.
+CARTESIAN_BOUND = 2.0
+#: Bound of every measured joint speed [rad/s]: physics keeps them far below.
+JOINT_SPEED_BOUND = 20.0
+
+
+def observation_space(table: RobotTable, gripper: bool = False) -> spaces.Dict:
+    """Dict(observation, achieved_goal, desired_goal), float32, with honest bounds.
+
+    ``observation`` = measured q (7), dq (7), O_T_EE position (3) [, hand width (1)].
+    """
+    q_lo = (table.q_lower - 0.2).astype(np.float32)
+    q_hi = (table.q_upper + 0.2).astype(np.float32)
+    dq_hi = np.full(7, JOINT_SPEED_BOUND, dtype=np.float32)
+    box = np.full(3, CARTESIAN_BOUND, dtype=np.float32)
+    width_lo, width_hi = ([0.0], [MAX_WIDTH]) if gripper else ([], [])
+    return spaces.Dict(
+        {
+            "observation": spaces.Box(
+                np.concatenate([q_lo, -dq_hi, -box, width_lo]).astype(np.float32),
+                np.concatenate([q_hi, dq_hi, box, width_hi]).astype(np.float32),
+                dtype=np.float32,
+            ),
+            "achieved_goal": spaces.Box(-box, box, dtype=np.float32),
+            "desired_goal": spaces.Box(-box, box, dtype=np.float32),
+        }
+    )
+
+
+def build_observation(
+    space: spaces.Dict,
+    q: np.ndarray,
+    dq: np.ndarray,
+    ee: np.ndarray,
+    goal: np.ndarray,
+    width: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
+    """The observations of n robots, each array with a leading robot axis.
+
+    Args:
+        space: the single-robot ``observation_space`` (its bounds clip the values).
+        q, dq: (n, 7) measured joint positions and velocities (RobotState q, dq).
+        ee: (n, 3) O_T_EE position in the base frame (O_T_EE[12:15]).
+        goal: (n, 3) the goals.
+        width: (n,) measured hand opening [m], when a hand is mounted.
+    """
+    parts = [q, dq, ee] if width is None else [q, dq, ee, np.reshape(width, (-1, 1))]
+    obs = np.concatenate(parts, axis=1).astype(np.float32)
+    box = space["observation"]
+    np.clip(obs, box.low, box.high, out=obs)  # the bounds are the bounds
+    return {
+        "observation": obs,
+        "achieved_goal": np.clip(ee, -CARTESIAN_BOUND, CARTESIAN_BOUND).astype(np.float32),
+        "desired_goal": np.asarray(goal).astype(np.float32),
+    }
