@@ -60,12 +60,6 @@ def run_both(n, steps, actions_of, channels=None, **kwargs):
     return ended, out_vec
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="fci: the engine's all-commands fast path differentiates with * (1 / DELTA_T), the "
-    "masked path with / DELTA_T, so an arm's last bits depend on whether another arm lost a "
-    "cycle; passes once MotionLimitEngine._positions_inside_limits divides by DELTA_T",
-)
 def test_vector_env_equals_single_envs_with_per_arm_channels():
     rng = np.random.default_rng(0)
     channels = ["loss:0.05", None, "delay:0-3", "bursty"]

@@ -27,7 +27,6 @@ from .violations import ViolationLog, latched_bits
 if TYPE_CHECKING:
     from .controller import FciController
 
-_RATE = 1.0 / DELTA_T
 
 
 class MotionLimitEngine:
@@ -111,11 +110,11 @@ class MotionLimitEngine:
         dq, ddq, dddq = self._derivatives[1:]
         x[:, :7] = q_c
         np.subtract(q_c, ref.q, out=dq)
-        dq *= _RATE
+        dq /= DELTA_T  # divided, as the rule functions do: bit-identical to the general path
         np.subtract(dq, ref.dq, out=ddq)
-        ddq *= _RATE
+        ddq /= DELTA_T
         np.subtract(ddq, ref.ddq, out=dddq)
-        dddq *= _RATE
+        dddq /= DELTA_T
         upper, lower = self._reference_envelope()
         self._upper[:, 7:14] = upper
         self._lower[:, 7:14] = lower
