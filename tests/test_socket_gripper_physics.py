@@ -1,7 +1,9 @@
 """End to end: `serve --gripper-physics`, the hand's fingers in the arm's MuJoCo world,
 driven by pylibfranka's and franky's Gripper.
 
-Same protocol as the kinematic backend (tests/test_socket_gripper.py); here the
+Same protocol as the kinematic backend: the behaviours both share (thin air,
+grasp(0.0), out-of-stroke, stop mid-move) run against both backends in
+tests/test_socket_gripper.py; this file has the physics backend's own. The
 widths are measured from the finger joints after the PD servo settled, so
 they carry tolerances: the servo settles within ~20 um of a free target
 (tests/test_physics_hand.py), and the fingertip pads stall 0.04 mm outside the
@@ -64,41 +66,6 @@ def test_object_width_from_the_environment_applies_to_the_physics_hand(serve, cl
     assert result["ok"] is True and result["is_grasped"] is True, result
 
 
-def test_grasp_of_thin_air_returns_false(serve, client):
-    server = serve(PHYSICS)
-    result = client("gripper", "grasp", server.host, timeout=30)
-    assert result["ok"] is False, result
-    assert result["is_grasped"] is False
-    assert result["width"] == pytest.approx(0.0, abs=FREE_TOLERANCE)
-
-
-def test_grasp_of_zero_on_nothing_succeeds(serve, client):
-    server = serve(PHYSICS)
-    result = client("gripper", "grasp_zero", server.host, timeout=30)
-    assert result["ok"] is True and result["is_grasped"] is True, result
-
-
-def test_stop_mid_move_halts_where_the_fingers_are(serve, client):
-    server = serve(PHYSICS)
-    result = client("franky_gripper", "stop_mid_move", server.host, timeout=30)
-    assert result["stop"] is True, result
-    assert result["move"] == "CommandException: libfranka gripper: Command aborted!"
-    assert 0.0 < result["width"] < result["start_width"] - 0.002
-    # 0.3 s at 2 cm/s from 8 cm: about 7.4 cm (the client's sleep is not exact).
-    assert result["width"] == pytest.approx(0.074, abs=0.004)
-    # Not reopened: 0.5 s later the fingers are where the first state after stop()
-    # saw them, within what 2 cm/s covers in one 60 Hz broadcast period (0.33 mm).
-    assert result["width"] == pytest.approx(result["width_at_stop"], abs=5e-4)
-
-
-def test_out_of_stroke_width_raises_command_failed(serve, client):
-    server = serve(PHYSICS)
-    result = client("gripper", "out_of_stroke", server.host, timeout=30)
-    assert result["errors"] == ["CommandException: libfranka gripper: Command failed!"] * 2
-    assert result["homing_after"] is True
-    assert "invalid-argument" in server.log()
-
-
 def test_the_arm_serves_a_joint_motion_while_the_hand_moves(serve, client):
     server = serve(PHYSICS)
     hand = subprocess.Popen(
@@ -118,7 +85,10 @@ def test_the_arm_serves_a_joint_motion_while_the_hand_moves(serve, client):
     np.testing.assert_allclose(arm["final"]["q"], arm["q_start"], atol=2e-3)
     fingers = json.loads(out.strip().splitlines()[-1])
     assert fingers["results"] == [True] * 4, fingers
-    np.testing.assert_allclose(fingers["widths"], [0.01, 0.08] * 2, atol=FREE_TOLERANCE)
+    # The moving arm accelerates the 58 g fingers against their 1000 N/m servo:
+    # ~0.1 mm of give while joints 4, 5 and 7 swing (measured), inside the 1 mm
+    # a move counts as reached; 0.5 mm bounds it.
+    np.testing.assert_allclose(fingers["widths"], [0.01, 0.08] * 2, atol=5e-4)
 
 
 def test_the_mounted_hand_weighs_on_the_arm(serve, client):
