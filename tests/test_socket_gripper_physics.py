@@ -21,7 +21,7 @@ import sys
 import numpy as np
 import pytest
 
-from .conftest import CLIENTS
+from .conftest import CLIENTS, ROOT, fresh_address
 
 pytestmark = pytest.mark.socket
 
@@ -96,3 +96,16 @@ def test_the_mounted_hand_weighs_on_the_arm(serve, client):
     mounted = client("pylibfranka", "read_once", serve(PHYSICS).host)
     extra = np.subtract(mounted["first"]["tau_J"], bare["first"]["tau_J"])
     assert extra[3] == pytest.approx(HAND_JOINT4_TORQUE, abs=0.15)
+
+
+def test_an_object_wider_than_the_stroke_is_refused_at_startup():
+    proc = subprocess.run(
+        [sys.executable, "-m", "franka_sim_gym.server", "--host", fresh_address(), PHYSICS]
+        + ["--gripper-object-width", "0.09"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2
+    assert "object width 0.09" in proc.stderr
