@@ -15,6 +15,10 @@ from pathlib import Path
 
 from ..fci.config import ControllerConfig
 from ..fci.protocol import COMMAND_PORT
+from ..sim.arm import ArmPhysics
+from ..sim.finger_drive import FingerDrive
+from ..sim.gripper import FrankaHand, HandModel
+from ..sim.physics_hand import PhysicsHand
 from .gripper_server import GRIPPER_PORT, GripperServer
 from .robot_server import RobotServer, ServerOptions
 
@@ -69,8 +73,15 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
     serve.add_argument("--urdf", type=Path, default=None, help="URDF served by GetRobotModel")
     serve.add_argument("-v", "--vis", action="store_true", help="open the MuJoCo viewer")
     serve.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
-    serve.add_argument(
+    hand = serve.add_mutually_exclusive_group()
+    hand.add_argument(
         "--no-gripper", action="store_true", help="do not serve the Franka Hand on port 1338"
+    )
+    hand.add_argument(
+        "--gripper-physics",
+        action="store_true",
+        help="mount the Franka Hand on the arm's flange in MuJoCo and drive its fingers on a "
+        "force-limited PD servo (default: the kinematic hand, not mounted)",
     )
     serve.add_argument(
         "--gripper-object-width",
@@ -100,12 +111,12 @@ def serve(args: argparse.Namespace) -> int:
     if args.urdf is not None and not args.urdf.is_file():
         print(f"franka-sim-gym serve: --urdf {args.urdf}: no such file", file=sys.stderr)
         return 2
+    options = ServerOptions(host=args.host, port=args.port, urdf=args.urdf)
     try:
-        gripper = _gripper_server(args)
+        server, gripper = _servers(args, config, options)
     except ValueError as exc:
         print(f"franka-sim-gym serve: {exc}", file=sys.stderr)
         return 2
-    server = RobotServer(config, ServerOptions(host=args.host, port=args.port, urdf=args.urdf))
     if args.vis:
         server.open_viewer()
     if gripper is not None:
@@ -131,11 +142,8 @@ def serve(args: argparse.Namespace) -> int:
     return 0
 
 
-def _gripper_server(args: argparse.Namespace) -> GripperServer | None:
-    """The Franka Hand on port 1338 of the same host, unless --no-gripper (seed "Gripper
-    fidelity"); --gripper-object-width wins over FRANKA_SIM_GRIPPER_OBJECT_WIDTH."""
-    if args.no_gripper:
-        return None
+def _object_width(args: argparse.Namespace) -> float | None:
+    """--gripper-object-width, else FRANKA_SIM_GRIPPER_OBJECT_WIDTH (the flag wins)."""
     width = args.gripper_object_width
     if width is None and os.environ.get("FRANKA_SIM_GRIPPER_OBJECT_WIDTH", "").strip():
         text = os.environ["FRANKA_SIM_GRIPPER_OBJECT_WIDTH"]
@@ -143,7 +151,33 @@ def _gripper_server(args: argparse.Namespace) -> GripperServer | None:
             width = float(text)
         except ValueError:
             raise ValueError(f"FRANKA_SIM_GRIPPER_OBJECT_WIDTH={text!r} is not a number") from None
-    return GripperServer(host=args.host, port=GRIPPER_PORT, object_width=width)
+    return width
+
+
+def _servers(
+    args: argparse.Namespace, config: ControllerConfig, options: ServerOptions
+) -> tuple[RobotServer, GripperServer | None]:
+    """The arm, and the Franka Hand on port 1338 of the same host unless --no-gripper
+    (seed "Gripper fidelity").
+
+    The kinematic hand is not mounted on the arm. --gripper-physics mounts the
+    hand (and the virtual object) in the arm's MuJoCo world, whose tick thread
+    then runs the finger drive.
+    """
+    if args.no_gripper:
+        return RobotServer(config, options), None
+    width = _object_width(args)
+    hand: HandModel
+    if args.gripper_physics:
+        physics = ArmPhysics(n_arms=1, hand=True, object_width=width)
+        drive = FingerDrive(physics)
+        server = RobotServer(config, options, physics=physics)
+        server.add_tick_hook(drive.tick)
+        hand = PhysicsHand(drive, object_width=width)
+    else:
+        hand = FrankaHand(object_width=width)
+        server = RobotServer(config, options)
+    return server, GripperServer(host=args.host, port=GRIPPER_PORT, hand=hand)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -11,9 +11,13 @@ Threads:
 * an accept thread serves one client at a time (a second is refused and logged);
 * the session's reader thread decodes frames and posts requests; it never
   blocks on a running command, so a Stop sent mid-Grasp is read at once;
-* a timer thread applies the posted requests, steps :class:`FrankaHand` at
-  ``STEP_HZ``, answers each command when its action finishes, and broadcasts
+* a timer thread applies the posted requests, steps the hand model at
+  ``STEP_HZ`` (the kinematic :class:`FrankaHand` advances; the physics
+  :class:`~franka_sim_gym.sim.physics_hand.PhysicsHand` polls its MuJoCo
+  fingers), answers each command when its action finishes, and broadcasts
   GripperState at ``BROADCAST_HZ`` to (client IP, udp_port from Connect).
+
+The protocol is the same for both backends: only the finger model differs.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 
 from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
-from ..sim.gripper import TEMPERATURE_C, FrankaHand, Outcome
+from ..sim.gripper import TEMPERATURE_C, FrankaHand, HandModel, Outcome
 from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
 
@@ -42,7 +46,8 @@ VERSION = 3  # fci-wire-protocol.md §10: gripper server version 3
 HEADER = struct.Struct("<HII")  # §10.1: command u16, command_id u32, size u32 (total)
 #: Our bound on one request: the largest real one (Grasp) is 50 bytes.
 MAX_REQUEST_SIZE = 256
-STEP_HZ = 250  # model step rate (our choice: 4 ms resolution on a motion)
+#: Model step (and physics poll) rate: our choice, 4 ms resolution on a motion.
+STEP_HZ = 250
 BROADCAST_HZ = 60.0  # seed "Gripper fidelity": GripperState over UDP at 60 Hz
 _STATUS = struct.Struct("<H")
 _CONNECT_REQ = struct.Struct("<HH")  # version, udp_port
@@ -201,14 +206,21 @@ class GripperServer:
     Args:
         host: bind address (the robot server's).
         port: TCP port (1338; libfranka takes no port argument).
-        object_width: a rigid virtual object between the fingers [m], or None.
+        object_width: a rigid virtual object between the fingers [m], or None
+            (for the default kinematic hand).
+        hand: the hand model to serve instead of a kinematic ``FrankaHand``
+            (``--gripper-physics`` passes a ``PhysicsHand``).
     """
 
     def __init__(
-        self, host: str = "127.0.0.1", port: int = GRIPPER_PORT, object_width: float | None = None
+        self,
+        host: str = "127.0.0.1",
+        port: int = GRIPPER_PORT,
+        object_width: float | None = None,
+        hand: HandModel | None = None,
     ) -> None:
         self.host, self.port = host, port
-        self.hand = FrankaHand(object_width=object_width)
+        self.hand = hand if hand is not None else FrankaHand(object_width=object_width)
         self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._pending: dict[int, tuple[GripperSession, Command, int]] = {}
         self._slot = ClientSlot("gripper ", lambda sock, peer: GripperSession(self, sock, peer))
@@ -235,8 +247,10 @@ class GripperServer:
             thread.start()
             self._threads.append(thread)
         log.info(
-            "serving the Franka Hand (gripper protocol v%d) on %s:%d (object width: %s)",
+            "serving the Franka Hand (gripper protocol v%d, %s backend) on %s:%d "
+            "(object width: %s)",
             VERSION,
+            "kinematic" if isinstance(self.hand, FrankaHand) else "physics",
             self.host,
             self.port,
             self.hand.object_width,

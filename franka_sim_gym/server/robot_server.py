@@ -6,7 +6,8 @@ Threads (architecture.md "The two clocks"):
   requests posted since the last tick, hands the command datagrams received
   since then to the controller, runs one cycle, sends the state, and then
   delivers the cycle's events (so a kReflexAborted is sent only after the
-  state carrying the error);
+  state carrying the error), then runs the tick hooks (the physics gripper's
+  finger drive: all MuJoCo access stays on this thread);
 * an accept thread and one session thread per client read TCP.
 
 No rule of the robot lives here: the server only delivers datagrams, requests
@@ -63,15 +64,21 @@ class RobotServer:
     Args:
         config: the controller's switches (enforcement, robot tables, ...).
         options: bind address, port, URDF to serve, viewer.
+        physics: the world to serve (default: one bare FR3); ``--gripper-physics``
+            passes one with the hand mounted.
     """
 
     def __init__(
-        self, config: ControllerConfig | None = None, options: ServerOptions | None = None
+        self,
+        config: ControllerConfig | None = None,
+        options: ServerOptions | None = None,
+        physics: ArmPhysics | None = None,
     ):
         self.config = config or ControllerConfig()
         self.options = options or ServerOptions()
         self.urdf = Path(self.options.urdf or URDF_PATH).read_text(encoding="utf-8")
-        self.physics = ArmPhysics(n_arms=1)
+        self.physics = physics or ArmPhysics(n_arms=1)
+        self._tick_hooks: list[Callable[[], None]] = []
         self.controller = FciController(self.physics, self.config)
         self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._slot = ClientSlot("", lambda sock, peer: ClientSession(self, sock, peer))
@@ -135,6 +142,14 @@ class RobotServer:
             # A second Ctrl-C must not interrupt the shutdown itself.
             signal.signal(signal.SIGINT, signal.SIG_IGN)
             self.stop()
+
+    def add_tick_hook(self, hook: Callable[[], None]) -> None:
+        """Run ``hook()`` on the tick thread after every cycle (call before :meth:`start`).
+
+        A hook may read and write the MuJoCo world (it runs between two steps,
+        on the thread that steps it); it must be short: it is inside the 1 ms cycle.
+        """
+        self._tick_hooks.append(hook)
 
     # -- TCP side -----------------------------------------------------------------------------
 
@@ -254,6 +269,8 @@ class RobotServer:
             except OSError as exc:
                 self._udp_log.warning("udp-send-failed", "state not sent to %s: %s", addr, exc)
         self._deliver_events(events)
+        for hook in self._tick_hooks:
+            hook()
         if self._viewer is not None and self.ticks % 16 == 0:
             self._viewer.sync()
 

@@ -73,12 +73,22 @@ class ArmPhysics:
         n_arms: number of arms in the world (one per simulated robot).
         hand: mount the Franka Hand on every flange.
         spacing: distance between arm bases along x [m].
+        object_width: a rigid object this wide [m] between every hand's fingers
+            (the gripper's ``--gripper-object-width``); None: empty hands.
     """
 
-    def __init__(self, n_arms: int = 1, hand: bool = False, spacing: float = 2.0) -> None:
+    def __init__(
+        self,
+        n_arms: int = 1,
+        hand: bool = False,
+        spacing: float = 2.0,
+        object_width: float | None = None,
+    ) -> None:
         if n_arms < 1:
             raise ValueError(f"n_arms must be >= 1, got {n_arms}")
-        self.model, self.layout = build_world(n_arms=n_arms, hand=hand, spacing=spacing)
+        self.model, self.layout = build_world(
+            n_arms=n_arms, hand=hand, spacing=spacing, object_width=object_width
+        )
         self.data = mujoco.MjData(self.model)
         self.n = n_arms
         self.hand = hand

@@ -3,8 +3,10 @@
 Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
 (spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
 to each arm's ``flange`` site rotated Rz(-pi/4), as franka_description mounts
-it (fr3-model.md §5). :class:`ArmLayout` holds every index the rest of the
-simulator needs, so nothing downstream looks names up.
+it (fr3-model.md §5); ``object_width`` adds the gripper's rigid virtual object
+between each hand's fingertips (:func:`_add_object`). :class:`ArmLayout` holds
+every index the rest of the simulator needs, so nothing downstream looks names
+up.
 """
 
 from __future__ import annotations
@@ -35,6 +37,17 @@ FINGER_OPEN = 0.04
 SELF_COLLISION_DISTANCE = 0.05
 #: franka_description hand_joint: rpy (0, 0, -pi/4) relative to the flange.
 HAND_QUAT = (math.cos(-math.pi / 8), 0.0, 0.0, math.sin(-math.pi / 8))
+#: The fingertip pads' centre in the hand frame: finger body z 0.0584 + tip box
+#: z 0.04525 (models/hand.xml); the virtual object sits there.
+_TIP_Z = 0.0584 + 0.04525
+#: Half extents (x, z) of the virtual object: slightly wider than the 8.75 mm
+#: tip pads in x and 9 mm in z, so both pads meet it face to face.
+_OBJECT_HALF_XZ = (0.01, 0.009)
+#: Contact of the object with the fingertips: MuJoCo's stiffest safe time
+#: constant (2 timesteps) and impedance near 1, so 100 N press it in < 0.1 mm
+#: (MuJoCo's default solref 0.02 would let 20 N push the fingers ~1 cm in).
+_OBJECT_SOLREF = (0.002, 1.0)
+_OBJECT_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 
 _ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
 _ARM_LINKS = tuple(f"link{k}" for k in range(8))
@@ -64,6 +77,7 @@ class ArmLayout:
     finger_dof_adr: np.ndarray | None = None  # (n, 2)
     finger_actuator: np.ndarray | None = None  # (n,) the `fingers` position servo
     tcp_site: np.ndarray | None = None  # (n,) hand TCP site
+    hand_body: np.ndarray | None = None  # (n,) the `hand` body (the palm; fingers below it)
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -99,9 +113,12 @@ def _arm_spec() -> mujoco.MjSpec:
 
 
 def build_world(
-    n_arms: int = 1, hand: bool = False, spacing: float = 2.0
+    n_arms: int = 1, hand: bool = False, spacing: float = 2.0, object_width: float | None = None
 ) -> tuple[mujoco.MjModel, ArmLayout]:
     """Build a world of ``n_arms`` FR3 arms on a ground plane.
+
+    ``object_width`` (needs ``hand``) puts a rigid box that wide between every
+    hand's fingertips; None or 0 leaves the hands empty.
 
     Keyframe ``home`` puts every arm at HOME_Q with the fingers open; callers
     should start from it (mj_resetDataKeyframe) or set data.qpos themselves:
@@ -110,6 +127,10 @@ def build_world(
     """
     if n_arms < 1:
         raise ValueError(f"n_arms must be >= 1, got {n_arms}")
+    if object_width is not None and not (
+        hand and math.isfinite(object_width) and 0.0 <= object_width <= 2 * FINGER_OPEN
+    ):
+        raise ValueError(f"object width {object_width}: needs a hand and 0-{2 * FINGER_OPEN} m")
     spec = mujoco.MjSpec()
     spec.modelname = "franka_sim_gym"
     spec.copy_during_attach = True  # the same arm (and hand) spec is attached n times
@@ -139,11 +160,41 @@ def build_world(
             flange = spec.site(prefix + "flange")
             mount = spec.body(prefix + "link7").add_frame(pos=flange.pos, quat=HAND_QUAT)
             spec.attach(hand_spec, prefix=prefix, frame=mount)
+            if object_width:
+                _add_object(spec, prefix, object_width)
     spec.add_key(name="home")
     model = spec.compile()
     layout = _layout(model, n_arms, hand)
     _set_home(model, layout)
     return model, layout
+
+
+def _add_object(spec: mujoco.MjSpec, prefix: str, width: float) -> None:
+    """A rigid box ``width`` wide between the fingertips, fixed to the palm.
+
+    It is a geom of the hand body, so it moves with the hand and adds no mass
+    (the body's inertial is explicit). It collides with nothing but the two
+    fingertip pads (contype/conaffinity 0, two explicit contact pairs), so the
+    arm, the floor and the rest of the hand pass through it; the pads' inner
+    faces sit at the finger joint positions, so the fingers stall at a summed
+    finger position of ``width`` (+ 0.04 mm: the pads' faces are 0.02 mm
+    behind the joint origin).
+    """
+    half_x, half_z = _OBJECT_HALF_XZ
+    spec.body(prefix + "hand").add_geom(
+        name=prefix + "object",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=[0.0, 0.0, _TIP_Z],
+        size=[half_x, width / 2, half_z],
+        contype=0,
+        conaffinity=0,
+        group=1,
+        rgba=[0.9, 0.45, 0.1, 1.0],
+    )
+    for tip in ("left_tip", "right_tip"):
+        pair = spec.add_pair(geomname1=prefix + "object", geomname2=prefix + tip)
+        pair.solref = list(_OBJECT_SOLREF)
+        pair.solimp = list(_OBJECT_SOLIMP)
 
 
 def _ids(model: mujoco.MjModel, kind: str, names: list[list[str]]) -> np.ndarray:
@@ -171,6 +222,7 @@ def _layout(model: mujoco.MjModel, n: int, hand: bool) -> ArmLayout:
             finger_dof_adr=model.jnt_dofadr[fjoints],
             finger_actuator=_ids(model, "actuator", [[p + "fingers"] for p in pre])[:, 0],
             tcp_site=_ids(model, "site", [[p + "tcp"] for p in pre])[:, 0],
+            hand_body=_ids(model, "body", [[p + "hand"] for p in pre])[:, 0],
         )
     return ArmLayout(
         n=n,

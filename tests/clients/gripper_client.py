@@ -41,6 +41,26 @@ def scenario_homing(host: str) -> dict:
     }
 
 
+def scenario_homing_from_closed(host: str) -> dict:
+    """Close to 2 cm, then homing: it must open the fingers again."""
+    gripper = fr.Gripper(host)
+    moved = gripper.move(0.02, 0.1)
+    closed = gripper.read_once().width
+    ok, seconds = timed(gripper.homing)
+    return {"moved": moved, "closed": closed, "ok": ok, "seconds": seconds, **state_dict(gripper)}
+
+
+def scenario_open_close(host: str) -> dict:
+    """Close to 1 cm and open again, CYCLES times at 5 cm/s (the arm may move meanwhile)."""
+    gripper = fr.Gripper(host)
+    results, widths = [], []
+    for _ in range(int(os.environ.get("CYCLES", "2"))):
+        for width in (0.01, 0.08):
+            results.append(gripper.move(width, 0.05))
+            widths.append(gripper.read_once().width)
+    return {"results": results, "widths": widths}
+
+
 def scenario_move(host: str) -> dict:
     """Open fully, then move to 4 cm at 2 cm/s: 2 s if the speed is honoured."""
     gripper = fr.Gripper(host)

@@ -1,0 +1,74 @@
+"""The mounted Franka Hand as libfranka's end-effector load: m_ee, F_x_Cee, I_ee.
+
+On the robot, Desk's end-effector configuration (the Franka Hand) sets these
+RobotState fields, and libfranka's Model adds that load to the URDF arm it
+computes with (``franka::Model`` takes the total load of m_ee and m_load;
+fci-wire-protocol.md §7.2). The simulation's hand is a real MuJoCo subtree
+(models/hand.xml, franka_description's inertials), so its load is read off the
+compiled model rather than written down a second time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .world import HOME_Q, ArmLayout
+
+
+@dataclass(frozen=True)
+class HandLoad:
+    """The hand's mass properties in the flange frame (libfranka's conventions).
+
+    Attributes:
+        m_ee: total mass [kg] of the hand and its fingers.
+        F_x_Cee: centre of mass [m] in the flange frame.
+        I_ee: 3x3 inertia [kg m^2] about the centre of mass, flange axes.
+    """
+
+    m_ee: float
+    F_x_Cee: np.ndarray
+    I_ee: np.ndarray
+
+    def I_ee_wire(self) -> np.ndarray:
+        """I_ee as the 9 column-major values of the RobotState field."""
+        return self.I_ee.reshape(-1, order="F")
+
+
+def hand_load(model: mujoco.MjModel, layout: ArmLayout, arm: int = 0) -> HandLoad:
+    """The load of arm ``arm``'s hand, fingers as the model's keyframe sets them (open).
+
+    The arm pose does not matter (the hand is rigid on the flange); home is used.
+    """
+    if layout.hand_body is None:
+        raise ValueError("no hand is mounted")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    data.qpos[layout.qpos_adr[arm]] = HOME_Q
+    mujoco.mj_forward(model, data)
+    root = int(layout.hand_body[arm])
+    bodies = [b for b in range(model.nbody) if _in_subtree(model, b, root)]
+    mass = float(sum(model.body_mass[b] for b in bodies))
+    com = sum(model.body_mass[b] * data.xipos[b] for b in bodies) / mass
+    inertia = np.zeros((3, 3))
+    for b in bodies:
+        R = data.ximat[b].reshape(3, 3)
+        r = data.xipos[b] - com
+        # Rotate each body's principal inertia to world axes, then shift it to the
+        # common centre of mass (parallel axis theorem).
+        inertia += R @ np.diag(model.body_inertia[b]) @ R.T
+        inertia += model.body_mass[b] * (r @ r * np.eye(3) - np.outer(r, r))
+    site = int(layout.flange_site[arm])
+    F_R_O = data.site_xmat[site].reshape(3, 3).T  # world -> flange axes
+    F_x_C = F_R_O @ (com - data.site_xpos[site])
+    return HandLoad(m_ee=mass, F_x_Cee=F_x_C, I_ee=F_R_O @ inertia @ F_R_O.T)
+
+
+def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(model.body_parentid[body])
+    return False

@@ -1,0 +1,200 @@
+"""The physics Franka Hand (sim.physics_hand + sim.finger_drive) in a real MuJoCo world.
+
+The arm holds home while the tick hook (FingerDrive.tick) runs after every 1 ms
+step, and the hand is polled every 4 ticks as the gripper server's 250 Hz
+timer polls it. Behaviours: state-and-command-fidelity.md "Gripper fidelity",
+with its listed divergences closed (force is a limit, stop halts in place,
+is_grasped appears as the fingers close).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from franka_sim_gym.sim.arm import ArmPhysics
+from franka_sim_gym.sim.finger_drive import FingerDrive
+from franka_sim_gym.sim.gripper import Outcome
+from franka_sim_gym.sim.hand_load import hand_load
+from franka_sim_gym.sim.physics_hand import MOVE_TOLERANCE, SETTLE_POLLS, PhysicsHand
+from franka_sim_gym.sim.world import HOME_Q, build_world
+
+POLL_TICKS = 4  # the gripper server's 250 Hz timer against the 1 kHz tick
+
+
+class Rig:
+    """One arm with the hand mounted, stepped tick by tick like the robot server."""
+
+    def __init__(self, object_width: float | None = None) -> None:
+        self.physics = ArmPhysics(n_arms=1, hand=True, object_width=object_width)
+        self.drive = FingerDrive(self.physics)
+        self.hand = PhysicsHand(self.drive, object_width=object_width)
+        self.ticks = 0
+        self.is_grasped_while_busy = False
+
+    def tick(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.physics.step(HOME_Q[None, :], None)
+            self.drive.tick()
+            self.ticks += 1
+            if self.ticks % POLL_TICKS == 0:
+                self.hand.step(POLL_TICKS * 1e-3)
+                self.is_grasped_while_busy |= self.hand.busy and self.hand.is_grasped
+
+    def run(self, seconds: float = 10.0) -> float:
+        """Tick until the running action finishes; the simulated seconds it took."""
+        start = self.ticks
+        while self.hand.busy and self.ticks - start < seconds * 1000:
+            self.tick()
+        return (self.ticks - start) / 1000
+
+    def object_force(self) -> float:
+        """Total normal force [N] the fingertips press on the virtual object with."""
+        model, data = self.physics.model, self.physics.data
+        total, force = 0.0, np.zeros(6)
+        for i in range(data.ncon):
+            names = model.geom(data.contact[i].geom1).name + model.geom(data.contact[i].geom2).name
+            if "object" in names:
+                mujoco.mj_contactForce(model, data, i, force)
+                total += force[0]
+        return total
+
+
+def test_move_reaches_its_target_at_the_commanded_speed():
+    rig = Rig()
+    rig.hand.move(0.04, 0.02)
+    seconds = rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS
+    # The servo settles within ~20 um (velocity under 1 mm/s); the success band is 1 mm.
+    assert rig.hand.width == pytest.approx(0.04, abs=1e-4)
+    # 4 cm at 2 cm/s in simulated time, plus the settling polls.
+    assert seconds == pytest.approx(2.0, abs=0.1)
+
+
+def test_a_motion_does_not_settle_before_the_fingers_start_moving():
+    rig = Rig()
+    rig.hand.move(0.0, 0.01)
+    rig.tick(POLL_TICKS * (SETTLE_POLLS + 2))  # the fingers were at rest when it began
+    assert rig.hand.busy
+    assert rig.hand.width < 0.08 - 1e-4
+
+
+def test_settling_takes_three_consecutive_quiet_polls():
+    rig = Rig()
+    rig.hand.move(0.08, 0.05)  # already there: every poll is quiet
+    rig.tick(POLL_TICKS * (SETTLE_POLLS - 1))
+    assert rig.hand.busy
+    rig.tick(POLL_TICKS)
+    assert rig.hand.outcome is Outcome.SUCCESS
+
+
+def test_grasp_of_thin_air_stalls_at_zero_and_fails():
+    rig = Rig()
+    rig.hand.grasp(0.04, 0.05, 20.0)
+    rig.run()
+    assert rig.hand.outcome is Outcome.UNSUCCESSFUL
+    assert rig.hand.is_grasped is False
+    assert rig.hand.width == pytest.approx(0.0, abs=1e-4)
+
+
+@pytest.mark.parametrize("force", [20.0, 140.0])
+def test_grasp_of_zero_on_nothing_succeeds_even_at_high_force(force):
+    # The finger end stops are stiff: the squeeze does not push the fingers out of
+    # the (-5 mm, 5 mm) band.
+    rig = Rig()
+    rig.hand.grasp(0.0, 0.1, force)
+    rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS and rig.hand.is_grasped
+    assert abs(rig.hand.width) < 1e-4
+
+
+@pytest.mark.parametrize("force", [10.0, 60.0])
+def test_grasp_force_is_the_limit_of_the_finger_force(force):
+    rig = Rig(object_width=0.04)
+    rig.hand.grasp(0.04, 0.05, force)
+    rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS and rig.hand.is_grasped
+    assert rig.hand.width == pytest.approx(0.04, abs=2e-4)
+    rig.tick(200)  # the object held for 0.2 s
+    assert rig.object_force() == pytest.approx(force, rel=1e-3)
+    assert rig.physics.data.actuator_force[rig.drive._act] == pytest.approx(-force)
+
+
+def test_is_grasped_appears_before_the_grasp_is_answered():
+    rig = Rig(object_width=0.03)
+    rig.hand.grasp(0.03, 0.05, 20.0)
+    rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS
+    assert rig.is_grasped_while_busy
+
+
+def test_grasp_expecting_another_width_fails_on_the_object():
+    rig = Rig(object_width=0.03)
+    rig.hand.grasp(0.05, 0.05, 20.0)
+    rig.run()
+    assert rig.hand.outcome is Outcome.UNSUCCESSFUL and not rig.hand.is_grasped
+    assert rig.hand.width == pytest.approx(0.03, abs=2e-4)
+
+
+def test_inward_move_is_blocked_by_the_object_and_opening_is_not():
+    rig = Rig(object_width=0.03)
+    rig.hand.move(0.01, 0.05)
+    rig.run()
+    assert rig.hand.outcome is Outcome.UNSUCCESSFUL
+    assert rig.hand.width == pytest.approx(0.03, abs=2e-4)
+    rig.hand.move(0.07, 0.05)
+    rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS
+    assert rig.hand.width == pytest.approx(0.07, abs=MOVE_TOLERANCE)
+
+
+def test_stop_halts_the_fingers_where_they_are():
+    rig = Rig()
+    rig.hand.move(0.0, 0.05)
+    rig.tick(300)  # 1.5 cm closed
+    rig.hand.stop()
+    at_stop = rig.hand.width
+    assert rig.hand.take_finished()[-1][1] is Outcome.ABORTED
+    rig.tick(1000)
+    # Braking from 5 cm/s on a ~130 rad/s servo: well under a millimetre.
+    assert rig.hand.width == pytest.approx(at_stop, abs=5e-4)
+    assert rig.hand.width == pytest.approx(0.08 - 0.015, abs=2e-3)
+
+
+def test_the_object_collides_with_the_fingertips_only_and_adds_no_mass():
+    bare, _ = build_world(hand=True)
+    model, _ = build_world(hand=True, object_width=0.04)
+    assert model.ngeom == bare.ngeom + 1 and model.npair == 2
+    np.testing.assert_allclose(model.body_mass, bare.body_mass)
+    with pytest.raises(ValueError):
+        build_world(hand=True, object_width=0.09)
+    with pytest.raises(ValueError):
+        build_world(object_width=0.04)  # no hand to hold it
+
+
+def test_hand_load_is_the_hand_the_arm_carries():
+    """m_ee / F_x_Cee reproduce the extra gravity torque the mounted hand puts on the arm."""
+    model, layout = build_world(hand=True)
+    bare_model, _ = build_world()
+    load = hand_load(model, layout)
+    assert load.m_ee == pytest.approx(0.6544 + 2 * 0.0291)  # models/hand.xml inertials
+    np.testing.assert_allclose(load.I_ee, load.I_ee.T)
+    assert np.all(np.linalg.eigvalsh(load.I_ee) > 0)
+
+    def gravity_torque(m: mujoco.MjModel) -> np.ndarray:
+        data = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, data, m.key("home").id)
+        mujoco.mj_forward(m, data)
+        return data.qfrc_gravcomp[layout.dof_adr[0]].copy(), data
+
+    with_hand, data = gravity_torque(model)
+    without, _ = gravity_torque(bare_model)
+    # The point load m_ee at F_x_Cee on the flange, through the flange's Jacobian.
+    site = int(layout.flange_site[0])
+    com = data.site_xpos[site] + data.site_xmat[site].reshape(3, 3) @ load.F_x_Cee
+    jacp = np.zeros((3, model.nv))
+    mujoco.mj_jac(model, data, jacp, None, com, model.site_bodyid[site])
+    expected = jacp[:, layout.dof_adr[0]].T @ np.array([0.0, 0.0, load.m_ee * 9.81])
+    np.testing.assert_allclose(with_hand - without, expected, atol=1e-6)
+    assert (with_hand - without)[3] == pytest.approx(3.3, abs=0.1)  # docs/gripper.md
