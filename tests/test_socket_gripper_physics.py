@@ -98,6 +98,14 @@ def test_the_mounted_hand_weighs_on_the_arm(serve, client):
     assert extra[3] == pytest.approx(HAND_JOINT4_TORQUE, abs=0.15)
 
 
+def test_libfranka_model_gravity_includes_the_mounted_hand(serve, client):
+    """m_ee / F_x_Cee / I_ee carry the mounted hand, so libfranka's Model::gravity(state)
+    explains the measured tau_J of the arm holding it."""
+    r = client("pylibfranka", "load_model", serve(PHYSICS).host)
+    assert r["m_ee"] == pytest.approx(0.7126, abs=1e-3)
+    np.testing.assert_allclose(r["gravity"], r["tau_J"], atol=0.02)
+
+
 def test_an_object_wider_than_the_stroke_is_refused_at_startup():
     proc = subprocess.run(
         [sys.executable, "-m", "franka_sim_gym.server", "--host", fresh_address(), PHYSICS]

@@ -26,6 +26,7 @@ import logging
 import numpy as np
 
 from ..sim.arm import ArmPhysics
+from ..sim.hand_load import hand_load
 from . import frames, setters
 from ._fast import count_nonzero
 from .accounting import CycleAccounting
@@ -63,7 +64,8 @@ class FciController:
         self.table = self.config.table
         n = self.n = physics.n
         self.modes = Modes(n)
-        self.writer = StateWriter(n)
+        load = hand_load(physics.model, physics.layout) if physics.hand else None
+        self.writer = StateWriter(n, ee_load=load)
         self.states = self.writer.states
         w = self.writer
         #: the commanded joint reference: the published q_d / dq_d / ddq_d themselves

@@ -30,8 +30,11 @@ _ROT_XMAT = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
 class StateWriter:
     """Owns the (n,) RobotState array, its float64 shadow and the reported frames and loads."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, ee_load=None) -> None:
         self.n = n
+        #: the mounted hand's mass, centre of mass and inertia (sim.hand_load.HandLoad),
+        #: reported in m_ee / F_x_Cee / I_ee; None for a bare flange
+        self.ee_load = ee_load
         self.states = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
         raw = self.states.view(np.uint8).reshape(n, ROBOT_STATE_SIZE)
         self._wire = raw[:, _FLOAT_BEGIN:_FLOAT_END].view("<f4")
@@ -82,6 +85,11 @@ class StateWriter:
         self._any_custom_ee = bool(self._custom_ee.any())
         for name in ("m_load", "F_x_Cload", "I_load"):
             self.field[name][i] = 0.0
+        load = self.ee_load
+        if load is not None:  # the hand the arm carries (its weight is in the measured tau_J)
+            self.field["m_ee"][i] = load.m_ee
+            self.field["F_x_Cee"][i] = load.F_x_Cee
+            self.field["I_ee"][i] = load.I_ee_wire()
 
     def set_end_effector(self, i: int, NE_T_EE=None, EE_T_K=None) -> None:
         """SetNEToEE / SetEEToK: F_T_EE follows NE_T_EE (F_T_NE is identity: no hand configured)."""

@@ -107,6 +107,8 @@ def scenario_load_model(host: str) -> dict:
         "mass": list(model.mass(state)),
         "zero_jacobian": list(model.zero_jacobian(state)),
         "O_ddP_O": list(state.O_ddP_O),
+        "tau_J": list(state.tau_J),
+        "m_ee": state.m_ee,
     }
 
 
