@@ -25,6 +25,7 @@ measured q during a Cartesian motion, as the seed says.
 
 from __future__ import annotations
 
+import logging
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,6 +41,7 @@ from .tables import DELTA_T, MAX_LOST_CYCLES
 if TYPE_CHECKING:
     from .engine import MotionLimitEngine
 
+log = logging.getLogger("franka_sim_gym.fci")
 _DT = DELTA_T
 #: IK samples after a rebase before the joint side is judged: a solution, then its
 #: velocity; the acceleration (29) needs two and the jerk (30) three differences.
@@ -196,22 +198,18 @@ class CartesianGenerators:
         dddq_checked = np.where(ik_jerk[:, None], dddq, 0.0)
         w = c.writer
         cfg = c.config
+        elbow_stream = rules.ElbowStream(elbow, has_elbow, self.has_elbow, self.elbow[:, 1], de)
+        joint = rules.JointSide(ddq, dddq_checked, ik_acc)
         judged_pose = active & pose
         if count_nonzero(judged_pose):
             check = rules.check_cartesian_pose(
                 d,
                 first,
                 T_cand,
-                from_wire(w.O_T_EE),
-                has_elbow,
-                self.has_elbow,
-                elbow,
-                self.elbow[:, 1],
+                w.O_T_EE,
+                elbow_stream,
                 w.elbow,
-                de,
-                ddq,
-                dddq_checked,
-                ik_acc,
+                joint,
                 table,
                 scale,
                 cfg.cartesian_start_translation_tolerance,
@@ -265,20 +263,7 @@ class CartesianGenerators:
         judged_twist = active & twist_rows
         if count_nonzero(judged_twist):
             check = rules.check_cartesian_velocity(
-                twist,
-                dtwist,
-                ddtwist,
-                first,
-                has_elbow,
-                self.has_elbow,
-                elbow,
-                self.elbow[:, 1],
-                de,
-                ddq,
-                dddq_checked,
-                ik_acc,
-                table,
-                scale,
+                twist, dtwist, ddtwist, first, elbow_stream, joint, table, scale
             )
 
             def twist_quantities() -> dict:  # built only for a log line
@@ -376,9 +361,6 @@ class CartesianGenerators:
         self.engine._judge(error, rows, describe, extra)
 
     def _log_ik_failure(self, failed: np.ndarray, ik) -> None:
-        import logging
-
-        log = logging.getLogger("franka_sim_gym.fci")
         for i in np.flatnonzero(failed & ~self._ik_failed_logged).tolist():
             log.warning(
                 "robot %d: the commanded pose has no converged IK solution (residual %.3g m, "

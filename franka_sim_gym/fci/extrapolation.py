@@ -16,14 +16,15 @@ docs/system_requirements.rst):
 | tau_J_d | held |
 
 All functions are pure and batch-first (leading robot axis). The joint laws
-are applied in ``reference.JointReference``; the Cartesian ones wait for the
-Cartesian generators.
+are applied in ``reference.JointReference``, the Cartesian ones in
+``cartesian.CartesianGenerators``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..sim.kinematics import rotation_exp
 from .tables import DELTA_T
 
 
@@ -38,26 +39,6 @@ def position_step(
 def velocity_step(v: np.ndarray, a: np.ndarray, dt: float = DELTA_T) -> np.ndarray:
     """dq_c and O_dP_EE_c: the velocity (twist) continued at the frozen acceleration."""
     return v + a * dt
-
-
-def _axis_angle_matrix(rotvec: np.ndarray) -> np.ndarray:
-    """Rodrigues: (n, 3) rotation vectors to (n, 3, 3) matrices."""
-    angle = np.linalg.norm(rotvec, axis=-1, keepdims=True)
-    safe = np.where(angle > 0.0, angle, 1.0)
-    k = rotvec / safe
-    kx, ky, kz = k[..., 0], k[..., 1], k[..., 2]
-    zero = np.zeros_like(kx)
-    K = np.stack(
-        [
-            np.stack([zero, -kz, ky], -1),
-            np.stack([kz, zero, -kx], -1),
-            np.stack([-ky, kx, zero], -1),
-        ],
-        -2,
-    )
-    s = np.sin(angle)[..., None]
-    c = (1.0 - np.cos(angle))[..., None]
-    return np.eye(3) + s * K + c * (K @ K)
 
 
 def pose_step(
@@ -83,7 +64,7 @@ def pose_step(
     p_next, v_next = position_step(T[..., :3, 3], v, a, dt)
     omega_next = omega + alpha * dt
     T_next[..., :3, 3] = p_next
-    T_next[..., :3, :3] = T[..., :3, :3] @ _axis_angle_matrix(omega_next * dt)
+    T_next[..., :3, :3] = T[..., :3, :3] @ rotation_exp(omega_next * dt)
     return T_next, v_next, omega_next
 
 

@@ -44,6 +44,7 @@ import numpy as np
 
 from ...sim.kinematics import rotation_log
 from ..errors import Error
+from ..frames import from_wire
 from ..tables import RobotTable
 from ._common import NO_ERROR, Violation, interval
 
@@ -121,6 +122,29 @@ class ElbowDerivatives(NamedTuple):
     jerk: np.ndarray
 
 
+class ElbowStream(NamedTuple):
+    """This cycle's elbow_c and the history it continues."""
+
+    #: (n, 2) the commanded elbow (elbow[0] = joint 3's angle, elbow[1] the branch flag)
+    command: np.ndarray
+    #: (n,) this command carries an elbow (valid_elbow, or one extrapolated)
+    has: np.ndarray
+    #: (n,) the previous command carried one
+    had: np.ndarray
+    #: (n,) the previous command's branch flag
+    prev_flag: np.ndarray
+    #: elbow_c[0]'s backward differences
+    derivatives: ElbowDerivatives
+
+
+class JointSide(NamedTuple):
+    """The IK solution's acceleration and jerk (n, 7), judged where ``checked`` (n,)."""
+
+    ddq: np.ndarray
+    dddq: np.ndarray
+    checked: np.ndarray
+
+
 class CartesianCheck(NamedTuple):
     """Result of a Cartesian check: the latched error and every row that tripped."""
 
@@ -188,20 +212,41 @@ def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps):
     return dq, ddq, (ddq - ddq_prev) / h
 
 
-def _elbow_rows(table: RobotTable, e_c, d: ElbowDerivatives, later: np.ndarray):
-    """Row 17: elbow[0] outside joint 3's range (always), or its velocity, acceleration
-    or jerk over the kMaxElbow* limits (after the first command)."""
+def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
+    """Rows 21 and 17 (both generators): the branch flag flipping mid-motion; elbow[0]
+    outside joint 3's range (always), or its velocity, acceleration or jerk over the
+    kMaxElbow* limits (after the first command)."""
+    continuing = later & elbow.has & elbow.had
+    sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
+    if not elbow.has.any():
+        return sign, elbow.has
+    e_c, d = elbow.command[:, 0], elbow.derivatives
     out_of_range = ~((e_c >= table.q_lower[2]) & (e_c <= table.q_upper[2]))
     too_fast = (
         (np.abs(d.v) > table.v_elbow_max)
         | (np.abs(d.a) > table.a_elbow_max)
         | (np.abs(d.jerk) > table.j_elbow_max)
     )
-    return out_of_range | (later & too_fast)
+    return sign, elbow.has & (out_of_range | (continuing & too_fast))
 
 
-def _pose_limits2(table: RobotTable) -> np.ndarray:
-    """Squared limits of [a, alpha, v, omega, jerk, zeta] (the 19, 18, 20 rows)."""
+def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
+    """The IK solution's acceleration over kMaxJointAcceleration, its jerk over
+    kMaxJointJerk (the robot's per-joint tables times the discontinuity scale)."""
+    acc = joint.checked & (np.abs(joint.ddq) > table.ik_ddq_max * scale).any(axis=1)
+    jerk = joint.checked & (np.abs(joint.dddq) > table.ik_dddq_max * scale).any(axis=1)
+    return acc, jerk
+
+
+def _over(halves: list, limits2: np.ndarray) -> np.ndarray:
+    """(n, k) each (n, 3) vector's norm over its limit, in one pass ("not inside": NaN
+    trips). ``limits2`` are the squared limits, (k,)."""
+    x = np.stack(halves, axis=1)
+    return ~(np.einsum("nkj,nkj->nk", x, x) <= limits2)
+
+
+def _limits2(table: RobotTable) -> np.ndarray:
+    """Squared Cartesian limits [a, alpha, v, omega, jerk, zeta] of ``table``."""
     cached = _LIMITS2.get(table.name)
     if cached is None:
         limits = (
@@ -223,16 +268,10 @@ def check_cartesian_pose(
     d: PoseDerivatives,
     first: np.ndarray,
     T_c: np.ndarray,
-    T_measured: np.ndarray,
-    has_elbow: np.ndarray,
-    had_elbow: np.ndarray,
-    elbow_c: np.ndarray,
-    elbow_prev_flag: np.ndarray,
+    O_T_EE: np.ndarray,
+    elbow: ElbowStream,
     elbow_measured: np.ndarray,
-    de: ElbowDerivatives,
-    ik_ddq: np.ndarray,
-    ik_dddq: np.ndarray,
-    ik_checked: np.ndarray,
+    joint: JointSide,
     table: RobotTable,
     scale: float,
     translation_tolerance: float,
@@ -245,51 +284,44 @@ def check_cartesian_pose(
         d: the pose's derivatives (:func:`pose_derivatives`).
         first: (n,) the motion's opening command: the start rows replace the
             derivative rows (the history is rebased at rest on it).
-        T_c, T_measured: (n, 4, 4) commanded and measured (O_T_EE) poses.
-        has_elbow / had_elbow: (n,) this / the previous command carries an elbow.
-        elbow_c: (n, 2) commanded elbow; elbow_prev_flag (n,) the previous flag;
-            elbow_measured (n, 2) the measured (q[2], sign q[3]).
-        de: elbow_c[0]'s derivatives (used where has_elbow and had_elbow).
-        ik_ddq, ik_dddq: (n, 7) the IK solution's acceleration and jerk; checked where
-            ``ik_checked`` (the solver converged and the joint history is warm).
+        T_c: (n, 4, 4) commanded poses; O_T_EE: (n, 16) the measured poses as the
+            state carries them (read only on an opening command).
+        elbow: the elbow stream; elbow_measured (n, 2) the measured (q[2], sign q[3]).
+        joint: the IK solution's acceleration and jerk (the joint side, 29 / 30).
         table, scale: the robot's limits; the joint-side tables' scale.
         translation_tolerance, rotation_tolerance, elbow_tolerance: start checks.
     """
     first = np.asarray(first, dtype=bool)
     later = ~first
-    if first.any():
-        dp = _norm(T_c[:, :3, 3] - T_measured[:, :3, 3])
-        dr = _norm(rotation_log(T_measured[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]))
+    starting = first.any()
+    if starting:
+        T_m = from_wire(O_T_EE)
+        dp = _norm(T_c[:, :3, 3] - T_m[:, :3, 3])
+        dr = _norm(rotation_log(T_m[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]))
         start_pose = first & ((dp > translation_tolerance) | (dr > rotation_tolerance))
-    else:
-        start_pose = first
-    start_elbow = (
-        first
-        & has_elbow
-        & (
-            (np.abs(elbow_c[:, 0] - elbow_measured[:, 0]) > elbow_tolerance)
-            | (elbow_c[:, 1] != elbow_measured[:, 1])
+        e_c = elbow.command
+        start_elbow = (
+            first
+            & elbow.has
+            & (
+                (np.abs(e_c[:, 0] - elbow_measured[:, 0]) > elbow_tolerance)
+                | (e_c[:, 1] != elbow_measured[:, 1])
+            )
         )
-    )
-    continuing = later & has_elbow & had_elbow
-    sign = continuing & (elbow_c[:, 1] != elbow_prev_flag)
-    # The six norms at once: [a, alpha, v, omega, jerk, zeta] against their limits.
-    halves = np.stack([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], axis=1)
-    over = ~(np.einsum("nkj,nkj->nk", halves, halves) <= _pose_limits2(table))  # NaN trips
+    else:
+        start_pose = start_elbow = first
+    over = _over([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], _limits2(table))
     over &= later[:, None]
+    ik29, ik30 = _joint_side_rows(joint, table, scale)
+    sign, elbow_limit = _elbow_rows(elbow, later, table)
+    if not (starting or elbow.has.any() or over.any() or ik29.any() or ik30.any()):
+        # Mid-motion, no elbow, nothing over: the common case, without the selection.
+        return CartesianCheck(np.full(first.shape[0], NO_ERROR, np.int64), None)
     acc = over[:, 0] | over[:, 1]
     vel = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
-    ik29 = ik_checked & (np.abs(ik_ddq) > table.ik_ddq_max * scale).any(axis=1)
-    ik30 = ik_checked & (np.abs(ik_dddq) > table.ik_dddq_max * scale).any(axis=1)
-    if has_elbow.any():
-        elbow = has_elbow & _elbow_rows(table, elbow_c[:, 0], de, continuing)
-    else:
-        elbow = has_elbow
-    if not (first.any() or has_elbow.any() or over.any() or ik29.any() or ik30.any()):
-        # Mid-motion, no elbow, nothing over: the common case, without the selection.
-        return CartesianCheck(np.full(first.shape[0], NO_ERROR, np.int64), None)
-    tripped = np.stack([start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow], axis=1)
+    rows = [start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow_limit]
+    tripped = np.stack(rows, axis=1)
     return CartesianCheck(select(tripped, POSE_CODES), tripped)
 
 
@@ -298,14 +330,8 @@ def check_cartesian_velocity(
     dtwist: np.ndarray,
     ddtwist: np.ndarray,
     first: np.ndarray,
-    has_elbow: np.ndarray,
-    had_elbow: np.ndarray,
-    elbow_c: np.ndarray,
-    elbow_prev_flag: np.ndarray,
-    de: ElbowDerivatives,
-    ik_ddq: np.ndarray,
-    ik_dddq: np.ndarray,
-    ik_checked: np.ndarray,
+    elbow: ElbowStream,
+    joint: JointSide,
     table: RobotTable,
     scale: float,
 ) -> CartesianCheck:
@@ -316,17 +342,14 @@ def check_cartesian_velocity(
     the opening twist is an acceleration from standstill, as on the robot).
     """
     first = np.asarray(first, dtype=bool)
-    continuing = ~first & has_elbow & had_elbow
-    acc = (_norm(dtwist[:, :3]) > table.a_trans_max) | (_norm(dtwist[:, 3:]) > table.a_rot_max)
-    jerk = (_norm(ddtwist[:, :3]) > table.j_trans_max) | (_norm(ddtwist[:, 3:]) > table.j_rot_max)
-    vel = (_norm(twist[:, :3]) > table.v_trans_max) | (_norm(twist[:, 3:]) > table.v_rot_max)
-    ik30 = ik_checked & (
-        (np.abs(ik_ddq) > table.ik_ddq_max * scale).any(axis=1)
-        | (np.abs(ik_dddq) > table.ik_dddq_max * scale).any(axis=1)
-    )
-    sign = continuing & (elbow_c[:, 1] != elbow_prev_flag)
-    elbow = has_elbow & _elbow_rows(table, elbow_c[:, 0], de, continuing)
-    tripped = np.stack([acc, jerk, vel, ik30, sign, elbow], axis=1)
+    halves = [dtwist[:, :3], dtwist[:, 3:], twist[:, :3], twist[:, 3:]]
+    over = _over(halves + [ddtwist[:, :3], ddtwist[:, 3:]], _limits2(table))
+    ik_acc, ik_jerk = _joint_side_rows(joint, table, scale)
+    sign, elbow_limit = _elbow_rows(elbow, ~first, table)
+    acc = over[:, 0] | over[:, 1]
+    vel = over[:, 2] | over[:, 3]
+    jerk = over[:, 4] | over[:, 5]
+    tripped = np.stack([acc, jerk, vel, ik_acc | ik_jerk, sign, elbow_limit], axis=1)
     return CartesianCheck(select(tripped, TWIST_CODES), tripped)
 
 

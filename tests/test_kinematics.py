@@ -1,0 +1,72 @@
+"""sim/kinematics.py: forward kinematics equal to the physics' flange, the Jacobian, the IK."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from franka_sim_gym.sim.arm import ArmPhysics
+from franka_sim_gym.sim.kinematics import ArmKinematics, rotation_exp, rotation_log
+from franka_sim_gym.sim.world import HOME_Q
+
+
+def _setup(n: int = 1):
+    physics = ArmPhysics(n_arms=n)
+    return physics, ArmKinematics(physics.model, physics.layout)
+
+
+def test_forward_kinematics_is_the_physics_flange_pose():
+    physics, kin = _setup(2)
+    T = kin.forward(np.tile(HOME_Q, (2, 1)))
+    p, R = physics.flange_pose()
+    np.testing.assert_allclose(T[:, :3, 3], p, atol=1e-12)
+    np.testing.assert_allclose(T[:, :3, :3], R, atol=1e-12)
+    np.testing.assert_allclose(T[0, :3, 3], [0.306891, 0.0, 0.590282], atol=1e-4)  # fr3-model.md
+
+
+def test_jacobian_matches_finite_differences_at_a_tool_frame():
+    _, kin = _setup()
+    tool = np.eye(4)[None].copy()
+    tool[0, :3, 3] = [0.05, -0.02, 0.2]
+    q = np.array([HOME_Q]) + 0.1
+    J = kin.jacobian(q, tool)
+    T = kin.forward(q, tool)
+    eps = 1e-7
+    for j in range(7):
+        dq = np.zeros((1, 7))
+        dq[0, j] = eps
+        T2 = kin.forward(q + dq, tool)
+        np.testing.assert_allclose((T2[0, :3, 3] - T[0, :3, 3]) / eps, J[0, :3, j], atol=1e-6)
+        w = rotation_log(T[0, :3, :3].T @ T2[0, :3, :3]) / eps  # body frame
+        np.testing.assert_allclose(T[0, :3, :3] @ w, J[0, 3:, j], atol=1e-6)
+
+
+def test_ik_solves_a_reachable_pose_and_holds_the_elbow():
+    _, kin = _setup()
+    q0 = np.array([HOME_Q])
+    target = kin.forward(q0)
+    target[0, 0, 3] += 0.05
+    r = kin.solve(target, q0, elbow=np.array([0.2]))
+    assert r.converged[0]
+    assert r.q[0, 2] == 0.2  # joint 3 held at the commanded elbow
+    np.testing.assert_allclose(kin.forward(r.q)[0], target[0], atol=1e-7)
+
+
+def test_ik_reports_an_unreachable_pose_as_not_converged():
+    _, kin = _setup()
+    q0 = np.array([HOME_Q])
+    target = kin.forward(q0)
+    target[0, 0, 3] += 2.0  # 2 m out: beyond the FR3's reach
+    r = kin.solve(target, q0)
+    assert not r.converged[0]
+    assert r.position_error[0] > 0.5
+
+
+def test_rotation_log_inverts_rotation_exp_up_to_pi():
+    rng = np.random.default_rng(0)
+    v = rng.normal(size=(200, 3))
+    v *= (rng.uniform(0.0, np.pi - 1e-3, size=200) / np.linalg.norm(v, axis=1))[:, None]
+    v[:5] *= 1e-9
+    np.testing.assert_allclose(rotation_log(rotation_exp(v)), v, atol=1e-12)
+    np.testing.assert_allclose(
+        rotation_log(rotation_exp(np.array([[0, 0, np.pi]]))), [[0, 0, np.pi]]
+    )
