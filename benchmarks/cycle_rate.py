@@ -43,6 +43,28 @@ def rate(fn, seconds: float) -> float:
             return calls / elapsed
 
 
+def streaming_cycle(ctrl: FciController, field: str, waypoints: np.ndarray):
+    """One cycle of an in-process client streaming ``waypoints[k]`` into ``field`` (every
+    robot, answering the last published state), then the controller's step."""
+    n = ctrl.n
+    commands = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
+    mask = np.ones(n, dtype=bool)
+    signal = commands[field]
+    message_id = commands["message_id"]
+    published = ctrl.states["message_id"]
+    period = len(waypoints)
+    k = [0]
+
+    def cycle() -> None:
+        k[0] += 1
+        signal[...] = waypoints[k[0] % period]
+        message_id[...] = published
+        ctrl.receive(commands, mask)
+        ctrl.step()
+
+    return cycle
+
+
 def bare_step_rate(n: int, seconds: float) -> float:
     physics = ArmPhysics(n_arms=n)
     model, data = physics.model, physics.data
@@ -68,21 +90,7 @@ def motion_rate(n: int, seconds: float) -> float:
     t = np.arange(period) * 1e-3
     waypoints = np.repeat(q0[None], period, axis=0)
     waypoints[:, :, 3] += (0.1 * (1 - np.cos(2 * np.pi * t / 4.0)))[:, None]
-    commands = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
-    mask = np.ones(n, dtype=bool)
-    q_c = commands["q_c"]
-    message_id = commands["message_id"]
-    published = ctrl.states["message_id"]
-    k = [0]
-
-    def cycle() -> None:
-        k[0] += 1
-        q_c[...] = waypoints[k[0] % period]
-        message_id[...] = published
-        ctrl.receive(commands, mask)
-        ctrl.step()
-
-    cycles = rate(cycle, seconds)
+    cycles = rate(streaming_cycle(ctrl, "q_c", waypoints), seconds)
     # The cycle accounting alone (success-rate window, lost runs), every robot counting.
     accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting
@@ -98,29 +106,16 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
         ctrl.step()
     period = 4000
     t = np.arange(period) * 1e-3
-    commands = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
     if generator == CARTESIAN_POSITION:
         pose0 = ctrl.states["O_T_EE_d"].astype(np.float64)
         waypoints = np.repeat(pose0[None], period, axis=0)
         waypoints[:, :, 12] += (0.025 * (1 - np.cos(2 * np.pi * t / 4.0)))[:, None]
-        field = commands["O_T_EE_c"]
+        field = "O_T_EE_c"
     else:
         waypoints = np.zeros((period, n, 6))
         waypoints[:, :, 0] = (0.025 * 2 * np.pi / 4.0 * np.sin(2 * np.pi * t / 4.0))[:, None]
-        field = commands["O_dP_EE_c"]
-    mask = np.ones(n, dtype=bool)
-    message_id = commands["message_id"]
-    published = ctrl.states["message_id"]
-    k = [0]
-
-    def cycle() -> None:
-        k[0] += 1
-        field[...] = waypoints[k[0] % period]
-        message_id[...] = published
-        ctrl.receive(commands, mask)
-        ctrl.step()
-
-    return rate(cycle, seconds)
+        field = "O_dP_EE_c"
+    return rate(streaming_cycle(ctrl, field, waypoints), seconds)
 
 
 #: per n: the accounting's share of one motion cycle

@@ -265,40 +265,32 @@ class MotionLimitEngine:
     def _judge_positions(self, q_c, rows, first, history=None) -> limits.PositionCheck:
         """q_c of ``rows`` judged over one cycle against ``history`` (q, dq, ddq), by
         default the reference as it stands: logged, enforced."""
-        ref = self.c.reference
-        q, dq, ddq = history if history is not None else (ref.q, ref.dq, ref.ddq)
-        args = (
-            q_c,
-            q,
-            dq,
-            ddq,
-            first,
-            ref.q,
-            1,
-            self.c.table,
+        return self._judge_joint_command(
+            limits.check_joint_position,
+            limits.describe_joint_position,
+            (q_c, rows, first, history),
+            self.c.reference.q,
             self.c.config.start_pose_tolerance,
         )
-        check = limits.check_joint_position(*args)
-        self._judge(check.error, rows, lambda i: limits.describe_joint_position(i, *args))
-        return check
 
     def _judge_velocities(self, dq_c, rows, first, history=None) -> limits.VelocityCheck:
         """dq_c of ``rows`` judged over one cycle against ``history`` (default: as it stands)."""
-        ref = self.c.reference
-        q, dq, ddq = history if history is not None else (ref.q, ref.dq, ref.ddq)
-        args = (
-            dq_c,
-            q,
-            dq,
-            ddq,
-            first,
-            ref.dq,
-            1,
-            self.c.table,
+        return self._judge_joint_command(
+            limits.check_joint_velocity,
+            limits.describe_joint_velocity,
+            (dq_c, rows, first, history),
+            self.c.reference.dq,
             self.c.config.start_velocity_tolerance,
         )
-        check = limits.check_joint_velocity(*args)
-        self._judge(check.error, rows, lambda i: limits.describe_joint_velocity(i, *args))
+
+    def _judge_joint_command(self, check_rule, describe_rule, what, start, tolerance):
+        """One joint rule (``check_rule``) over ``what`` = (command, rows, first, history)."""
+        command, rows, first, history = what
+        ref = self.c.reference
+        q, dq, ddq = history if history is not None else (ref.q, ref.dq, ref.ddq)
+        args = (command, q, dq, ddq, first, start, 1, self.c.table, tolerance)
+        check = check_rule(*args)
+        self._judge(check.error, rows, lambda i: describe_rule(i, *args))
         return check
 
     def _advance_torques(self) -> None:

@@ -16,12 +16,11 @@ Motions run libfranka's `Robot::control` loop in C++ (100 Hz low-pass filter).
 
 from __future__ import annotations
 
-import json
-import sys
 import time
 
 import franky
 import numpy as np
+import scenario_main  # tests/clients/scenario_main.py: the shared entry point
 
 
 def connect(host: str) -> franky.Robot:
@@ -147,18 +146,13 @@ def scenario_recover(host: str) -> dict:
     }
 
 
-def scenario_cartesian_motion(host: str) -> dict:
-    """CartesianMotion 5 cm along the EE's own x (a relative target) at 0.2 of the dynamics."""
+def cartesian_move(host: str, motion) -> dict:
+    """``robot.move(motion)``; the EE pose before and after, the mode, the error text."""
     robot = connect(host)
     before = affine_matrix(robot.state.O_T_EE)
     error = None
     try:
-        target = franky.CartesianState(franky.Affine([0.05, 0.0, 0.0]))
-        robot.move(
-            franky.CartesianMotion(
-                target, franky.ReferenceType.Relative, franky.RelativeDynamicsFactor(0.2)
-            )
-        )
+        robot.move(motion)
     except Exception as exc:  # reported to the test
         error = f"{type(exc).__name__}: {exc}"
     time.sleep(0.2)
@@ -169,38 +163,26 @@ def scenario_cartesian_motion(host: str) -> dict:
         "robot_mode": state.robot_mode.name,
         "error": error,
     }
+
+
+def scenario_cartesian_motion(host: str) -> dict:
+    """CartesianMotion 5 cm along the EE's own x (a relative target) at 0.2 of the dynamics."""
+    target = franky.CartesianState(franky.Affine([0.05, 0.0, 0.0]))
+    dynamics = franky.RelativeDynamicsFactor(0.2)
+    return cartesian_move(
+        host, franky.CartesianMotion(target, franky.ReferenceType.Relative, dynamics)
+    )
 
 
 def scenario_cartesian_velocity_motion(host: str) -> dict:
     """CartesianVelocityMotion: 2 cm/s along base z held for 0.5 s, then stopped."""
-    robot = connect(host)
-    before = affine_matrix(robot.state.O_T_EE)
-    error = None
-    try:
-        twist = franky.Twist([0.0, 0.0, 0.02])
-        robot.move(
-            franky.CartesianVelocityMotion(
-                franky.RobotVelocity(twist),
-                duration=franky.Duration(500),
-                relative_dynamics_factor=franky.RelativeDynamicsFactor(0.2),
-            )
-        )
-    except Exception as exc:  # reported to the test
-        error = f"{type(exc).__name__}: {exc}"
-    time.sleep(0.2)
-    state = robot.state
-    return {
-        "before": before,
-        "after": affine_matrix(state.O_T_EE),
-        "robot_mode": state.robot_mode.name,
-        "error": error,
-    }
+    motion = franky.CartesianVelocityMotion(
+        franky.RobotVelocity(franky.Twist([0.0, 0.0, 0.02])),
+        duration=franky.Duration(500),
+        relative_dynamics_factor=franky.RelativeDynamicsFactor(0.2),
+    )
+    return cartesian_move(host, motion)
 
 
 if __name__ == "__main__":
-    name, host = sys.argv[1], sys.argv[2]
-    try:
-        result = globals()[f"scenario_{name}"](host)
-    except Exception as exc:  # the test reads the exception type and text
-        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
-    print(json.dumps(result), flush=True)
+    scenario_main.run(globals())

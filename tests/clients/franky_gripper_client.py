@@ -9,11 +9,10 @@ one connection send Stop while a Move is outstanding.
 
 from __future__ import annotations
 
-import json
-import sys
 import time
 
 import franky
+import scenario_main  # tests/clients/scenario_main.py: the shared entry point
 
 
 def state_dict(gripper: franky.Gripper) -> dict:
@@ -65,9 +64,4 @@ def scenario_stop_mid_move(host: str) -> dict:
 
 
 if __name__ == "__main__":
-    name, host = sys.argv[1], sys.argv[2]
-    try:
-        result = globals()[f"scenario_{name}"](host)
-    except Exception as exc:  # the test reads the exception type and text
-        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
-    print(json.dumps(result), flush=True)
+    scenario_main.run(globals())

@@ -6,12 +6,11 @@ result) as its last line; an exception becomes {"exception_type", "exception"}.
 
 from __future__ import annotations
 
-import json
 import os
-import sys
 import time
 
 import pylibfranka as fr
+import scenario_main  # tests/clients/scenario_main.py: the shared entry point
 
 
 def state_dict(gripper: fr.Gripper) -> dict:
@@ -116,9 +115,4 @@ def scenario_connect_only(host: str) -> dict:
 
 
 if __name__ == "__main__":
-    name, host = sys.argv[1], sys.argv[2]
-    try:
-        result = globals()[f"scenario_{name}"](host)
-    except Exception as exc:  # the test reads the exception type and text
-        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
-    print(json.dumps(result), flush=True)
+    scenario_main.run(globals())

@@ -11,11 +11,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 import threading
 import time
 
 import pylibfranka as fr
+import scenario_main  # tests/clients/scenario_main.py: the shared entry point
 
 HOME = [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
 
@@ -442,37 +442,48 @@ def scenario_silence(host: str) -> dict:
     }
 
 
+def stream(control, duration: float, command_at) -> str | None:
+    """libfranka's active control loop: readOnce, ``command_at(state, t)``, writeOnce, until
+    ``duration`` has passed (the last command finishes the motion). The ControlException
+    text, or None."""
+    t = 0.0
+    try:
+        while True:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            command = command_at(state, min(t, duration))
+            command.motion_finished = t >= duration
+            control.writeOnce(command)
+            if t >= duration:
+                return None
+    except fr.ControlException as exc:
+        return str(exc)
+
+
 def scenario_cartesian_pose(host: str) -> dict:
     """The shape of libfranka's cartesian_pose_example: the EE swings on an arc in the
     x-z plane, angle = pi/4 (1 - cos(pi t / T)), radius 5 cm (ends 5 cm +x, 5 cm -z)."""
     robot = connect(host)
     control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
     duration, radius = 2.5, 0.05
-    t, pose0, error = 0.0, None, None
-    try:
-        while True:
-            state, period = control.readOnce()
-            t += period.to_sec()
-            if pose0 is None:
-                pose0 = list(state.O_T_EE_c)
-            angle = math.pi / 4 * (1 - math.cos(math.pi * min(t, duration) / duration))
-            pose = list(pose0)
-            pose[12] += radius * math.sin(angle)
-            pose[14] += radius * (math.cos(angle) - 1)
-            command = fr.CartesianPose(pose)
-            if t >= duration:
-                command.motion_finished = True
-                control.writeOnce(command)
-                break
-            control.writeOnce(command)
-    except fr.ControlException as exc:
-        error = str(exc)
+    start = []
+
+    def pose_at(state, t: float):
+        if not start:
+            start.extend(state.O_T_EE_c)
+        angle = math.pi / 4 * (1 - math.cos(math.pi * t / duration))
+        pose = list(start)
+        pose[12] += radius * math.sin(angle)
+        pose[14] += radius * (math.cos(angle) - 1)
+        return fr.CartesianPose(pose)
+
+    error = stream(control, duration, pose_at)
     del control
     time.sleep(0.3)
     after = robot.read_once()
     return {
         "error": error,
-        "pose_start": pose0,
+        "pose_start": start,
         "O_T_EE_after": list(after.O_T_EE),
         "robot_mode": after.robot_mode.name,
     }
@@ -485,23 +496,14 @@ def scenario_cartesian_velocity(host: str) -> dict:
     before = list(robot.read_once().O_T_EE)
     control = robot.start_cartesian_velocity_control(fr.ControllerMode.JointImpedance)
     period_s, v_max, angle = 2.0, 0.05, math.pi / 4
-    t, error, echo = 0.0, None, []
-    try:
-        while True:
-            state, period = control.readOnce()
-            t += period.to_sec()
-            echo.append((list(state.O_dP_EE_c), list(state.O_T_EE_d)))
-            v = v_max / 2 * (1 - math.cos(2 * math.pi * min(t, period_s) / period_s))
-            command = fr.CartesianVelocities(
-                [math.cos(angle) * v, 0, -math.sin(angle) * v, 0, 0, 0]
-            )
-            if t >= period_s:
-                command.motion_finished = True
-                control.writeOnce(command)
-                break
-            control.writeOnce(command)
-    except fr.ControlException as exc:
-        error = str(exc)
+    echo = []
+
+    def twist_at(state, t: float):
+        echo.append((list(state.O_dP_EE_c), list(state.O_T_EE_d)))
+        v = v_max / 2 * (1 - math.cos(2 * math.pi * t / period_s))
+        return fr.CartesianVelocities([math.cos(angle) * v, 0, -math.sin(angle) * v, 0, 0, 0])
+
+    error = stream(control, period_s, twist_at)
     del control
     time.sleep(0.3)
     after = robot.read_once()
@@ -535,9 +537,4 @@ def scenario_cartesian_start_off(host: str) -> dict:
 
 
 if __name__ == "__main__":
-    name, host = sys.argv[1], sys.argv[2]
-    try:
-        result = globals()[f"scenario_{name}"](host)
-    except Exception as exc:  # the test reads the exception type and text
-        result = {"exception_type": type(exc).__name__, "exception": str(exc)}
-    print(json.dumps(result), flush=True)
+    scenario_main.run(globals())
