@@ -34,7 +34,6 @@ from .config import ControllerConfig
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
-from .limits import cartesian as cartesian_rules
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .reference import JointReference
@@ -532,7 +531,7 @@ class FciController:
             ok &= ~m.external | np.isfinite(commands["tau_J_d"]).all(axis=1)
         if m.n_cartesian_position:
             # 31: libfranka's isHomogeneousTransformation (NaN fails it too).
-            pose_ok = cartesian_rules.is_homogeneous(frames.from_wire(commands["O_T_EE_c"]))
+            pose_ok = frames.is_homogeneous(frames.from_wire(commands["O_T_EE_c"]))
             ok &= ~m.cartesian_position | pose_ok
         if m.n_cartesian_velocity:
             ok &= ~m.cartesian_velocity | np.isfinite(commands["O_dP_EE_c"]).all(axis=1)

@@ -164,19 +164,6 @@ def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
     return np.where(tripped.any(axis=1), codes[first], NO_ERROR)
 
 
-def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
-    """(n,) libfranka's isHomogeneousTransformation on (n, 4, 4) row-major poses.
-
-    Bottom row exactly [0, 0, 0, 1]; every row and column of the rotation block of
-    unit norm within ``tol`` (libfranka-client-behaviour.md §9). NaN fails.
-    """
-    bottom = (T[:, 3, 0] == 0.0) & (T[:, 3, 1] == 0.0) & (T[:, 3, 2] == 0.0) & (T[:, 3, 3] == 1.0)
-    R = T[:, :3, :3]
-    rows = np.abs(np.sqrt(np.einsum("nij,nij->ni", R, R)) - 1.0) <= tol
-    cols = np.abs(np.sqrt(np.einsum("nij,nij->nj", R, R)) - 1.0) <= tol
-    return bottom & rows.all(axis=1) & cols.all(axis=1) & np.isfinite(T).all(axis=(1, 2))
-
-
 def pose_derivatives(
     T_c: np.ndarray,
     T_prev: np.ndarray,
