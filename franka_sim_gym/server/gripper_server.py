@@ -38,6 +38,7 @@ from ..fci.wire import GRIPPER_STATE_DTYPE
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, HandModel, Outcome
 from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
+from .request_queue import apply_pending
 
 log = logging.getLogger("franka_sim_gym.gripper")
 
@@ -346,15 +347,7 @@ class GripperServer:
         dt = 1.0 / STEP_HZ
         last = next_broadcast = time.perf_counter()
         while self._running.is_set():
-            while True:
-                try:
-                    apply = self._requests.get_nowait()
-                except queue.Empty:
-                    break
-                try:
-                    apply()
-                except Exception:  # a request must never kill the timer thread
-                    log.exception("gripper request failed")
+            apply_pending(self._requests, log, "gripper request")
             now = time.perf_counter()
             self.hand.step(min(now - last, 0.1))  # the model moves by the time that passed
             last = now

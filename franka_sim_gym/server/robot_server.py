@@ -38,6 +38,7 @@ from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
 from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
+from .request_queue import apply_pending
 from .session import ClientSession
 
 log = logging.getLogger("franka_sim_gym.server")
@@ -250,15 +251,7 @@ class RobotServer:
                 next_t = now
 
     def _tick(self) -> None:
-        while True:
-            try:
-                apply = self._requests.get_nowait()
-            except queue.Empty:
-                break
-            try:
-                apply()
-            except Exception:  # a request must never kill the tick thread
-                log.exception("request failed")
+        apply_pending(self._requests, log, "request")
         self._receive_datagrams()
         events = self.controller.step()
         self.ticks += 1
