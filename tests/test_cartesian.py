@@ -57,6 +57,18 @@ def ramp_x(client: LoopClient, T0, v_max, a_max, j_max, cycles):
     return None
 
 
+def accelerate_x(client: LoopClient, a: float, cycles: int) -> None:
+    """From rest at the start pose, accelerate along +x at ``a`` [m/s^2] at once."""
+    T = pose0(client)
+    client.send(O_T_EE_c=T)
+    v = 0.0
+    for _ in range(cycles):
+        v += a * DT
+        T = T.copy()
+        T[12] += v * DT
+        client.send(O_T_EE_c=T)
+
+
 # -- driving the arm ---------------------------------------------------------------------------
 
 
@@ -218,14 +230,7 @@ def test_pose_acceleration_step_is_acceleration_discontinuity_20():
     """a: 0 -> 6 m/s^2 in one cycle: jerk 6000 > 4500 (and the joint side trips too,
     later in precedence)."""
     c = start(CP, enforce_motion_limits=True)
-    T = pose0(c)
-    c.send(O_T_EE_c=T)
-    v = 0.0
-    for _ in range(2):
-        v += 6.0 * DT
-        T = T.copy()
-        T[12] += v * DT
-        c.send(O_T_EE_c=T)
+    accelerate_x(c, 6.0, 2)
     assert errors(c) == ("cartesian_motion_generator_acceleration_discontinuity",)
 
 
@@ -285,14 +290,7 @@ def test_ik_joint_jerk_is_30_alone():
     """a: 0 -> 2 m/s^2 in one cycle: Cartesian jerk 2000 (< 4500), the joint side's
     acceleration ~6.5 rad/s^2 (< 10) but its jerk ~6500 rad/s^3 (> 5000)."""
     c = start(CP, enforce_motion_limits=True)
-    T = pose0(c)
-    c.send(O_T_EE_c=T)
-    v = 0.0
-    for _ in range(3):
-        v += 2.0 * DT
-        T = T.copy()
-        T[12] += v * DT
-        c.send(O_T_EE_c=T)
+    accelerate_x(c, 2.0, 3)
     assert errors(c) == ("cartesian_motion_generator_joint_acceleration_discontinuity",)
 
 
