@@ -69,17 +69,21 @@ class RawClient:
         return np.frombuffer(data, dtype=ROBOT_STATE_DTYPE)[0]
 
     def latest_state(self) -> np.ndarray:
-        state = self.state()
+        """The first state published after this call: what was queued is dropped.
+
+        So a state read after a reply reflects the request it answered (the server
+        applies a request, replies, then publishes the cycle's state: the reply can
+        overtake that state, never the one after it).
+        """
         self.udp.setblocking(False)
         try:
             while True:
-                data, self.server_udp = self.udp.recvfrom(4096)
-                state = np.frombuffer(data, dtype=ROBOT_STATE_DTYPE)[0]
+                self.udp.recvfrom(4096)
         except BlockingIOError:
             pass
         finally:
             self.udp.settimeout(1.0)
-        return state
+        return self.state()
 
     def send_command(self, **fields) -> None:
         command = np.zeros((), dtype=ROBOT_COMMAND_DTYPE)
