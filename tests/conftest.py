@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -94,6 +95,12 @@ def serve(tmp_path):
     yield start
     for server in servers:
         server.stop()
+
+
+def motion_summaries(log: str) -> list[tuple[str, int, int]]:
+    """(status, lost cycles, longest lost run) of every motion a server logged as ended."""
+    pattern = r"motion ended: (\w+) after \d+ cycles; lost (\d+) \(longest run (\d+)\)"
+    return [(m[1], int(m[2]), int(m[3])) for m in re.finditer(pattern, log)]
 
 
 def run_client(

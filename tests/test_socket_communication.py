@@ -3,21 +3,11 @@ is counted in cycles the robot published and nobody answered."""
 
 from __future__ import annotations
 
-import re
-
 import pytest
 
+from .conftest import motion_summaries
+
 pytestmark = pytest.mark.socket
-
-
-def _motion_summaries(log: str) -> list[tuple[str, int, int]]:
-    """(status, lost, longest run) of every motion the server logged as ended."""
-    return [
-        (m[1], int(m[2]), int(m[3]))
-        for m in re.finditer(
-            r"motion ended: (\w+) after \d+ cycles; lost (\d+) \(longest run (\d+)\)", log
-        )
-    ]
 
 
 def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serve, client):
@@ -29,7 +19,7 @@ def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serv
     assert r["next_motion_final_mode"] == "Idle"  # after recovery the next motion runs
     server.stop()
     # The 20th lost cycle aborts (the bound is counted in cycles), the next motion is clean.
-    (status, _, longest), (next_status, *_) = _motion_summaries(server.log())
+    (status, _, longest), (next_status, *_) = motion_summaries(server.log())
     assert (status, longest, next_status) == ("kReflexAborted", 20, "kSuccess")
 
 
@@ -46,7 +36,7 @@ def test_a_client_silent_for_a_few_ms_is_not_aborted(serve, client):
         r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "5"}, timeout=60)
         assert "exception" not in r, r
         server.stop()
-        summaries = _motion_summaries(server.log())
+        summaries = motion_summaries(server.log())
         assert len(summaries) == 2, server.log()  # the silent motion, then the next one
         status, lost, longest = summaries[0]
         if longest >= 20:  # the machine stalled the client past the bound: inconclusive

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import pytest
 
+from .conftest import motion_summaries
+
 pytestmark = pytest.mark.socket
 
 
@@ -41,9 +43,20 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
 
 
 def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, client):
-    server = serve("--enforce-motion-limits")
-    r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
-    assert "exception" not in r, r
+    # The fold runs ~14 s of Python control loop. A loaded machine that starves the
+    # client for 20 cycles makes the robot hold its reference, and the resumed stream
+    # then trips a discontinuity in the preparatory motion, as on the robot. Such an
+    # attempt (its first motion aborted after a lost run of 20) proves nothing about
+    # the fold and is repeated; any other outcome is judged.
+    for _attempt in range(3):
+        server = serve("--enforce-motion-limits")
+        r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
+        server.stop()
+        first = motion_summaries(server.log())[:1]
+        starved = "exception" in r and first and first[0][0] == "kReflexAborted"
+        if not (starved and first[0][2] >= 20):
+            break
+    assert "exception" not in r, (r, first)
     assert r["error"] is not None, r
     assert '["self_collision_avoidance_violation"]' in r["error"]
     # joint 4's lower stop is -3.0481 rad; the reflex came first
