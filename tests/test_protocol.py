@@ -65,51 +65,90 @@ def test_version_port_and_header_layout():
 
 def test_command_ids():
     assert [(c.name, c.value) for c in Command] == [
-        ("kConnect", 0), ("kMove", 1), ("kStopMove", 2), ("kSetCollisionBehavior", 3),
-        ("kSetJointImpedance", 4), ("kSetCartesianImpedance", 5), ("kSetGuidingMode", 6),
-        ("kSetEEToK", 7), ("kSetNEToEE", 8), ("kSetLoad", 9), ("kAutomaticErrorRecovery", 10),
+        ("kConnect", 0),
+        ("kMove", 1),
+        ("kStopMove", 2),
+        ("kSetCollisionBehavior", 3),
+        ("kSetJointImpedance", 4),
+        ("kSetCartesianImpedance", 5),
+        ("kSetGuidingMode", 6),
+        ("kSetEEToK", 7),
+        ("kSetNEToEE", 8),
+        ("kSetLoad", 9),
+        ("kAutomaticErrorRecovery", 10),
         ("kGetRobotModel", 11),
     ]
 
 
 def test_request_sizes_are_the_spec_totals():
     assert REQUEST_SIZE == {
-        Command.kConnect: 16, Command.kMove: 125, Command.kStopMove: 12,
-        Command.kSetCollisionBehavior: 428, Command.kSetJointImpedance: 68,
-        Command.kSetCartesianImpedance: 60, Command.kSetGuidingMode: 19,
-        Command.kSetEEToK: 140, Command.kSetNEToEE: 140, Command.kSetLoad: 116,
-        Command.kAutomaticErrorRecovery: 12, Command.kGetRobotModel: 12,
+        Command.kConnect: 16,
+        Command.kMove: 125,
+        Command.kStopMove: 12,
+        Command.kSetCollisionBehavior: 428,
+        Command.kSetJointImpedance: 68,
+        Command.kSetCartesianImpedance: 60,
+        Command.kSetGuidingMode: 19,
+        Command.kSetEEToK: 140,
+        Command.kSetNEToEE: 140,
+        Command.kSetLoad: 116,
+        Command.kAutomaticErrorRecovery: 12,
+        Command.kGetRobotModel: 12,
     }
 
 
 def test_status_enums_follow_the_spec_table():
     assert [m.name for m in GetterStatus] == [
-        "kSuccess", "kCommandNotPossibleRejected",
+        "kSuccess",
+        "kCommandNotPossibleRejected",
         "kCommandRejectedDueToActivatedSafetyFunctions",
     ]
     assert [m.name for m in SetterStatus] == [
-        "kSuccess", "kCommandNotPossibleRejected", "kInvalidArgumentRejected",
+        "kSuccess",
+        "kCommandNotPossibleRejected",
+        "kInvalidArgumentRejected",
         "kCommandRejectedDueToActivatedSafetyFunctions",
     ]
     assert [m.name for m in ConnectStatus] == ["kSuccess", "kIncompatibleLibraryVersion"]
     assert [m.name for m in MoveStatus] == [
-        "kSuccess", "kMotionStarted", "kPreempted", "kPreemptedDueToActivatedSafetyFunctions",
-        "kCommandRejectedDueToActivatedSafetyFunctions", "kCommandNotPossibleRejected",
-        "kStartAtSingularPoseRejected", "kInvalidArgumentRejected", "kReflexAborted",
-        "kEmergencyAborted", "kInputErrorAborted", "kAborted",
+        "kSuccess",
+        "kMotionStarted",
+        "kPreempted",
+        "kPreemptedDueToActivatedSafetyFunctions",
+        "kCommandRejectedDueToActivatedSafetyFunctions",
+        "kCommandNotPossibleRejected",
+        "kStartAtSingularPoseRejected",
+        "kInvalidArgumentRejected",
+        "kReflexAborted",
+        "kEmergencyAborted",
+        "kInputErrorAborted",
+        "kAborted",
     ]
     assert [m.name for m in StopMoveStatus] == [
-        "kSuccess", "kCommandNotPossibleRejected",
-        "kCommandRejectedDueToActivatedSafetyFunctions", "kEmergencyAborted", "kReflexAborted",
+        "kSuccess",
+        "kCommandNotPossibleRejected",
+        "kCommandRejectedDueToActivatedSafetyFunctions",
+        "kEmergencyAborted",
+        "kReflexAborted",
         "kAborted",
     ]
     assert [m.name for m in AutomaticErrorRecoveryStatus] == [
-        "kSuccess", "kCommandNotPossibleRejected",
-        "kCommandRejectedDueToActivatedSafetyFunctions", "kManualErrorRecoveryRequiredRejected",
-        "kReflexAborted", "kEmergencyAborted", "kAborted",
+        "kSuccess",
+        "kCommandNotPossibleRejected",
+        "kCommandRejectedDueToActivatedSafetyFunctions",
+        "kManualErrorRecoveryRequiredRejected",
+        "kReflexAborted",
+        "kEmergencyAborted",
+        "kAborted",
     ]
-    for enum in (GetterStatus, SetterStatus, ConnectStatus, MoveStatus, StopMoveStatus,
-                 AutomaticErrorRecoveryStatus):
+    for enum in (
+        GetterStatus,
+        SetterStatus,
+        ConnectStatus,
+        MoveStatus,
+        StopMoveStatus,
+        AutomaticErrorRecoveryStatus,
+    ):
         assert [m.value for m in enum] == list(range(len(enum)))
 
 
@@ -189,7 +228,9 @@ def test_connect_request_puts_version_at_12_and_udp_port_at_14():
 
 def test_move_request_fields_sit_at_the_spec_offsets():
     message = encode_move_request(
-        5, 2, 4,
+        5,
+        2,
+        4,
         maximum_path_deviation=(1.0, 2.0, 3.0),
         maximum_goal_pose_deviation=(4.0, 5.0, 6.0),
         use_async_motion_generator=True,
@@ -254,16 +295,22 @@ def test_truncated_payload_names_the_command_and_both_sizes():
 @pytest.mark.parametrize("command", [c for c in Command if REQUEST_SIZE[c] > 12])
 def test_any_payload_one_byte_short_is_truncated(command):
     expected = REQUEST_SIZE[command] - 12
-    with pytest.raises(ProtocolError, match=rf"^truncated {command.name[1:]} payload: "
-                       rf"{expected - 1} bytes, expected {expected}$"):
+    with pytest.raises(
+        ProtocolError,
+        match=rf"^truncated {command.name[1:]} payload: "
+        rf"{expected - 1} bytes, expected {expected}$",
+    ):
         decode_request(command, bytes(expected - 1))
 
 
 @pytest.mark.parametrize("command", list(Command))
 def test_any_payload_one_byte_long_is_rejected(command):
     expected = REQUEST_SIZE[command] - 12
-    with pytest.raises(ProtocolError, match=rf"^oversized {command.name[1:]} payload: "
-                       rf"{expected + 1} bytes, expected {expected}$"):
+    with pytest.raises(
+        ProtocolError,
+        match=rf"^oversized {command.name[1:]} payload: "
+        rf"{expected + 1} bytes, expected {expected}$",
+    ):
         decode_request(command, bytes(expected + 1))
 
 
@@ -371,8 +418,10 @@ def test_size_below_header_is_reported_and_only_the_12_header_bytes_skipped():
     decoder = FrameDecoder()
     bad = HEADER.pack(4, 7, 11)
     out = decoder.feed(bad + GOOD[0])
-    assert out == [FramingError("message size 11 below the 12-byte header", 4, 7),
-                   _frame_of(GOOD[0])]
+    assert out == [
+        FramingError("message size 11 below the 12-byte header", 4, 7),
+        _frame_of(GOOD[0]),
+    ]
 
 
 def test_size_zero_then_good_frame_byte_by_byte():
@@ -380,8 +429,10 @@ def test_size_zero_then_good_frame_byte_by_byte():
     out = []
     for b in HEADER.pack(0, 1, 0) + GOOD[2]:
         out += decoder.feed(bytes([b]))
-    assert out == [FramingError("message size 0 below the 12-byte header", 0, 1),
-                   _frame_of(GOOD[2])]
+    assert out == [
+        FramingError("message size 0 below the 12-byte header", 0, 1),
+        _frame_of(GOOD[2]),
+    ]
 
 
 def test_oversized_message_is_discarded_without_buffering_then_parsing_resumes():
@@ -409,8 +460,10 @@ def test_oversized_payload_and_next_frame_in_one_chunk():
     size = MAX_MESSAGE_SIZE + 1
     stream = HEADER.pack(3, 8, size) + bytes(size - 12) + GOOD[3]
     out = decoder.feed(stream)
-    assert out == [FramingError(f"message size {size} above the 1 MiB bound", 3, 8),
-                   _frame_of(GOOD[3])]
+    assert out == [
+        FramingError(f"message size {size} above the 1 MiB bound", 3, 8),
+        _frame_of(GOOD[3]),
+    ]
     assert decoder.buffered == 0 and decoder.discarding == 0
 
 

@@ -9,6 +9,8 @@ import re
 import numpy as np
 import pytest
 
+from .conftest import unstarved
+
 pytestmark = pytest.mark.socket
 
 
@@ -32,8 +34,9 @@ def _position(column_major):
 
 
 def test_pylibfranka_cartesian_pose_example_moves_the_arc(serve, client):
-    server = serve()
-    r = client("pylibfranka", "cartesian_pose", server.host)
+    server, r = unstarved(
+        serve, lambda server: client("pylibfranka", "cartesian_pose", server.host)
+    )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
     moved = _position(r["O_T_EE_after"]) - _position(r["pose_start"])
@@ -44,8 +47,9 @@ def test_pylibfranka_cartesian_pose_example_moves_the_arc(serve, client):
 
 def test_pylibfranka_cartesian_velocity_example_arrives_within_2_mm(serve, client):
     """The twist integral arrives in full (seed: a zero O_dP_EE_c made it 39 %)."""
-    server = serve()
-    r = client("pylibfranka", "cartesian_velocity", server.host)
+    server, r = unstarved(
+        serve, lambda server: client("pylibfranka", "cartesian_velocity", server.host)
+    )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
     moved = _position(r["O_T_EE_after"]) - _position(r["O_T_EE_before"])
@@ -68,8 +72,9 @@ def test_pylibfranka_first_pose_15_cm_off_is_start_pose_invalid(serve, client):
 
 
 def test_franky_cartesian_motion_completes(serve, client):
-    server = serve()
-    r = client("franky", "cartesian_motion", server.host, timeout=90)
+    server, r = unstarved(
+        serve, lambda server: client("franky", "cartesian_motion", server.host, timeout=90)
+    )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
     before, after = np.asarray(r["before"]), np.asarray(r["after"])
@@ -81,8 +86,9 @@ def test_franky_cartesian_motion_completes(serve, client):
 
 
 def test_franky_cartesian_velocity_motion_completes(serve, client):
-    server = serve()
-    r = client("franky", "cartesian_velocity_motion", server.host, timeout=90)
+    server, r = unstarved(
+        serve, lambda server: client("franky", "cartesian_velocity_motion", server.host, timeout=90)
+    )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
     before, after = np.asarray(r["before"]), np.asarray(r["after"])

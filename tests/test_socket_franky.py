@@ -13,6 +13,8 @@ import math
 import numpy as np
 import pytest
 
+from .conftest import unstarved
+
 pytestmark = pytest.mark.socket
 
 #: franky's constructor needs well under 1 s against the sim; libfranka has no reply
@@ -39,6 +41,7 @@ HOME_MASS = np.array(
     ]
 )
 
+
 def run(client, scenario: str, host: str) -> dict:
     result = client("franky", scenario, host, timeout=CLIENT_TIMEOUT)
     assert "exception" not in result, result
@@ -64,8 +67,7 @@ def test_franky_connects_and_reads_the_home_pose(serve, client):
 
 
 def test_joint_motion_completes_at_the_target(serve, client):
-    server = serve()
-    result = run(client, "joint_motion", server.host)
+    _, result = unstarved(serve, lambda server: run(client, "joint_motion", server.host))
     assert result["error"] is None, result["error"]
     np.testing.assert_allclose(result["q_before"], HOME, atol=1e-3)
     target = np.asarray(result["target"])
@@ -75,8 +77,7 @@ def test_joint_motion_completes_at_the_target(serve, client):
 
 
 def test_joint_velocity_motion_moves_by_velocity_times_hold_time_and_stops(serve, client):
-    server = serve()
-    result = run(client, "joint_velocity_motion", server.host)
+    _, result = unstarved(serve, lambda server: run(client, "joint_velocity_motion", server.host))
     assert result["error"] is None, result["error"]
     moved = np.asarray(result["q_after"]) - np.asarray(result["q_before"])
     expected = np.asarray(result["velocity"]) * result["hold_seconds"]  # +-0.05 on joints 4, 7

@@ -21,7 +21,7 @@ import sys
 import numpy as np
 import pytest
 
-from .conftest import CLIENTS, ROOT, fresh_address
+from .conftest import CLIENTS, ROOT, fresh_address, unstarved
 
 pytestmark = pytest.mark.socket
 
@@ -67,18 +67,22 @@ def test_object_width_from_the_environment_applies_to_the_physics_hand(serve, cl
 
 
 def test_the_arm_serves_a_joint_motion_while_the_hand_moves(serve, client):
-    server = serve(PHYSICS)
-    hand = subprocess.Popen(
-        [sys.executable, str(CLIENTS / "gripper_client.py"), "open_close", server.host],
-        stdout=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "CYCLES": "2"},  # 4 moves of 7 cm at 5 cm/s: ~5.6 s
-    )
-    try:
-        arm = client("pylibfranka", "cosine_motion", server.host)
-        out, _ = hand.communicate(timeout=60)
-    finally:
-        hand.kill()
+    def arm_and_hand(server) -> dict:
+        hand = subprocess.Popen(
+            [sys.executable, str(CLIENTS / "gripper_client.py"), "open_close", server.host],
+            stdout=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "CYCLES": "2"},  # 4 moves of 7 cm at 5 cm/s: ~5.6 s
+        )
+        try:
+            arm = client("pylibfranka", "cosine_motion", server.host)
+            out, _ = hand.communicate(timeout=60)
+        finally:
+            hand.kill()
+        return {"arm": arm, "out": out}
+
+    _, both = unstarved(serve, arm_and_hand, PHYSICS)
+    arm, out = both["arm"], both["out"]
     assert "exception" not in arm, arm
     assert arm["max_tracking_error"] < 1e-2
     assert arm["final"]["robot_mode"] == "Idle"

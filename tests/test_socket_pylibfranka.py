@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from .conftest import CLIENTS
+from .conftest import CLIENTS, unstarved
 
 pytestmark = pytest.mark.socket
 
@@ -80,8 +80,7 @@ def test_load_model_gravity_and_mass_match_the_reference(serve, client):
 
 
 def test_cosine_joint_position_motion_succeeds_and_tracks(serve, client):
-    server = serve()
-    result = client("pylibfranka", "cosine_motion", server.host)
+    _, result = unstarved(serve, lambda server: client("pylibfranka", "cosine_motion", server.host))
     assert "exception" not in result, result
     assert result["max_tracking_error"] < 1e-2
     final = result["final"]
@@ -91,8 +90,9 @@ def test_cosine_joint_position_motion_succeeds_and_tracks(serve, client):
 
 
 def test_joint_velocity_motion_succeeds(serve, client):
-    server = serve()
-    result = client("pylibfranka", "joint_velocity", server.host)
+    _, result = unstarved(
+        serve, lambda server: client("pylibfranka", "joint_velocity", server.host)
+    )
     assert "exception" not in result, result
     moved = np.asarray(result["q_after"]) - np.asarray(result["q_before"])
     assert moved[3] == pytest.approx(result["expected_displacement"], abs=0.02)

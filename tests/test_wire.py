@@ -119,8 +119,11 @@ def test_every_field_has_the_spec_offset_and_size_in_order(dtype, table):
 
 def test_tables_tile_the_datagram_without_gaps():
     # Sanity of the transcription itself: each field starts where the last ended.
-    for table, total in ((ROBOT_STATE_TABLE, 1377), (ROBOT_COMMAND_TABLE, 371),
-                         (GRIPPER_STATE_TABLE, 23)):
+    for table, total in (
+        (ROBOT_STATE_TABLE, 1377),
+        (ROBOT_COMMAND_TABLE, 371),
+        (GRIPPER_STATE_TABLE, 23),
+    ):
         end = 0
         for name, offset, size in table:
             assert offset == end, name
@@ -193,23 +196,39 @@ def test_command_bytes_decode_into_fields():
 
 def test_state_enums_have_the_robot_numbers():
     assert [(m.name, m.value) for m in RobotMode] == [
-        ("kOther", 0), ("kIdle", 1), ("kMove", 2), ("kGuiding", 3), ("kReflex", 4),
-        ("kUserStopped", 5), ("kAutomaticErrorRecovery", 6),
+        ("kOther", 0),
+        ("kIdle", 1),
+        ("kMove", 2),
+        ("kGuiding", 3),
+        ("kReflex", 4),
+        ("kUserStopped", 5),
+        ("kAutomaticErrorRecovery", 6),
     ]
     assert [(m.name, m.value) for m in MotionGeneratorMode] == [
-        ("kIdle", 0), ("kJointPosition", 1), ("kJointVelocity", 2), ("kCartesianPosition", 3),
-        ("kCartesianVelocity", 4), ("kNone", 5),
+        ("kIdle", 0),
+        ("kJointPosition", 1),
+        ("kJointVelocity", 2),
+        ("kCartesianPosition", 3),
+        ("kCartesianVelocity", 4),
+        ("kNone", 5),
     ]
     assert [(m.name, m.value) for m in ControllerMode] == [
-        ("kJointImpedance", 0), ("kCartesianImpedance", 1), ("kExternalController", 2),
+        ("kJointImpedance", 0),
+        ("kCartesianImpedance", 1),
+        ("kExternalController", 2),
         ("kOther", 3),
     ]
     assert [(m.name, m.value) for m in MoveControllerMode] == [
-        ("kJointImpedance", 0), ("kCartesianImpedance", 1), ("kExternalController", 2),
+        ("kJointImpedance", 0),
+        ("kCartesianImpedance", 1),
+        ("kExternalController", 2),
     ]
     assert [(m.name, m.value) for m in MoveMotionGeneratorMode] == [
-        ("kJointPosition", 0), ("kJointVelocity", 1), ("kCartesianPosition", 2),
-        ("kCartesianVelocity", 3), ("kNone", 4),
+        ("kJointPosition", 0),
+        ("kJointVelocity", 1),
+        ("kCartesianPosition", 2),
+        ("kCartesianVelocity", 3),
+        ("kNone", 4),
     ]
 
 
