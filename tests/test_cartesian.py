@@ -118,6 +118,38 @@ def test_cartesian_velocity_motion_moves_the_arm_by_the_twist_integral():
     assert not c.ctrl.violations.seen.any()
 
 
+def test_a_pose_motion_reports_its_commanded_twist_and_acceleration():
+    """O_dP_EE_c / O_dP_EE_d carry the commanded pose's twist (base frame) and O_ddP_EE_c
+    its rate: libfranka's pose rate limiter reads them back as the last commanded twist and
+    acceleration (with zeros there a limit_rate client could never leave a crawl)."""
+    c = start(CP, enforce_motion_limits=True)
+    T0 = frames.from_wire(pose0(c)[None])[0]
+    c.send(O_T_EE_c=frames.to_wire(T0[None])[0])
+    axis = np.array([0.0, 0.6, 0.8])
+    v_prev = w_prev = 0.0
+    for k in range(1, 200):
+        v, w = 0.2 * k * DT, 0.5 * k * DT  # ramps at 0.2 m/s^2, 0.5 rad/s^2
+        T = T0.copy()
+        T[0, 3] += 0.5 * 0.2 * (k * DT) ** 2 + 0.5 * 0.2 * k * DT * DT  # sum of v DT
+        theta = sum(0.5 * j * DT * DT for j in range(1, k + 1))
+        K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        T[:3, :3] = (np.eye(3) + math.sin(theta) * K + (1 - math.cos(theta)) * K @ K) @ T0[:3, :3]
+        c.send(O_T_EE_c=frames.to_wire(T[None])[0])
+        assert c.state["robot_mode"] == RobotMode.kMove, errors(c)
+        if k > 2:
+            np.testing.assert_allclose(c.state["O_dP_EE_c"][:3], [v, 0, 0], atol=1e-5)
+            np.testing.assert_allclose(c.state["O_dP_EE_c"][3:], w * axis, atol=1e-5)
+            np.testing.assert_array_equal(c.state["O_dP_EE_d"], c.state["O_dP_EE_c"])
+            np.testing.assert_allclose(c.state["O_ddP_EE_c"][:3], [0.2, 0, 0], atol=2e-3)
+            np.testing.assert_allclose(c.state["O_ddP_EE_c"][3:], 0.5 * axis, atol=2e-3)
+        v_prev, w_prev = v, w
+    assert v_prev > 0 and w_prev > 0
+    c.finish(O_T_EE_c=frames.to_wire(T[None])[0])  # stops at 0.04 m/s: how it ends is moot
+    c.idle(5)
+    assert c.state["robot_mode"] != RobotMode.kMove
+    assert not c.state["O_dP_EE_c"].any() and not c.state["O_ddP_EE_c"].any()
+
+
 def test_cartesian_pose_with_elbow_holds_joint_3_at_the_commanded_elbow():
     c = start(CP, enforce_motion_limits=True)
     T0 = pose0(c)

@@ -66,6 +66,8 @@ class CartesianGenerators:
         self.a_frozen, self.alpha_frozen = np.zeros((n, 3)), np.zeros((n, 3))
         #: the commanded twist, its acceleration and the frozen acceleration
         self.twist, self.dtwist, self.dtwist_frozen = (np.zeros((n, 6)) for _ in range(3))
+        #: the twist the state reports (O_dP_EE_d / O_dP_EE_c) and its rate (O_ddP_EE_c)
+        self.reported, self.dreported = np.zeros((n, 6)), np.zeros((n, 6))
         #: the commanded elbow while one is streamed (has_elbow), its derivatives
         self.elbow = np.zeros((n, 2))
         self.de, self.dde, self.dde_frozen = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -94,7 +96,7 @@ class CartesianGenerators:
         self.start_T[i] = T
         for x in (self.v, self.omega, self.a, self.alpha, self.a_frozen, self.alpha_frozen):
             x[i] = 0.0
-        for x in (self.twist, self.dtwist, self.dtwist_frozen):
+        for x in (self.twist, self.dtwist, self.dtwist_frozen, self.reported, self.dreported):
             x[i] = 0.0
         self.elbow[i] = w.elbow[i]
         self.de[i] = self.dde[i] = self.dde_frozen[i] = 0.0
@@ -131,6 +133,7 @@ class CartesianGenerators:
         if count_nonzero(held):
             # Seed "Extrapolation stops at 20": the last extrapolated value holds, at rest.
             self.twist[held] = 0.0
+            self.reported[held] = self.dreported[held] = 0.0
             self.dq_ik[held] = 0.0
         if not count_nonzero(active):
             return
@@ -317,6 +320,26 @@ class CartesianGenerators:
             self.dtwist, np.where(x, self.dtwist_frozen, dtwist) if any_lost else dtwist, where=a
         )
         np.copyto(self.dtwist_frozen, self.dtwist, where=r3)
+        # What the state reports as the commanded twist and its rate. A twist motion: its own
+        # twist. A pose motion: the commanded pose's twist in the base frame, rotation as
+        # log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
+        # then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
+        # acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion).
+        if m.n_cartesian_position:
+            w_base = np.einsum("nij,nj->ni", self.T[:, :3, :3], self.omega)
+            spatial = np.concatenate([self.v, w_base], axis=1)
+            reported = (
+                spatial
+                if m.n_cartesian_position == c.n
+                else (np.where(pose[:, None], spatial, self.twist))
+            )
+        else:
+            reported = self.twist
+        dreported = (reported - self.reported) / _DT
+        if count_nonzero(first):
+            dreported = np.where(at_rest, 0.0, dreported)
+        np.copyto(self.dreported, dreported, where=a)
+        np.copyto(self.reported, reported, where=a)
         # The elbow's history (the 1-D law's derivatives), kept only while one is streamed.
         streamed = apply & has_elbow
         if count_nonzero(streamed) or count_nonzero(self.has_elbow):
@@ -391,8 +414,10 @@ class CartesianGenerators:
         if m.n_cartesian_velocity:
             np.copyto(w.O_T_EE_d, to_wire(self.start_T), where=twist)
             np.copyto(w.O_T_EE_c, to_wire(self.start_T), where=twist)
-            np.copyto(w.field["O_dP_EE_d"], self.twist, where=twist)
-            np.copyto(w.field["O_dP_EE_c"], self.twist, where=twist)
+        cartesian = m.cartesian[:, None]
+        np.copyto(w.field["O_dP_EE_d"], self.reported, where=cartesian)
+        np.copyto(w.field["O_dP_EE_c"], self.reported, where=cartesian)
+        np.copyto(w.field["O_ddP_EE_c"], self.dreported, where=cartesian)
         streamed = (m.cartesian & self.has_elbow)[:, None]
         np.copyto(w.elbow_d, self.elbow, where=streamed)
         np.copyto(w.elbow_c, self.elbow, where=streamed)
@@ -404,7 +429,9 @@ class CartesianGenerators:
         w = self.c.writer
         w.field["O_dP_EE_d"][i] = 0.0
         w.field["O_dP_EE_c"][i] = 0.0
+        w.field["O_ddP_EE_c"][i] = 0.0
         self.twist[i] = 0.0
+        self.reported[i] = self.dreported[i] = 0.0
         self.has_elbow[i] = False
 
 
