@@ -4,7 +4,8 @@
 heavy is imported until an env is made):
 
 * ``FrankaFCI-v0`` — reach, joint-position actions through libfranka's rate limiter;
-* ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``, ``FrankaFCITorque-v0``
+* ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``,
+  ``FrankaFCICartesianPose-v0``, ``FrankaFCICartesianVelocity-v0``, ``FrankaFCITorque-v0``
   — one id per action interface (every constructor argument of
   ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed to ``gym.make``).
 
@@ -23,6 +24,8 @@ IDS = {
     "FrankaFCI-v0": {"action_interface": "joint_position"},
     "FrankaFCIJointPosition-v0": {"action_interface": "joint_position"},
     "FrankaFCIJointVelocity-v0": {"action_interface": "joint_velocity"},
+    "FrankaFCICartesianPose-v0": {"action_interface": "cartesian_pose"},
+    "FrankaFCICartesianVelocity-v0": {"action_interface": "cartesian_velocity"},
     "FrankaFCITorque-v0": {"action_interface": "torque"},
 }
 

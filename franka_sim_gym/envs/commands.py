@@ -16,7 +16,16 @@ the robot. Filters (``action_filter``):
   the robot's velocity, acceleration and jerk limits.
 
 All filters read the robot's own references from the state (q_d, dq_d, ddq_d,
-tau_J_d), exactly as libfranka's ControlLoop::convertMotion does.
+tau_J_d; O_T_EE_c, O_dP_EE_c, O_ddP_EE_c for the Cartesian interfaces), exactly as
+libfranka's ControlLoop::convertMotion does.
+
+The Cartesian interfaces send O_T_EE_c (pose) or O_dP_EE_c (twist) with no elbow
+(``valid_elbow`` false: the elbow is free). Their rate limiter is libfranka's Cartesian
+``limitRate``, run against ``cartesian_limits``: libfranka's own constants
+(``"libfranka"``) keep the Cartesian derivatives legal but not the joint side — the
+robot solves every pose to joint space and refuses joint accelerations over 10 rad/s^2
+(errors 29 / 30: seed, "The joint side of a Cartesian command") — so the default,
+``"conservative"``, limits the Cartesian motion to what the joint side accepts.
 """
 
 from __future__ import annotations
@@ -25,10 +34,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fci.frames import from_wire, to_wire
 from ..fci.tables import FR3, RobotTable
+from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
 
-INTERFACES = ("joint_position", "joint_velocity", "torque")
+INTERFACES = ("joint_position", "joint_velocity", "cartesian_pose", "cartesian_velocity", "torque")
+CARTESIAN = ("cartesian_pose", "cartesian_velocity")
 
 #: The rate limiter's targets sit this far inside the robot's thresholds. The
 #: seed's thresholds (kMaxJointAcceleration = 10 - 1e-3, kMaxJointJerk = 5000 - 1e-3,
@@ -41,6 +53,20 @@ INTERFACES = ("joint_position", "joint_velocity", "torque")
 LIMITER_MARGIN = {"ddq": 0.3, "dddq": 300.0, "dq": 0.01, "dtau": 2.0}
 FILTERS = ("none", "interpolate", "lowpass", "limit_rate")
 
+#: The Cartesian rate limiter's targets: translation velocity [m/s], acceleration [m/s^2],
+#: jerk [m/s^3], then rotation [rad/s, rad/s^2, rad/s^3].
+CARTESIAN_LIMITS: dict[str, tuple[float, ...]] = {
+    # include/franka/rate_limiting.h (0.10.0 on, FR3): 3.0 / 9.0 / 4500 and 2.5 / 17 / 8500,
+    # each minus kLimitEps = 1e-3. A stream at these trips the joint side (29 / 30) as it
+    # does on the robot: at home joint 2 moves 3.2 rad per metre along x, so 9 m/s^2 asks
+    # ~29 rad/s^2 of it against the robot's 10.
+    "libfranka": (2.999, 8.999, 4499.999, 2.499, 16.999, 8499.999),
+    # What the joint side accepts across the reach workspace (measured with random
+    # actions: benchmarks/env_rate.py, tests/test_env_cartesian.py): 1.5 m/s^2 x 3.2 rad/m
+    # stays under 10 rad/s^2 with room for the Jacobian's own change.
+    "conservative": (0.5, 1.5, 300.0, 1.0, 3.0, 600.0),
+}
+
 
 @dataclass
 class ActionScale:
@@ -52,19 +78,31 @@ class ActionScale:
     velocity: float = 1.0
     #: torque: target torque without gravity [Nm], per joint
     torque: tuple[float, ...] = (20.0, 20.0, 20.0, 20.0, 4.0, 4.0, 4.0)
+    #: Cartesian pose: target offset from the step's starting reference O_T_EE_c [m]
+    translation: float = 0.05
+    #: Cartesian pose: target rotation from it, a base-frame rotation vector [rad]
+    rotation: float = 0.2
+    #: Cartesian velocity: target translational velocity [m/s]
+    linear_velocity: float = 0.3
+    #: Cartesian velocity: target angular velocity [rad/s]
+    angular_velocity: float = 0.5
 
 
 class CommandGenerator:
     """Turns one action per policy step into one command per cycle, for n robots.
 
     Args:
-        interface: "joint_position", "joint_velocity" or "torque".
+        interface: one of ``INTERFACES``.
         action_filter: one of ``FILTERS``.
         cycles_per_step: cycles between two policy actions.
         table: the robot whose limits the rate limiter uses (libfranka's own).
         scale: the meaning of a unit action.
         cutoff: the low-pass filter's cutoff frequency [Hz].
         n: how many robots (the leading axis of actions, states and commands).
+        cartesian_dof: Cartesian interfaces: 6 (translation and rotation) or 3
+            (translation; the orientation is held where the motion started).
+        cartesian_limits: the Cartesian rate limiter's targets, a key of
+            ``CARTESIAN_LIMITS`` or six numbers.
     """
 
     def __init__(
@@ -76,12 +114,24 @@ class CommandGenerator:
         scale: ActionScale | None = None,
         cutoff: float = cf.LOWPASS_DEFAULT_CUTOFF,
         n: int = 1,
+        cartesian_dof: int = 6,
+        cartesian_limits: str | tuple[float, ...] = "conservative",
     ) -> None:
         if interface not in INTERFACES:
             raise ValueError(f"unknown action interface {interface!r}: expected {INTERFACES}")
         if action_filter not in FILTERS:
             raise ValueError(f"unknown action_filter {action_filter!r}: expected {FILTERS}")
+        if cartesian_dof not in (3, 6):
+            raise ValueError(f"cartesian_dof must be 3 or 6, got {cartesian_dof!r}")
+        limits = CARTESIAN_LIMITS.get(cartesian_limits, cartesian_limits)  # type: ignore[arg-type]
+        if isinstance(limits, str) or len(limits) != 6 or not all(float(x) > 0 for x in limits):
+            raise ValueError(
+                f"cartesian_limits must be one of {tuple(CARTESIAN_LIMITS)} or six positive "
+                f"numbers, got {cartesian_limits!r}"
+            )
         self.interface = interface
+        self.cartesian_dof = int(cartesian_dof)
+        self.cartesian_limits = tuple(float(x) for x in limits)
         self.action_filter = action_filter
         self.cycles_per_step = cycles_per_step
         self.table = table
@@ -93,6 +143,11 @@ class CommandGenerator:
         self._first = np.ones(n, dtype=bool)
         self._n_first = n
 
+    @property
+    def action_dim(self) -> int:
+        """The length of one robot's action."""
+        return self.cartesian_dof if self.interface in CARTESIAN else 7
+
     def reset(self, robots: np.ndarray | None = None) -> None:
         """New motions for ``robots`` (all when None): their first command is not filtered
         against a reference."""
@@ -100,9 +155,11 @@ class CommandGenerator:
         self._n_first = int(np.count_nonzero(self._first))
 
     def begin_step(self, action: np.ndarray, state: np.ndarray) -> None:
-        """Fix the step's target from the action (n, 7) in [-1, 1] and the current state."""
+        """Fix the step's target from the action (n, action_dim) in [-1, 1] and the state."""
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-        if self.interface == "joint_position":
+        if self.interface in CARTESIAN:
+            self._begin_cartesian(a, state)
+        elif self.interface == "joint_position":
             self._start = state["q_d"].astype(np.float64)
             self._target = self._start + a * self.scale.position
         elif self.interface == "joint_velocity":
@@ -118,7 +175,9 @@ class CommandGenerator:
         ``sent`` marks the robots whose command is actually sent this cycle (None: all);
         a robot's first-command status ends only with a command sent.
         """
-        if self.action_filter == "none":
+        if self.interface == "cartesian_pose":
+            out = to_wire(self._pose_command(state, k))
+        elif self.action_filter == "none":
             out = self._target
         elif self.action_filter == "interpolate":
             out = cf.interpolate(self._start, self._target, (k + 1) / self.cycles_per_step)
@@ -132,8 +191,58 @@ class CommandGenerator:
             self._n_first = int(np.count_nonzero(self._first))
         return out
 
+    def _begin_cartesian(self, a: np.ndarray, state: np.ndarray) -> None:
+        six = np.zeros((len(a), 6))
+        six[:, : self.cartesian_dof] = a
+        sc = self.scale
+        if self.interface == "cartesian_velocity":
+            self._start = state["O_dP_EE_c"].astype(np.float64)
+            self._target = six * np.repeat([sc.linear_velocity, sc.angular_velocity], 3)
+            return
+        # The step's reference is the state's O_T_EE_c (float32 on the wire): re-orthonormalise
+        # its rotation so every pose sent passes libfranka's isHomogeneousTransformation.
+        T = from_wire(state["O_T_EE_c"])
+        T[:, :3, :3] = _orthonormal(T[:, :3, :3])
+        target = T.copy()
+        target[:, :3, 3] += six[:, :3] * sc.translation
+        target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
+        self._start, self._target = T, target
+
+    def _pose_command(self, state: np.ndarray, k: int) -> np.ndarray:
+        """Cycle k's O_T_EE_c as (n, 4, 4) matrices."""
+        start, target = self._start, self._target
+        if self.action_filter == "none":
+            return target
+        if self.action_filter == "interpolate":
+            s = (k + 1) / self.cycles_per_step
+            out = target.copy()
+            out[:, :3, 3] = cf.interpolate(start[:, :3, 3], target[:, :3, 3], s)
+            turn = rotation_log(target[:, :3, :3] @ start[:, :3, :3].transpose(0, 2, 1))
+            out[:, :3, :3] = rotation_exp(s * turn) @ start[:, :3, :3]
+            return out
+        ref = from_wire(state["O_T_EE_c"])
+        ref[:, :3, :3] = _orthonormal(ref[:, :3, :3])
+        out = cf.cartesian_lowpass_filter(target, ref, self.cutoff)
+        if self.action_filter != "limit_rate":
+            return out
+        return cf.limit_rate_cartesian_pose(
+            out,
+            ref,
+            state["O_dP_EE_c"].astype(np.float64),
+            state["O_ddP_EE_c"].astype(np.float64),
+            *self.cartesian_limits,
+        )
+
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         target = self._target
+        if self.interface == "cartesian_velocity":
+            ref = state["O_dP_EE_c"].astype(np.float64)
+            out = cf.lowpass_filter(target, ref, self.cutoff)
+            if self.action_filter != "limit_rate":
+                return out
+            return cf.limit_rate_cartesian_velocity(
+                out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
+            )
         if self.interface == "joint_position":
             ref = state["q_d"].astype(np.float64)
             if self._n_first:
@@ -162,3 +271,9 @@ class CommandGenerator:
             )
         tau_d = state["tau_J_d"].astype(np.float64)
         return cf.limit_rate_torques(out, tau_d, t.dtau_max - m["dtau"])
+
+
+def _orthonormal(R: np.ndarray) -> np.ndarray:
+    """The nearest rotation to each (n, 3, 3) matrix (polar decomposition by SVD)."""
+    u, _, vt = np.linalg.svd(R)
+    return u @ vt

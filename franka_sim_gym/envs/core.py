@@ -43,9 +43,24 @@ from .tasks.reach import Reach
 MOVE = {
     "joint_position": (MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode.kJointPosition),
     "joint_velocity": (MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode.kJointVelocity),
+    # Robot::control's default controller mode for a motion generator: kJointImpedance.
+    "cartesian_pose": (
+        MoveControllerMode.kJointImpedance,
+        MoveMotionGeneratorMode.kCartesianPosition,
+    ),
+    "cartesian_velocity": (
+        MoveControllerMode.kJointImpedance,
+        MoveMotionGeneratorMode.kCartesianVelocity,
+    ),
     "torque": (MoveControllerMode.kExternalController, MoveMotionGeneratorMode.kNone),
 }
-_FIELD = {"joint_position": "q_c", "joint_velocity": "dq_c", "torque": "tau_J_d"}
+_FIELD = {
+    "joint_position": "q_c",
+    "joint_velocity": "dq_c",
+    "cartesian_pose": "O_T_EE_c",
+    "cartesian_velocity": "O_dP_EE_c",
+    "torque": "tau_J_d",
+}
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
 _MODE_NAMES = {int(m): m.name for m in RobotMode}
@@ -75,6 +90,8 @@ class FciBatch:
         robot: str = "fr3",
         gripper: bool = False,
         gripper_speed: float = 0.1,
+        cartesian_dof: int = 6,
+        cartesian_limits: str | tuple[float, ...] = "conservative",
     ) -> None:
         if int(n) < 1:
             raise ValueError(f"the number of arms must be >= 1, got {n}")
@@ -103,10 +120,19 @@ class FciBatch:
         self.channels = _channels(channel, n)
         self._perfect = all(type(c) is Channel for c in self.channels)
         self.commands = CommandGenerator(
-            action_interface, action_filter, self.cycles_per_step, self.config.table, n=n
+            action_interface,
+            action_filter,
+            self.cycles_per_step,
+            self.config.table,
+            n=n,
+            cartesian_dof=cartesian_dof,
+            cartesian_limits=cartesian_limits,
         )
+        self._dim = self.commands.action_dim
         #: the spaces of one arm
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(8 if gripper else 7,), dtype=np.float32)
+        self.action_space = spaces.Box(
+            -1.0, 1.0, shape=(self._dim + 1 if gripper else self._dim,), dtype=np.float32
+        )
         self.observation_space = observation_space(self.config.table, self.gripper)
         self._command = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
         self._all = np.ones(n, dtype=bool)
@@ -190,8 +216,8 @@ class FciBatch:
             for i in np.flatnonzero(~active & ctrl.in_motion).tolist():
                 ctrl.stop_move(i)
         if self.gripper:
-            self._command_hands(a[:, 7], active)
-            a = a[:, :7]
+            self._command_hands(a[:, self._dim], active)
+            a = a[:, : self._dim]
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)

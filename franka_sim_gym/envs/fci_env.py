@@ -22,8 +22,8 @@ class FrankaFCIEnv(gym.Env):
     """Reach with a simulated FR3 under the rules its FCI enforces.
 
     Args:
-        action_interface: "joint_position" (default), "joint_velocity" or "torque".
-            (The Cartesian interfaces arrive with the Cartesian generators.)
+        action_interface: "joint_position" (default), "joint_velocity",
+            "cartesian_pose", "cartesian_velocity" or "torque".
         action_filter: how the action becomes per-cycle commands: "limit_rate"
             (default: libfranka's low-pass + rate limiter), "lowpass",
             "interpolate" or "none" (the target held: a naive client).
@@ -47,6 +47,13 @@ class FrankaFCIEnv(gym.Env):
             applied through the same hand model as the gripper server (the fingers move
             at ``gripper_speed``); the observation gains the measured width.
         gripper_speed: finger speed of the width command [m/s] (default 0.1).
+        cartesian_dof: the Cartesian interfaces' action length: 6 (default: translation,
+            then a base-frame rotation vector) or 3 (translation only; the orientation
+            is held where the motion started).
+        cartesian_limits: the targets of the Cartesian rate limiter ("limit_rate"):
+            "conservative" (default: what the robot's joint-side checks accept) or
+            "libfranka" (libfranka's own constants, which trip errors 29 / 30 as on
+            the robot), or six numbers (m/s, m/s^2, m/s^3, rad/s, rad/s^2, rad/s^3).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}
