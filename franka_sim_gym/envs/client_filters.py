@@ -11,7 +11,13 @@ stream built here equals the one a ``franka::Robot::control(...)`` loop sends:
   scalar velocity and position overloads of ``franka::limitRate``
   (src/rate_limiting.cpp), vectorised over robots and joints;
 * :func:`limit_rate_torques` -- the ``limitRate(max_derivatives, commanded,
-  last_commanded)`` overload used for torques.
+  last_commanded)`` overload used for torques;
+* :func:`cartesian_lowpass_filter` -- ``franka::cartesianLowpassFilter``
+  (src/lowpass_filter.cpp): translation mixed like :func:`lowpass_filter`,
+  orientation by quaternion slerp;
+* :func:`limit_rate_cartesian_velocity` / :func:`limit_rate_cartesian_pose` -- the
+  twist and pose overloads of ``franka::limitRate`` (src/rate_limiting.cpp), which
+  limit the translational and rotational 3-vectors by their norms.
 
 None of them decides *whether* to filter: ``ControlLoop`` filters only when
 ``cutoff_frequency < kMaxCutoffFrequency`` (:data:`MAX_CUTOFF_FREQUENCY`) and
@@ -41,9 +47,23 @@ in the order callback -> low-pass -> rate limiter -> finite check -> send::
     tau = lowpass_filter(tau, state.tau_J_d, cutoff)
     tau = limit_rate_torques(tau, state.tau_J_d, table.dtau_max)
 
+    # CartesianPose (row-major (n, 4, 4); the wire is column-major -- frames.from_wire):
+    # reference = the command on the first cycle, state.O_T_EE_c afterwards.
+    ref = T_c if first_cycle else state.O_T_EE_c
+    T_c = cartesian_lowpass_filter(T_c, ref, cutoff)
+    T_c = limit_rate_cartesian_pose(T_c, ref, state.O_dP_EE_c, state.O_ddP_EE_c,
+                                    table.v_trans_max, table.a_trans_max, table.j_trans_max,
+                                    table.v_rot_max, table.a_rot_max, table.j_rot_max)
+
+    # CartesianVelocities: per-component lowpass_filter against state.O_dP_EE_c.
+    dP_c = lowpass_filter(dP_c, state.O_dP_EE_c, cutoff)
+    dP_c = limit_rate_cartesian_velocity(dP_c, state.O_dP_EE_c, state.O_ddP_EE_c,
+                                         table.v_trans_max, ..., table.j_rot_max)
+
 The limiter targets are libfranka's ``rate_limiting.h`` constants (robot limit
 minus kLimitEps = 1e-3): for the FR3 these are the table's ``ddq_max`` /
-``dddq_max`` / ``dtau_max``, and ``RobotTable.velocity_envelope`` is exactly
+``dddq_max`` / ``dtau_max`` and ``v/a/j_trans_max``, ``v/a/j_rot_max`` (kMaxTranslational*,
+kMaxRotational*), and ``RobotTable.velocity_envelope`` is exactly
 ``Robot::getUpper/LowerJointVelocityLimits`` (tolerance included).
 
 Where libfranka throws ``std::invalid_argument`` (non-finite values, a cutoff
@@ -62,13 +82,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..fci._fast import count_nonzero
+from ..fci.frames import is_homogeneous
 from ..fci.tables import DELTA_T
 
 __all__ = [
     "DELTA_T",
     "LOWPASS_DEFAULT_CUTOFF",
     "MAX_CUTOFF_FREQUENCY",
+    "cartesian_lowpass_filter",
     "interpolate",
+    "limit_rate_cartesian_pose",
+    "limit_rate_cartesian_velocity",
     "limit_rate_joint_positions",
     "limit_rate_joint_velocities",
     "limit_rate_torques",
@@ -93,6 +117,28 @@ _MSG_SIGNAL = (
 
 _INTERPOLATION_KINDS = ("linear", "cosine")
 
+#: src/lowpass_filter.cpp cartesianLowpassFilter.
+_MSG_CARTESIAN_CUTOFF = (
+    "Cartesian lowpass-filter: cutoff_frequency is zero, negative, infinite or NaN."
+)
+_MSG_CARTESIAN_SIGNAL = (
+    "Cartesian lowpass-filter: current or past input value of the signal to be filtered is "
+    "infinite or NaN."
+)
+#: src/rate_limiting.cpp, the twist and pose overloads of limitRate.
+_MSG_TWIST = "O_dP_EE_c is infinite or NaN."
+_MSG_POSE = "O_T_EE_c is infinite or NaN."
+_MSG_POSE_INVALID = "O_T_EE_c is invalid transformation matrix. Has to be column major!"
+
+#: include/franka/rate_limiting.h kNormEps: below this norm a Cartesian jerk,
+#: acceleration or angular velocity counts as zero.
+_NORM_EPS = float(np.finfo(np.float64).eps)
+#: include/franka/rate_limiting.h kFactorCartesianRotationPoseInterface: the pose
+#: overload of limitRate scales the rotational limits by this factor.
+_ROTATION_POSE_FACTOR = 0.99
+#: Eigen's QuaternionBase::slerp interpolates linearly once |dot| >= 1 - epsilon.
+_SLERP_LINEAR = 1.0 - _NORM_EPS
+
 
 def _finite(name: str, value: ArrayLike, message: str | None = None) -> np.ndarray:
     """``value`` as float64; ValueError naming ``name`` if any entry is NaN or infinite.
@@ -111,12 +157,10 @@ def _finite(name: str, value: ArrayLike, message: str | None = None) -> np.ndarr
     return array
 
 
-def _check_cutoff(cutoff: ArrayLike) -> np.ndarray:
+def _check_cutoff(cutoff: ArrayLike, message: str = _MSG_CUTOFF) -> np.ndarray:
     c = np.asarray(cutoff, dtype=np.float64)
     if not (np.isfinite(c).all() and (c > 0.0).all()):
-        raise ValueError(
-            f"cutoff={cutoff!r}: {_MSG_CUTOFF} (libfranka throws std::invalid_argument)"
-        )
+        raise ValueError(f"cutoff={cutoff!r}: {message} (libfranka throws std::invalid_argument)")
     return c
 
 
@@ -285,6 +329,356 @@ def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLik
     d_max = _finite("dtau_max", dtau_max)
     rate = (tau_c - tau_last) / DELTA_T
     return tau_last + np.maximum(np.minimum(rate, d_max), -d_max) * DELTA_T
+
+
+def cartesian_lowpass_filter(
+    T_c: ArrayLike, T_ref: ArrayLike, cutoff: ArrayLike = LOWPASS_DEFAULT_CUTOFF
+) -> np.ndarray:
+    """Low-pass a commanded pose toward the reference pose, (n, 4, 4) -> (n, 4, 4).
+
+    ``franka::cartesianLowpassFilter(kDeltaT, O_T_EE_c, reference, cutoff)``
+    (src/lowpass_filter.cpp), as ``ControlLoop<CartesianPose>::convertMotion``
+    applies it. With ``g = lowpass_gain(cutoff)``:
+
+    * translation ``g * t_c + (1 - g) * t_ref``;
+    * orientation: Eigen's ``Quaterniond::slerp`` from the reference's quaternion
+      toward the command's with parameter ``g`` -- along the shorter arc (the
+      command's quaternion is negated when the dot product is negative), linear
+      in the coefficients once ``|dot| >= 1 - eps`` -- then normalised and turned
+      back into a rotation matrix;
+    * the bottom row is the command's (libfranka's ``Affine3d`` keeps it).
+
+    Poses are row-major numpy matrices, not the column-major 16-value wire layout
+    (convert with ``fci.frames.from_wire``). libfranka first takes the rotation
+    part of each pose by polar decomposition (``Affine3d::rotation()``); for the
+    orthonormal blocks a valid pose carries that is the block itself to rounding,
+    so the block is used as is. ``cutoff`` is a scalar or one per robot, (n,).
+    Like :func:`lowpass_filter` this is the arithmetic only: ControlLoop skips it
+    when ``cutoff >= MAX_CUTOFF_FREQUENCY``.
+
+    Raises:
+        ValueError: cutoff zero, negative or not finite; ``T_c`` or ``T_ref`` with a
+            NaN or infinite entry (libfranka throws std::invalid_argument, in this order).
+    """
+    cutoff = _check_cutoff(cutoff, _MSG_CARTESIAN_CUTOFF)
+    T_c = _finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
+    T_ref = _finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
+    gain = np.asarray(lowpass_gain(cutoff))
+    q = _quaternion_slerp(
+        _rotation_to_quaternion(T_ref[..., :3, :3]),
+        _rotation_to_quaternion(T_c[..., :3, :3]),
+        gain,
+    )
+    q /= np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
+    out = np.array(np.broadcast_to(T_c, np.broadcast_shapes(T_c.shape, T_ref.shape)))
+    g = gain[..., None]
+    out[..., :3, 3] = g * T_c[..., :3, 3] + (1.0 - g) * T_ref[..., :3, 3]
+    out[..., :3, :3] = _quaternion_to_rotation(q)
+    return out
+
+
+def limit_rate_cartesian_velocity(
+    twist_c: ArrayLike,
+    twist_last: ArrayLike,
+    dtwist_last: ArrayLike,
+    v_max: ArrayLike,
+    a_max: ArrayLike,
+    j_max: ArrayLike,
+    v_rot_max: ArrayLike,
+    a_rot_max: ArrayLike,
+    j_rot_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit a commanded end-effector twist, (n, 6) -> (n, 6).
+
+    The ``O_dP_EE_c`` overload of ``franka::limitRate`` (src/rate_limiting.cpp).
+    The twist is (vx, vy, vz, wx, wy, wz); the translational half is limited with
+    ``(v_max, a_max, j_max)``, the rotational half with ``(v_rot_max, a_rot_max,
+    j_rot_max)``, each by the 3-vector limiter that bounds *norms* (dt = kDeltaT,
+    eps = kNormEps = float64 machine epsilon)::
+
+        jerk = ((v_c - v_last) / dt - a_last) / dt
+        a    = a_last + jerk / |jerk| * min(|jerk|, J) * dt   if |jerk| > eps else a_last
+        u    = a / |a|
+        d    = -(u . v_last) + sqrt((u . v_last)^2 - |v_last|^2 + V^2)
+        out  = v_last + u * min(|a|, min(J / A * d, A)) * dt  if |a| > eps else v_last
+
+    ``d`` is how far ``v_last`` may move along ``u`` before leaving the ball of
+    radius V. Two C++ corners are reproduced without producing NaN: for
+    ``|a| <= eps`` the result is ``v_last`` exactly (libfranka computes ``u`` as
+    0/0 but never uses it), and outside the ball, where the square root's
+    argument can be negative, libfranka's ``std::min(|a|, NaN)`` yields ``|a|``:
+    the acceleration is then only jerk-limited.
+
+    With a last state inside the limits the output keeps ``|v| <= V`` (as
+    ``J / A * dt <= 1``, a step never crosses the sphere) and ``|a| <= A``; along
+    a straight line also ``|jerk| <= J``. That last bound is not guaranteed when
+    the direction changes abruptly near ``|v| = V`` (the admissible acceleration
+    depends on the direction) -- libfranka behaves the same. A command within
+    reach (jerk <= J and far enough inside the ball that ``|a| <= J / A * d``)
+    comes back unchanged up to rounding.
+
+    Args:
+        twist_c: the (filtered) twist command, (n, 6).
+        twist_last, dtwist_last: the last commanded twist and its derivative
+            (``state.O_dP_EE_c``, ``state.O_ddP_EE_c``).
+        v_max, a_max, j_max: kMaxTranslationalVelocity / Acceleration / Jerk.
+        v_rot_max, a_rot_max, j_rot_max: kMaxRotationalVelocity / Acceleration / Jerk.
+            Each limit is a scalar or one per robot, (n,).
+
+    Raises:
+        ValueError: any NaN or infinite entry in the inputs (for the command,
+            libfranka's message).
+    """
+    twist_c = _finite("twist_c", twist_c, _MSG_TWIST)
+    twist_last = _finite("twist_last", twist_last)
+    dtwist_last = _finite("dtwist_last", dtwist_last)
+    limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
+    return _limit_twist(twist_c, twist_last, dtwist_last, *limits)
+
+
+def limit_rate_cartesian_pose(
+    T_c: ArrayLike,
+    T_last: ArrayLike,
+    twist_last: ArrayLike,
+    dtwist_last: ArrayLike,
+    v_max: ArrayLike,
+    a_max: ArrayLike,
+    j_max: ArrayLike,
+    v_rot_max: ArrayLike,
+    a_rot_max: ArrayLike,
+    j_rot_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit a commanded pose, (n, 4, 4) -> (n, 4, 4).
+
+    The ``O_T_EE_c`` overload of ``franka::limitRate`` (src/rate_limiting.cpp):
+
+    1. the command is differentiated against the last pose: translation
+       ``(t_c - t_last) / dt``, rotation ``log(R_c R_last^T) / dt`` (Eigen's
+       ``AngleAxisd`` of the difference, axis * angle with the angle in [0, pi],
+       computed through the quaternion, so exact up to a half turn);
+    2. that twist goes through :func:`limit_rate_cartesian_velocity` against
+       ``twist_last`` / ``dtwist_last``, with the rotational limits scaled by
+       kFactorCartesianRotationPoseInterface = 0.99 (include/franka/rate_limiting.h)
+       here -- pass the robot's plain kMaxRotational* values, as ControlLoop does;
+    3. the limited twist ``(v, w)`` is integrated over one cycle: ``t_last + v dt``,
+       and, if ``|w| > kNormEps``, ``R = Rot(w / |w|, |w| dt) @ R_last`` (Rodrigues:
+       ``I + sin(th) K + (1 - cos(th)) K^2``); otherwise ``R = R_last``.
+
+    The result's bottom row is [0, 0, 0, 1]. Poses are row-major numpy matrices
+    (not the wire layout). libfranka takes each rotation block by polar
+    decomposition first (``Affine3d::rotation()``); the blocks are used as they
+    are here, which differs only by rounding for orthonormal blocks.
+
+    Args:
+        T_c: the (filtered) pose command.
+        T_last: the filter reference -- ``state.O_T_EE_c``, or the command itself
+            on the motion's first cycle (ControlLoop<CartesianPose>::convertMotion).
+        twist_last, dtwist_last: ``state.O_dP_EE_c``, ``state.O_ddP_EE_c``, (n, 6).
+        v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max: as for
+            :func:`limit_rate_cartesian_velocity` (rotational ones unscaled).
+
+    Raises:
+        ValueError: ``T_c`` with a NaN or infinite entry, or not a homogeneous
+            transform (``fci.frames.is_homogeneous``: bottom row [0, 0, 0, 1],
+            rotation rows and columns of unit norm within 1e-5) -- libfranka's
+            messages, in this order; any other NaN or infinite input.
+    """
+    T_c = _finite("T_c", T_c, _MSG_POSE)
+    if count_nonzero(is_homogeneous(T_c.reshape(-1, 4, 4))) != T_c.size // 16:
+        raise ValueError(f"T_c: {_MSG_POSE_INVALID} (libfranka throws std::invalid_argument)")
+    T_last = _finite("T_last", T_last)
+    twist_last = _finite("twist_last", twist_last)
+    dtwist_last = _finite("dtwist_last", dtwist_last)
+    v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max = _finite_limits(
+        v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max
+    )
+    dt = DELTA_T
+    t_last = T_last[..., :3, 3]
+    R_last = T_last[..., :3, :3]
+    R_diff = T_c[..., :3, :3] @ np.swapaxes(R_last, -1, -2)
+    twist = np.concatenate(
+        ((T_c[..., :3, 3] - t_last) / dt, _rotation_vector(R_diff) / dt), axis=-1
+    )
+    rotational = (_ROTATION_POSE_FACTOR * x for x in (v_rot_max, a_rot_max, j_rot_max))
+    twist = _limit_twist(twist, twist_last, dtwist_last, v_max, a_max, j_max, *rotational)
+    w = twist[..., 3:]
+    w_norm = _norm(w)
+    rotating = w_norm > _NORM_EPS
+    axis = w / np.where(rotating, w_norm, 1.0)[..., None]
+    theta = dt * w_norm
+    K = _skew(axis)
+    step = (
+        np.eye(3)
+        + np.sin(theta)[..., None, None] * K
+        + (1.0 - np.cos(theta))[..., None, None] * (K @ K)
+    )
+    out = np.zeros(np.broadcast_shapes(T_c.shape, T_last.shape))
+    out[..., 3, 3] = 1.0
+    out[..., :3, 3] = t_last + twist[..., :3] * dt
+    out[..., :3, :3] = np.where(rotating[..., None, None], step @ R_last, R_last)
+    return out
+
+
+def _finite_limits(*limits: ArrayLike) -> list[np.ndarray]:
+    names = ("v_max", "a_max", "j_max", "v_rot_max", "a_rot_max", "j_rot_max")
+    return [_finite(name, value) for name, value in zip(names, limits, strict=True)]
+
+
+def _limit_twist(dx, dx_last, ddx_last, v, a, j, v_rot, a_rot, j_rot) -> np.ndarray:
+    """The 6-vector limiter of src/rate_limiting.cpp, on validated float64 arrays.
+
+    Both halves go through :func:`_limit_norm` at once, as (..., 2, 3) with the
+    limits paired as (..., 2).
+    """
+    shape = np.broadcast_shapes(dx.shape, dx_last.shape, ddx_last.shape)
+    halves = (*shape[:-1], 2, 3)
+    dx, dx_last, ddx_last = (
+        (x if x.shape == shape else np.broadcast_to(x, shape)).reshape(halves)
+        for x in (dx, dx_last, ddx_last)
+    )
+    out = _limit_norm(dx, dx_last, ddx_last, _pair(v, v_rot), _pair(a, a_rot), _pair(j, j_rot))
+    return out.reshape(shape)
+
+
+def _pair(translational: np.ndarray, rotational: np.ndarray) -> np.ndarray:
+    """Two limits side by side on a new last axis: (2,) for scalars, else (..., 2)."""
+    if translational.ndim == 0 and rotational.ndim == 0:
+        return np.array((translational, rotational))
+    return np.stack(np.broadcast_arrays(translational, rotational), axis=-1)
+
+
+def _limit_norm(v_c, v_last, a_last, v_max, a_max, j_max) -> np.ndarray:
+    """The private 3-vector limiter of src/rate_limiting.cpp: vectors (..., 3), limits (...)."""
+    dt = DELTA_T
+    eps = _NORM_EPS
+    # Jerk by differentiation; its norm clamped to J (direction kept) and integrated.
+    jerk = ((v_c - v_last) / dt - a_last) / dt
+    jerk_norm = _norm(jerk)
+    jerking = jerk_norm > eps
+    jerk_step = np.maximum(np.minimum(jerk_norm, j_max), -j_max)
+    acc = a_last + jerk / np.where(jerking, jerk_norm, 1.0)[..., None] * jerk_step[..., None] * dt
+    acc = np.where(jerking[..., None], acc, a_last)
+    # Distance from v_last, along the acceleration's direction, to the sphere |v| = V.
+    acc_norm = _norm(acc)
+    moving = acc_norm > eps
+    unit = acc / np.where(moving, acc_norm, 1.0)[..., None]
+    dot = np.einsum("...i,...i->...", unit, v_last)
+    disc = dot * dot - np.einsum("...i,...i->...", v_last, v_last) + v_max * v_max
+    distance = np.sqrt(np.maximum(disc, 0.0)) - dot
+    safe = np.minimum(j_max / a_max * distance, a_max)
+    # disc < 0 (v_last outside the ball): libfranka's sqrt gives NaN and
+    # std::min(|a|, NaN) returns |a| -- the acceleration norm goes through unlimited.
+    size = np.where(disc < 0.0, acc_norm, np.minimum(acc_norm, safe))
+    return np.where(moving[..., None], v_last + unit * size[..., None] * dt, v_last)
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis."""
+    return np.sqrt(np.einsum("...i,...i->...", x, x))
+
+
+def _skew(u: np.ndarray) -> np.ndarray:
+    """(..., 3) -> (..., 3, 3) cross-product matrices."""
+    K = np.zeros((*u.shape, 3))
+    K[..., 0, 1] = -u[..., 2]
+    K[..., 0, 2] = u[..., 1]
+    K[..., 1, 0] = u[..., 2]
+    K[..., 1, 2] = -u[..., 0]
+    K[..., 2, 0] = -u[..., 1]
+    K[..., 2, 1] = u[..., 0]
+    return K
+
+
+def _rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices to (..., 4) quaternions (w, x, y, z), Shepperd's method.
+
+    Eigen's conversion (``Quaternion(const Matrix3&)``): if the trace is positive,
+    ``w`` is computed first (then ``w > 0``); otherwise the component of the
+    largest diagonal entry (first one on ties), so the square root is always
+    taken of a number >= 1 and nothing is divided by a small value. Row ``b`` of
+    the symmetric matrix below is ``4 q_b q``; the chosen row divided by
+    ``4 q_b = 2 sqrt(K[b, b])`` is the quaternion.
+    """
+    lead = R.shape[:-2]
+    R = R.reshape(-1, 3, 3)
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    trace = m00 + m11 + m22
+    if count_nonzero(trace > 0.0) == len(R):
+        # Every angle below 120 degrees -- always so for the pose limiter's one-cycle
+        # difference: row 0 for all.
+        t = np.sqrt(trace + 1.0)
+        h = 0.5 / t
+        q = np.empty((len(R), 4))
+        q[:, 0] = 0.5 * t
+        q[:, 1] = (R[:, 2, 1] - R[:, 1, 2]) * h
+        q[:, 2] = (R[:, 0, 2] - R[:, 2, 0]) * h
+        q[:, 3] = (R[:, 1, 0] - R[:, 0, 1]) * h
+        return q.reshape(*lead, 4)
+    K = np.empty((len(R), 4, 4))
+    K[:, 0, 0] = trace + 1.0
+    K[:, 1, 1] = m00 - m11 - m22 + 1.0
+    K[:, 2, 2] = m11 - m22 - m00 + 1.0
+    K[:, 3, 3] = m22 - m00 - m11 + 1.0
+    K[:, 0, 1] = K[:, 1, 0] = R[:, 2, 1] - R[:, 1, 2]
+    K[:, 0, 2] = K[:, 2, 0] = R[:, 0, 2] - R[:, 2, 0]
+    K[:, 0, 3] = K[:, 3, 0] = R[:, 1, 0] - R[:, 0, 1]
+    K[:, 1, 2] = K[:, 2, 1] = R[:, 0, 1] + R[:, 1, 0]
+    K[:, 1, 3] = K[:, 3, 1] = R[:, 0, 2] + R[:, 2, 0]
+    K[:, 2, 3] = K[:, 3, 2] = R[:, 1, 2] + R[:, 2, 1]
+    diag = np.where(m11 > m00, 1, 0)
+    diag = np.where(m22 > np.where(diag == 1, m11, m00), 2, diag)
+    branch = np.where(trace > 0.0, 0, diag + 1)
+    rows = np.arange(len(R))
+    t = np.sqrt(K[rows, branch, branch])
+    q = K[rows, branch] * (0.5 / t)[:, None]
+    q[rows, branch] = 0.5 * t
+    return q.reshape(*lead, 4)
+
+
+def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) to (..., 3, 3) rotation matrices."""
+    w, x, y, z = (q[..., i] for i in range(4))
+    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+    R = np.empty((*q.shape[:-1], 3, 3))
+    R[..., 0, 0] = 1.0 - (ty * y + tz * z)
+    R[..., 0, 1] = tx * y - tz * w
+    R[..., 0, 2] = tx * z + ty * w
+    R[..., 1, 0] = tx * y + tz * w
+    R[..., 1, 1] = 1.0 - (tx * x + tz * z)
+    R[..., 1, 2] = ty * z - tx * w
+    R[..., 2, 0] = tx * z - ty * w
+    R[..., 2, 1] = ty * z + tx * w
+    R[..., 2, 2] = 1.0 - (tx * x + ty * y)
+    return R
+
+
+def _quaternion_slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Eigen's ``q0.slerp(t, q1)``, (..., 4): shorter arc, linear once |q0 . q1| >= 1 - eps."""
+    d = np.einsum("...i,...i->...", q0, q1)
+    abs_d = np.abs(d)
+    linear = abs_d >= _SLERP_LINEAR
+    theta = np.arccos(np.minimum(abs_d, 1.0))
+    sin_theta = np.where(linear, 1.0, np.sin(theta))
+    s0 = np.where(linear, 1.0 - t, np.sin((1.0 - t) * theta) / sin_theta)
+    s1 = np.where(linear, t, np.sin(t * theta) / sin_theta)
+    s1 = np.where(d < 0.0, -s1, s1)
+    return s0[..., None] * q0 + s1[..., None] * q1
+
+
+def _rotation_vector(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations to (..., 3) axis * angle, angle in [0, pi]: Eigen's AngleAxisd.
+
+    Through the quaternion: angle ``2 atan2(|v|, |w|)``, axis ``v / |v|`` with the
+    sign of ``w`` (so the angle stays <= pi); the zero rotation gives zero. Exact
+    near a half turn, where the matrix's skew part vanishes.
+    """
+    q = _rotation_to_quaternion(R)
+    w, vec = q[..., 0], q[..., 1:]
+    n = _norm(vec)
+    turning = n > 0.0
+    angle = 2.0 * np.arctan2(n, np.abs(w))
+    axis = vec / np.where(w < 0.0, -n, np.where(turning, n, 1.0))[..., None]
+    return np.where(turning[..., None], axis * angle[..., None], 0.0)
 
 
 def interpolate(
