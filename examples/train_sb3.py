@@ -20,11 +20,14 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from evaluate import evaluate  # examples/evaluate.py: N episodes at once, batched
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 
 
-def make_model(algo: str, env, seed: int, log_dir: Path):
+def make_model(
+    algo: str, env, seed: int, log_dir: Path, gradient_steps: int = 1, learning_starts: int = 300
+):
     import torch
     from stable_baselines3 import PPO, SAC, TD3, HerReplayBuffer
     from stable_baselines3.common.logger import configure
@@ -35,11 +38,14 @@ def make_model(algo: str, env, seed: int, log_dir: Path):
     off_policy = dict(
         replay_buffer_class=HerReplayBuffer,
         replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
-        learning_starts=300,
+        # HER samples whole episodes: learning waits for every arm's first one to end.
+        learning_starts=learning_starts,
         batch_size=256,
         gamma=0.95,
         learning_rate=1e-3,
+        tau=0.05,  # rl-zoo's PandaReach settings: fast target networks
         policy_kwargs=dict(net_arch=[128, 128]),
+        gradient_steps=gradient_steps,
     )
     if algo in ("sac", "td3"):
         model = {"sac": SAC, "td3": TD3}[algo](**common, **off_policy)
@@ -49,28 +55,6 @@ def make_model(algo: str, env, seed: int, log_dir: Path):
         raise ValueError(f"unknown --algo {algo!r}: expected sac, td3 or ppo")
     model.set_logger(configure(str(log_dir), ["csv"]))
     return model
-
-
-def evaluate(model, env, episodes: int, seed: int) -> dict:
-    """Success and reflex rates over ``episodes`` deterministic episodes."""
-    successes, reflexes, by_error = 0, 0, {}
-    for k in range(episodes):
-        obs, info = env.reset(seed=seed + k)
-        done = False
-        while not done:
-            action, _ = model.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
-        successes += bool(info["is_success"])
-        if terminated:
-            reflexes += 1
-            for name in info["reflex_reason"]:
-                by_error[name] = by_error.get(name, 0) + 1
-    return {
-        "success_rate": successes / episodes,
-        "reflex_rate": reflexes / episodes,
-        "reflexes_by_error": by_error,
-    }
 
 
 def plot(out: Path, rows: list[dict]) -> None:
@@ -107,6 +91,8 @@ def main() -> None:
         default=1,
         help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world)",
     )
+    parser.add_argument("--env-id", default="FrankaFCI-v0")
+    parser.add_argument("--gradient-steps", type=int, default=1, help="per vector step")
     parser.add_argument("--env-kwargs", default="{}", help="JSON, e.g. '{\"policy_hz\": 10}'")
     parser.add_argument("--out", type=Path, default=Path("runs/reach"))
     args = parser.parse_args()
@@ -115,11 +101,17 @@ def main() -> None:
     if args.num_envs > 1:
         from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv
 
-        env = FrankaFCISB3VecEnv(args.num_envs, **kwargs)
+        env = FrankaFCISB3VecEnv(args.num_envs, **{**gym.spec(args.env_id).kwargs, **kwargs})
     else:
-        env = gym.make("FrankaFCI-v0", **kwargs)
-    eval_env = gym.make("FrankaFCI-v0", **kwargs)
-    model = make_model(args.algo, env, args.seed, args.out)
+        env = gym.make(args.env_id, **kwargs)
+    (args.out / "train_config.json").write_text(
+        json.dumps({"algo": args.algo, "env_id": args.env_id, "env_kwargs": kwargs}, indent=2)
+    )
+    episode_steps = int(
+        kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
+    )
+    learning_starts = max(300, args.num_envs * (episode_steps + 1))
+    model = make_model(args.algo, env, args.seed, args.out, args.gradient_steps, learning_starts)
     start = time.perf_counter()
     rows = []
     chunk = max(1, args.steps // args.evals)
@@ -128,7 +120,7 @@ def main() -> None:
         n = min(chunk, args.steps - done)
         model.learn(total_timesteps=n, reset_num_timesteps=False)
         done += n
-        result = evaluate(model, eval_env, args.eval_episodes, seed=10_000)
+        result = evaluate(model, args.env_id, kwargs, args.eval_episodes, seed=10_000)
         rows.append(
             {"steps": done, **{k: v for k, v in result.items() if k != "reflexes_by_error"}}
         )

@@ -59,6 +59,7 @@ def test_a_held_cartesian_target_trips_the_interface_relative_discontinuity(env_
     in velocity (its jerk: "acceleration_discontinuity" on a velocity interface)."""
     env = gym.make(env_id, action_filter="none", cartesian_dof=3)
     env.reset(seed=1)
+    env.step(np.zeros(3, np.float32))  # the motion's first command: where it starts
     _, reward, terminated, _, info = env.step(np.array([1.0, 0.0, 0.0], np.float32))
     assert terminated
     assert info["reflex_reason"] == (expected,)
@@ -99,13 +100,18 @@ def test_three_dof_actions_hold_the_orientation(action_filter):
     env.reset(seed=4)
     R0 = from_wire(env.unwrapped.controller.states["O_T_EE_c"][0])[:3, :3]
     p0 = env.unwrapped.controller.writer.O_T_EE[0, 12:15].copy()
-    for _ in range(15):
-        env.step(np.array([0.5, -0.5, 0.5], np.float32))
+    for _ in range(5):  # 5 x 1 cm per axis
+        env.step(np.array([0.2, -0.2, 0.2], np.float32))
+    env.step(np.zeros(3, np.float32))
     state = env.unwrapped.controller.states[0]
     R = from_wire(state["O_T_EE_c"])[:3, :3]
     assert np.linalg.norm(rotation_log(R @ R0.T)) < 1e-5
     moved = env.unwrapped.controller.writer.O_T_EE[0, 12:15] - p0
-    assert moved[0] > 0.01 and moved[1] < -0.01 and moved[2] > 0.01
+    if action_filter == "limit_rate":  # 1.5 m/s^2 for 0.24 s: a few cm, straight
+        assert moved[0] > 0.01 and moved[1] < -0.01 and moved[2] > 0.01
+        np.testing.assert_allclose(moved / moved[0], [1, -1, 1], atol=0.05)
+    else:  # the targets are reached
+        np.testing.assert_allclose(moved, [0.05, -0.05, 0.05], atol=0.01)
 
 
 def test_six_dof_actions_turn_the_end_effector():

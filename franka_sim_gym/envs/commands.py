@@ -62,9 +62,9 @@ CARTESIAN_LIMITS: dict[str, tuple[float, ...]] = {
     # ~29 rad/s^2 of it against the robot's 10.
     "libfranka": (2.999, 8.999, 4499.999, 2.499, 16.999, 8499.999),
     # What the joint side accepts across the reach workspace (measured with random
-    # actions: benchmarks/env_rate.py, tests/test_env_cartesian.py): 1.5 m/s^2 x 3.2 rad/m
-    # stays under 10 rad/s^2 with room for the Jacobian's own change.
-    "conservative": (0.5, 1.5, 300.0, 1.0, 3.0, 600.0),
+    # actions: tests/test_env_cartesian.py): 1.5 m/s^2 already reached 10.4 rad/s^2 on
+    # joint 4 with the arm half stretched (q4 = -1.35); 1.0 keeps a third in hand.
+    "conservative": (0.5, 1.0, 200.0, 1.0, 2.0, 400.0),
 }
 
 
@@ -260,14 +260,25 @@ class CommandGenerator:
             q_d = state["q_d"].astype(np.float64)
             upper, lower = t.velocity_envelope(q_d)
             return cf.limit_rate_joint_positions(
-                out, q_d, state["dq_d"].astype(np.float64), state["ddq_d"].astype(np.float64),
-                upper - m["dq"], lower + m["dq"], a_max, j_max,
+                out,
+                q_d,
+                state["dq_d"].astype(np.float64),
+                state["ddq_d"].astype(np.float64),
+                upper - m["dq"],
+                lower + m["dq"],
+                a_max,
+                j_max,
             )
         if self.interface == "joint_velocity":
             upper, lower = t.velocity_envelope(state["q_d"].astype(np.float64))
             return cf.limit_rate_joint_velocities(
-                out, state["dq_d"].astype(np.float64), state["ddq_d"].astype(np.float64),
-                upper - m["dq"], lower + m["dq"], a_max, j_max,
+                out,
+                state["dq_d"].astype(np.float64),
+                state["ddq_d"].astype(np.float64),
+                upper - m["dq"],
+                lower + m["dq"],
+                a_max,
+                j_max,
             )
         tau_d = state["tau_J_d"].astype(np.float64)
         return cf.limit_rate_torques(out, tau_d, t.dtau_max - m["dtau"])

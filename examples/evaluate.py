@@ -1,0 +1,122 @@
+"""Evaluate a trained policy on FrankaFCI over N episodes, all at once.
+
+    python examples/evaluate.py --model runs/reach/model.zip --episodes 100
+    python examples/evaluate.py --model runs/reach/model.zip --video runs/reach/episode.gif
+
+Runs the N episodes side by side in the native batched env (N arms in one MuJoCo world,
+arm i seeded ``seed + i``: the same episodes as N single envs), with the env id and
+arguments the model was trained with (``train_config.json`` next to the model, written
+by examples/train_sb3.py; flags override it). Reports the success rate, the reflex
+terminations by the robot's error name, and the link's control_command_success_rate;
+ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
+``--video`` renders one further episode of a single env to an animated GIF.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+
+
+def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> dict:
+    """One deterministic episode per arm of a batched env of ``episodes`` arms.
+
+    Returns the success rate, the reflex rate, the reflexes by error name and the mean
+    control_command_success_rate at each episode's last step.
+    """
+    envs = gym.make_vec(
+        env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
+    )
+    obs, _ = envs.reset(seed=seed)
+    ended = np.zeros(episodes, dtype=bool)
+    success = np.zeros(episodes, dtype=bool)
+    reflex = np.zeros(episodes, dtype=bool)
+    link = np.zeros(episodes)
+    by_error: dict[str, int] = {}
+    while not ended.all():
+        actions, _ = model.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, info = envs.step(actions)
+        done = (terminated | truncated) & ~ended
+        for i in np.flatnonzero(done).tolist():
+            success[i] = bool(info["is_success"][i])
+            link[i] = float(info["control_command_success_rate"][i])
+            if terminated[i]:
+                reflex[i] = True
+                for name in info["reflex_reason"][i]:
+                    by_error[name] = by_error.get(name, 0) + 1
+        ended |= done
+    envs.close()
+    return {
+        "success_rate": float(success.mean()),
+        "reflex_rate": float(reflex.mean()),
+        "reflexes_by_error": by_error,
+        "link_success_rate": float(link.mean()),
+    }
+
+
+def record_gif(model, env_id: str, env_kwargs: dict, seed: int, path: Path) -> None:
+    """One episode of a single env, rendered offscreen, saved as an animated GIF."""
+    from PIL import Image  # matplotlib (the train extra) brings Pillow
+
+    env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
+    obs, _ = env.reset(seed=seed)
+    frames = [env.render()]
+    done = False
+    while not done:
+        action, _ = model.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, _ = env.step(action)
+        frames.append(env.render())
+        done = terminated or truncated
+    env.close()
+    images = [Image.fromarray(f) for f in frames]
+    step_ms = int(1000 / env_kwargs.get("policy_hz", gym.spec(env_id).kwargs.get("policy_hz", 25)))
+    images[0].save(path, save_all=True, append_images=images[1:], duration=step_ms, loop=0)
+
+
+def load_model(path: Path):
+    from stable_baselines3 import PPO, SAC, TD3
+
+    config = _config(path)
+    algo = {"sac": SAC, "td3": TD3, "ppo": PPO}[config.get("algo", "sac")]
+    # HER's replay buffer needs an env to load; prediction does not.
+    return algo.load(path, device="cpu"), config
+
+
+def _config(model_path: Path) -> dict:
+    config_path = model_path.parent / "train_config.json"
+    return json.loads(config_path.read_text()) if config_path.exists() else {}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, required=True, help="model.zip of train_sb3.py")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=20_000)
+    parser.add_argument("--env-id", default=None, help="default: the one the model trained on")
+    parser.add_argument("--env-kwargs", default=None, help="JSON; default: the training ones")
+    parser.add_argument("--video", type=Path, default=None, help="write one episode as a GIF")
+    args = parser.parse_args()
+    model, config = load_model(args.model)
+    env_id = args.env_id or config.get("env_id", "FrankaFCI-v0")
+    kwargs = json.loads(args.env_kwargs) if args.env_kwargs else config.get("env_kwargs", {})
+    result = evaluate(model, env_id, kwargs, args.episodes, args.seed)
+    print(f"{env_id} {kwargs}: {args.episodes} episodes")
+    print(f"reflexes by error: {result['reflexes_by_error'] or 'none'}")
+    if args.video:
+        record_gif(model, env_id, kwargs, args.seed, args.video)
+        print(f"video: {args.video}")
+    print(
+        f"evaluate: success_rate={result['success_rate']:.3f} "
+        f"reflex_rate={result['reflex_rate']:.3f} "
+        f"link_success_rate={result['link_success_rate']:.3f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

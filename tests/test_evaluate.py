@@ -1,0 +1,50 @@
+"""examples/evaluate.py: N episodes side by side in the batched env, counted per arm."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+
+from .conftest import ROOT
+
+_spec = importlib.util.spec_from_file_location("evaluate", ROOT / "examples" / "evaluate.py")
+evaluate_module = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(evaluate_module)
+evaluate = evaluate_module.evaluate
+
+KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
+
+
+class TowardTheGoal:
+    """A scripted policy with SB3's predict(): the twist points at the goal."""
+
+    def predict(self, obs, deterministic=True):
+        d = obs["desired_goal"] - obs["achieved_goal"]
+        return np.clip(d / 0.1, -1, 1).astype(np.float32), None
+
+
+class Still:
+    def predict(self, obs, deterministic=True):
+        return np.zeros((len(obs["desired_goal"]), 3), np.float32), None
+
+
+def test_a_policy_that_reaches_scores_one_and_no_reflex():
+    r = evaluate(TowardTheGoal(), "FrankaFCICartesianVelocity-v0", KWARGS, episodes=6, seed=0)
+    assert r["success_rate"] == 1.0
+    assert r["reflex_rate"] == 0.0 and r["reflexes_by_error"] == {}
+    assert r["link_success_rate"] == 1.0  # a perfect channel answers every cycle
+
+
+def test_a_naive_policy_is_counted_by_the_robots_error_name():
+    """Twists held unfiltered: every episode ends in the same named reflex."""
+    kwargs = {**KWARGS, "action_filter": "none"}
+    r = evaluate(TowardTheGoal(), "FrankaFCICartesianVelocity-v0", kwargs, episodes=4, seed=0)
+    assert r["reflex_rate"] == 1.0 and r["success_rate"] == 0.0
+    assert r["reflexes_by_error"] == {"cartesian_motion_generator_acceleration_discontinuity": 4}
+
+
+def test_a_policy_that_stands_still_succeeds_only_where_the_goal_is_near():
+    r = evaluate(Still(), "FrankaFCICartesianVelocity-v0", KWARGS, episodes=8, seed=0)
+    assert r["reflex_rate"] == 0.0
+    assert r["success_rate"] < 0.5
