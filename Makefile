@@ -1,11 +1,12 @@
-# The two commands of the README: `make demo` (the main job) and `make test`.
+# The two commands of the README: `make demo` (the main job: train the default reach
+# policy, evaluate it, write the plot) and `make test`.
 # Each creates .venv on first use and installs what it needs into it.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check -q
 
-.PHONY: demo test train lint bench clean
+.PHONY: demo test serve-demo bench clean
 
 # torch==2.13.0 first: that CPU wheel is on these machines; any other torch pulls
 # gigabytes of CUDA packages (stable-baselines3 in the test and train extras needs it).
@@ -20,18 +21,20 @@ $(VENV)/.train: $(VENV)/.installed
 	$(PIP) install -e '.[train]'
 	touch $@
 
-demo: $(VENV)/.installed
+demo: $(VENV)/.train
+	$(PY) examples/train_sb3.py --out runs/reach
+	$(PY) examples/evaluate.py --model runs/reach/model.zip --episodes 100
+
+# The socket server and a pylibfranka client moving the arm.
+serve-demo: $(VENV)/.installed
 	$(PY) examples/demo.py
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check franka_sim_gym tests examples benchmarks
 	$(PY) -m pytest -q
 
-train: $(VENV)/.train
-	$(PY) examples/train_sb3.py --out runs/reach
-
 bench: $(VENV)/.installed
 	$(PY) benchmarks/cycle_rate.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) .pytest_cache runs

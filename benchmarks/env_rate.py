@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.envs.commands import INTERFACES
 from franka_sim_gym.sim.arm import ArmPhysics
 
 
@@ -31,7 +32,7 @@ def env_rate(interface: str, seconds: float) -> tuple[float, int]:
     env.reset(seed=0)
     steps, resets, start = 0, 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
-        action = rng.uniform(-1, 1, size=7).astype(np.float32)
+        action = rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32)
         _, _, terminated, truncated, _ = env.step(action)
         steps += 1
         if terminated or truncated:
@@ -77,7 +78,7 @@ def main() -> None:
     print(f"{'row':<34}{'steps/s':>10}{'cycles/s':>12}{'vs mj_step':>12}{'resets':>8}")
     print(f"{'bare mj_step (one arm)':<34}{'':>10}{bare:>12,.0f}{1.0:>12.2f}{'':>8}")
     rates = {}
-    for interface in ("joint_position", "joint_velocity", "torque"):
+    for interface in INTERFACES:
         steps, resets = env_rate(interface, args.seconds)
         rates[interface] = steps
         cycles = steps * 40

@@ -28,7 +28,9 @@ def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> 
     """One deterministic episode per arm of a batched env of ``episodes`` arms.
 
     Returns the success rate, the reflex rate, the reflexes by error name and the mean
-    control_command_success_rate at each episode's last step.
+    control_command_success_rate at the last step of the episodes that did not end in a
+    reflex (a reflex stops the motion, and the robot reports 0.0 between motions; NaN
+    when every episode ended in one).
     """
     envs = gym.make_vec(
         env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
@@ -56,7 +58,7 @@ def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> 
         "success_rate": float(success.mean()),
         "reflex_rate": float(reflex.mean()),
         "reflexes_by_error": by_error,
-        "link_success_rate": float(link.mean()),
+        "link_success_rate": float(link[~reflex].mean()) if (~reflex).any() else float("nan"),
     }
 
 

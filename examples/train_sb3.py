@@ -26,7 +26,15 @@ import franka_sim_gym  # noqa: F401  (registers the ids)
 
 
 def make_model(
-    algo: str, env, seed: int, log_dir: Path, gradient_steps: int = 1, learning_starts: int = 300
+    algo: str,
+    env,
+    seed: int,
+    log_dir: Path,
+    gradient_steps: int = 1,
+    learning_starts: int = 300,
+    net: tuple[int, ...] = (64, 64),
+    batch_size: int = 256,
+    sde: bool = False,
 ):
     import torch
     from stable_baselines3 import PPO, SAC, TD3, HerReplayBuffer
@@ -40,15 +48,19 @@ def make_model(
         replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
         # HER samples whole episodes: learning waits for every arm's first one to end.
         learning_starts=learning_starts,
-        batch_size=256,
+        batch_size=batch_size,
         gamma=0.95,
         learning_rate=1e-3,
         tau=0.05,  # rl-zoo's PandaReach settings: fast target networks
-        policy_kwargs=dict(net_arch=[128, 128]),
+        policy_kwargs=dict(net_arch=list(net)),
         gradient_steps=gradient_steps,
     )
-    if algo in ("sac", "td3"):
-        model = {"sac": SAC, "td3": TD3}[algo](**common, **off_policy)
+    if algo == "sac":
+        # gSDE: exploration noise that is smooth in time, which a rate-limited robot
+        # does not average away between steps.
+        model = SAC(**common, **off_policy, use_sde=sde)
+    elif algo == "td3":
+        model = TD3(**common, **off_policy)
     elif algo == "ppo":
         model = PPO(**common, n_steps=512, batch_size=128, gamma=0.95)
     else:
@@ -93,6 +105,9 @@ def main() -> None:
     )
     parser.add_argument("--env-id", default="FrankaFCI-v0")
     parser.add_argument("--gradient-steps", type=int, default=1, help="per vector step")
+    parser.add_argument("--net", default="64,64", help="hidden layer sizes")
+    parser.add_argument("--batch-size", type=int, default=256)
+    parser.add_argument("--sde", action="store_true", help="SAC: state-dependent exploration")
     parser.add_argument("--env-kwargs", default="{}", help="JSON, e.g. '{\"policy_hz\": 10}'")
     parser.add_argument("--out", type=Path, default=Path("runs/reach"))
     args = parser.parse_args()
@@ -111,7 +126,17 @@ def main() -> None:
         kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
     )
     learning_starts = max(300, args.num_envs * (episode_steps + 1))
-    model = make_model(args.algo, env, args.seed, args.out, args.gradient_steps, learning_starts)
+    model = make_model(
+        args.algo,
+        env,
+        args.seed,
+        args.out,
+        args.gradient_steps,
+        learning_starts,
+        tuple(int(x) for x in args.net.split(",")),
+        args.batch_size,
+        args.sde,
+    )
     start = time.perf_counter()
     rows = []
     chunk = max(1, args.steps // args.evals)

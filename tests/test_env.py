@@ -125,6 +125,25 @@ def test_a_reflex_is_never_a_shortcut_to_a_higher_return():
     assert total <= -10.0
 
 
+def test_her_relabelling_a_reflex_step_keeps_the_charge():
+    """compute_reward of a step's own transition is the step's reward; relabelled with the
+    goal it reached (what HER's "future" does with an episode's last step), a reflex step
+    is still charged the rest of the episode, never a free success."""
+    env = gym.make("FrankaFCI-v0", action_filter="none", max_episode_steps=10)
+    env.reset(seed=1)
+    for _ in range(2):
+        obs, reward, terminated, _, info = env.step(np.full(7, 0.9, dtype=np.float32))
+        if terminated:
+            break
+    assert terminated and info["reflex_penalty"] < -1.0
+    u = env.unwrapped
+    assert u.compute_reward(obs["achieved_goal"], obs["desired_goal"], info) == reward
+    relabelled = u.compute_reward(obs["achieved_goal"][None], obs["achieved_goal"][None], [info])
+    assert relabelled[0] == info["reflex_penalty"] < -1.0
+    quiet = {**info, "reflex_penalty": 0.0}
+    assert u.compute_reward(obs["achieved_goal"], obs["achieved_goal"], quiet) == 0.0
+
+
 class ScriptedChannel(Channel):
     """Drops the datagrams of cycles [start, stop) counted from the episode's first command."""
 
@@ -186,7 +205,7 @@ def test_the_gripper_dimension_drives_the_hand_at_its_speed():
     env = gym.make("FrankaFCI-v0", gripper=True, gripper_speed=0.1)
     assert env.action_space.shape == (8,)
     obs, _ = env.reset(seed=0)
-    assert obs["observation"].shape == (18,)
+    assert obs["observation"].shape == (24,)  # q, dq, EE position, twist, width
     assert obs["observation"][-1] == pytest.approx(0.08, abs=1e-3)  # open
     action = np.zeros(8, dtype=np.float32)
     action[7] = -1.0  # close

@@ -14,7 +14,7 @@ def test_adapter_resets_in_the_same_step_and_hands_over_the_terminal_observation
     env = FrankaFCISB3VecEnv(3, max_episode_steps=2)
     env.seed(4)
     obs = env.reset()
-    assert obs["observation"].shape == (3, 17) and obs["desired_goal"].shape == (3, 3)
+    assert obs["observation"].shape == (3, 23) and obs["desired_goal"].shape == (3, 3)
     zero = np.zeros((3, 7), dtype=np.float32)
     obs, reward, done, infos = env.step(zero)
     assert not done.any() and reward.dtype == np.float32 and len(infos) == 3

@@ -181,9 +181,17 @@ class FciBatch:
         zeros = np.zeros(self.n, dtype=np.int64)
         no_violations = np.zeros((self.n, self.controller.errors.shape[1]), dtype=bool)
         obs = build_observation(
-            self.observation_space, states["q"], states["dq"], ee, self.goals, width
+            self.observation_space,
+            states["q"],
+            states["dq"],
+            ee,
+            self.goals,
+            states["O_dP_EE_c"],
+            width,
         )
-        return obs, self._info(states, ee, zeros, no_violations)
+        info = self._info(states, ee, zeros, no_violations)
+        info["reflex_penalty"] = np.zeros(self.n)
+        return obs, info
 
     # -- the step ------------------------------------------------------------------------------
 
@@ -271,18 +279,30 @@ class FciBatch:
         self.steps[active] += 1
         states, ee, width = self._measured(frozen, snapshot)
         obs = build_observation(
-            self.observation_space, states["q"], states["dq"], ee, self.goals, width
+            self.observation_space,
+            states["q"],
+            states["dq"],
+            ee,
+            self.goals,
+            states["O_dP_EE_c"],
+            width,
         )
         task = self.task
         reward = task.compute_reward(obs["achieved_goal"], obs["desired_goal"]).astype(np.float64)
         terminated = frozen
+        penalty = np.zeros(n)
         if frozen.any():
             # A reflex must never be a shortcut to a higher return: charge the worst
-            # reward for every step the episode would still have had.
+            # reward for every step the episode would still have had. The charge rides in
+            # the info, so compute_reward charges it again when HER relabels the goal (a
+            # relabelled terminal step would otherwise look like a free success).
             remaining = self.max_episode_steps - self.steps[frozen]
-            reward[frozen] += task.worst_step_reward * (remaining + 1)
+            penalty[frozen] = task.worst_step_reward * (remaining + 1)
+            reward += penalty
         truncated = active & ~terminated & (self.steps >= self.max_episode_steps)
-        return obs, reward, terminated, truncated, self._info(states, ee, lost, violations)
+        info = self._info(states, ee, lost, violations)
+        info["reflex_penalty"] = penalty
+        return obs, reward, terminated, truncated, info
 
     # -- internals -----------------------------------------------------------------------------
 

@@ -18,23 +18,28 @@ from ..sim.gripper import MAX_WIDTH
 CARTESIAN_BOUND = 2.0
 #: Bound of every measured joint speed [rad/s]: physics keeps them far below.
 JOINT_SPEED_BOUND = 20.0
+#: Bound of every commanded twist component [m/s, rad/s]: the robot refuses more than
+#: 3 m/s and 2.5 rad/s (cartesian_motion_generator_velocity_limits_violation).
+TWIST_BOUND = 3.0
 
 
 def observation_space(table: RobotTable, gripper: bool = False) -> spaces.Dict:
     """Dict(observation, achieved_goal, desired_goal), float32, with honest bounds.
 
-    ``observation`` = measured q (7), dq (7), O_T_EE position (3) [, hand width (1)].
+    ``observation`` = measured q (7), dq (7), O_T_EE position (3), the commanded twist
+    O_dP_EE_c (6) [, hand width (1)].
     """
     q_lo = (table.q_lower - 0.2).astype(np.float32)
     q_hi = (table.q_upper + 0.2).astype(np.float32)
     dq_hi = np.full(7, JOINT_SPEED_BOUND, dtype=np.float32)
     box = np.full(3, CARTESIAN_BOUND, dtype=np.float32)
+    twist = np.full(6, TWIST_BOUND, dtype=np.float32)
     width_lo, width_hi = ([0.0], [MAX_WIDTH]) if gripper else ([], [])
     return spaces.Dict(
         {
             "observation": spaces.Box(
-                np.concatenate([q_lo, -dq_hi, -box, width_lo]).astype(np.float32),
-                np.concatenate([q_hi, dq_hi, box, width_hi]).astype(np.float32),
+                np.concatenate([q_lo, -dq_hi, -box, -twist, width_lo]).astype(np.float32),
+                np.concatenate([q_hi, dq_hi, box, twist, width_hi]).astype(np.float32),
                 dtype=np.float32,
             ),
             "achieved_goal": spaces.Box(-box, box, dtype=np.float32),
@@ -49,6 +54,7 @@ def build_observation(
     dq: np.ndarray,
     ee: np.ndarray,
     goal: np.ndarray,
+    twist: np.ndarray,
     width: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """The observations of n robots, each array with a leading robot axis.
@@ -58,9 +64,14 @@ def build_observation(
         q, dq: (n, 7) measured joint positions and velocities (RobotState q, dq).
         ee: (n, 3) O_T_EE position in the base frame (O_T_EE[12:15]).
         goal: (n, 3) the goals.
+        twist: (n, 6) the commanded twist the robot reports (RobotState O_dP_EE_c): under
+            the Cartesian interfaces the reference libfranka's filters start from, and
+            so the state of the motion a policy steers (zero under the others).
         width: (n,) measured hand opening [m], when a hand is mounted.
     """
-    parts = [q, dq, ee] if width is None else [q, dq, ee, np.reshape(width, (-1, 1))]
+    parts = [q, dq, ee, twist]
+    if width is not None:
+        parts.append(np.reshape(width, (-1, 1)))
     obs = np.concatenate(parts, axis=1).astype(np.float32)
     box = space["observation"]
     np.clip(obs, box.low, box.high, out=obs)  # the bounds are the bounds

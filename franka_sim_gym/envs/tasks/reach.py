@@ -33,11 +33,21 @@ class Reach:
         return rng.uniform(GOAL_LOW, GOAL_HIGH)
 
     def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
-        """Vectorised over a leading batch axis, as SB3's HER calls it."""
+        """Vectorised over a leading batch axis, as SB3's HER calls it.
+
+        ``info`` is one step's info dict or a sequence of them (HER passes the stored
+        ones); their ``reflex_penalty`` is added, so a step's own transition gives the
+        step's reward and a relabelled reflex step stays charged.
+        """
         d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
         if self.reward_type == "sparse":
-            return -(d > self.distance_threshold).astype(np.float32)
-        return -d.astype(np.float32)
+            reward = -(d > self.distance_threshold).astype(np.float32)
+        else:
+            reward = -d.astype(np.float32)
+        penalty = _penalty(info)
+        if penalty is None:
+            return reward
+        return (reward + np.reshape(penalty, np.shape(reward))).astype(np.float32)
 
     def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
         d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
@@ -49,3 +59,15 @@ class Reach:
         if self.reward_type == "sparse":
             return -1.0
         return -float(np.linalg.norm(GOAL_HIGH - GOAL_LOW)) - 1.0
+
+
+def _penalty(info) -> np.ndarray | float | None:
+    """The reflex_penalty of one info dict or of a sequence of them (None: no infos)."""
+    if info is None:
+        return None
+    if isinstance(info, dict):
+        return np.asarray(info.get("reflex_penalty", 0.0), dtype=np.float64)
+    rows = list(info)
+    if not rows or not isinstance(rows[0], dict):
+        return None
+    return np.array([row.get("reflex_penalty", 0.0) for row in rows], dtype=np.float64)
