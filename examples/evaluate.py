@@ -81,13 +81,21 @@ def record_gif(model, env_id: str, env_kwargs: dict, seed: int, path: Path) -> N
     images[0].save(path, save_all=True, append_images=images[1:], duration=step_ms, loop=0)
 
 
-def load_model(path: Path):
+def load_model(path: Path, env_id: str | None = None, env_kwargs: dict | None = None):
+    """The model and its training config (train_config.json next to it, when present)."""
     from stable_baselines3 import PPO, SAC, TD3
 
     config = _config(path)
     algo = {"sac": SAC, "td3": TD3, "ppo": PPO}[config.get("algo", "sac")]
-    # HER's replay buffer needs an env to load; prediction does not.
-    return algo.load(path, device="cpu"), config
+    env_id = env_id or config.get("env_id", "FrankaFCI-v0")
+    env_kwargs = config.get("env_kwargs", {}) if env_kwargs is None else env_kwargs
+    # HER's replay buffer needs an env (for its spaces) to load the model.
+    env = gym.make(env_id, **env_kwargs)
+    return algo.load(path, env=env, device="cpu"), {
+        **config,
+        "env_id": env_id,
+        "env_kwargs": env_kwargs,
+    }
 
 
 def _config(model_path: Path) -> dict:
@@ -104,9 +112,9 @@ def main() -> None:
     parser.add_argument("--env-kwargs", default=None, help="JSON; default: the training ones")
     parser.add_argument("--video", type=Path, default=None, help="write one episode as a GIF")
     args = parser.parse_args()
-    model, config = load_model(args.model)
-    env_id = args.env_id or config.get("env_id", "FrankaFCI-v0")
-    kwargs = json.loads(args.env_kwargs) if args.env_kwargs else config.get("env_kwargs", {})
+    kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
+    model, config = load_model(args.model, args.env_id, kwargs)
+    env_id, kwargs = config["env_id"], config["env_kwargs"]
     result = evaluate(model, env_id, kwargs, args.episodes, args.seed)
     print(f"{env_id} {kwargs}: {args.episodes} episodes")
     print(f"reflexes by error: {result['reflexes_by_error'] or 'none'}")

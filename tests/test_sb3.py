@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import pytest
 
@@ -22,8 +24,8 @@ def test_sb3_check_env_passes_for_every_id(env_id):
     env.close()
 
 
-@pytest.mark.parametrize("arms", [[], ["--num-envs", "4"]], ids=["single", "batched"])
-def test_train_sb3_runs_end_to_end_and_saves_a_model(tmp_path, arms):
+@pytest.mark.parametrize("arms", [["--num-envs", "1"], []], ids=["single", "batched"])
+def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, arms):
     out = tmp_path / "run"
     proc = run_python(
         ROOT / "examples" / "train_sb3.py",
@@ -44,8 +46,18 @@ def test_train_sb3_runs_end_to_end_and_saves_a_model(tmp_path, arms):
     assert last.startswith("eval: success_rate=") and "reflex_rate=" in last
     assert (out / "model.zip").is_file() and (out / "eval.csv").is_file()
     assert (out / "progress.csv").is_file()
-    env = gym.make("FrankaFCI-v0")
+    config = json.loads((out / "train_config.json").read_text())
+    assert config["env_id"] == "FrankaFCICartesianVelocity-v0"
+    assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
+    env = gym.make(config["env_id"], **config["env_kwargs"])
     model = sb3.SAC.load(out / "model.zip", env=env)  # HER needs the env
     obs, _ = env.reset(seed=0)
     action, _ = model.predict(obs, deterministic=True)
-    assert env.action_space.contains(action)
+    assert env.action_space.contains(action) and action.shape == (3,)
+    # evaluate.py takes the env id and arguments from train_config.json.
+    proc = run_python(
+        ROOT / "examples" / "evaluate.py", "--model", str(out / "model.zip"), "--episodes", "3"
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    assert last.startswith("evaluate: success_rate=") and "link_success_rate=" in last
