@@ -151,3 +151,6 @@ def test_bad_cartesian_arguments_are_clear_errors():
     with pytest.raises(ValueError, match="cartesian_limits must be one of"):
         CommandGenerator("cartesian_pose", "limit_rate", 40, cartesian_limits=(1.0, 2.0))
     assert set(CARTESIAN_LIMITS) == {"libfranka", "conservative"}
+    # Six numbers, as a tuple or as the list JSON gives (train_config.json).
+    listed = CommandGenerator("cartesian_velocity", "limit_rate", 40, cartesian_limits=[1] * 6)
+    assert listed.cartesian_limits == (1.0,) * 6

@@ -123,7 +123,10 @@ class CommandGenerator:
             raise ValueError(f"unknown action_filter {action_filter!r}: expected {FILTERS}")
         if cartesian_dof not in (3, 6):
             raise ValueError(f"cartesian_dof must be 3 or 6, got {cartesian_dof!r}")
-        limits = CARTESIAN_LIMITS.get(cartesian_limits, cartesian_limits)  # type: ignore[arg-type]
+        if isinstance(cartesian_limits, str):
+            limits = CARTESIAN_LIMITS.get(cartesian_limits, cartesian_limits)
+        else:  # six numbers (a JSON list works too)
+            limits = tuple(cartesian_limits)
         if isinstance(limits, str) or len(limits) != 6 or not all(float(x) > 0 for x in limits):
             raise ValueError(
                 f"cartesian_limits must be one of {tuple(CARTESIAN_LIMITS)} or six positive "
