@@ -3,15 +3,30 @@
     franka-sim-gym serve &                                   # or a real FR3's address
     python examples/deploy_pylibfranka.py --host 127.0.0.1 --model runs/reach/model.zip
 
-The same script a user points at a real FR3. Per reach: a joint motion to the
-start pose (the env's home pose plus its seeded reset noise), then the policy in
-pylibfranka's ``readOnce()`` / ``writeOnce()`` loop at 1 kHz: one action every
+The same script a user points at a real FR3, for policies of every action interface:
+joint position, joint velocity, Cartesian pose (O_T_EE_c, 16 values, column-major),
+Cartesian velocity (O_dP_EE_c, 6 values; both with 3 or 6 dof) and torque. The
+algorithm, env id and env arguments come from ``train_config.json`` next to the model
+(written by train_sb3.py); ``--algo``, ``--env-id`` and ``--env-kwargs`` override them
+(``--env-kwargs`` replaces the training arguments, as in evaluate.py). Without the file
+the defaults are SAC on FrankaFCI-v0 with the arguments given.
+
+Per reach: a joint motion to the start pose (the env's home pose plus its seeded reset
+noise), then the policy in pylibfranka's ``readOnce()`` / ``writeOnce()`` loop at 1 kHz,
+under the controller mode the env uses (joint impedance for every motion generator,
+Cartesian ones included; torque control for torques): one action every
 ``1000 / policy_hz`` cycles, turned into one command per cycle by the env's own
-``CommandGenerator`` (envs/commands.py: interpolation, libfranka's low-pass filter
-and rate limiter), from observations built by the env's own ``build_observation``
-(envs/observation.py). Goals are drawn by the env's reach task. A reflex is
-recovered with AutomaticErrorRecovery. Ends with one line
-``deploy: success_rate=<x> reflexes=<n> link_success_rate=<y>``.
+``CommandGenerator`` (envs/commands.py: interpolation, libfranka's low-pass filter and
+rate limiter, joint or Cartesian, against the robot's references q_d, dq_d, ddq_d,
+tau_J_d, O_T_EE_c, O_dP_EE_c, O_ddP_EE_c copied from the RobotState), from
+observations built by the env's own ``build_observation`` (envs/observation.py).
+A velocity motion is then brought to rest (a zero target through the same filters, at
+most 1 s) before it is finished: a motion finished while it still moves can end in a
+reflex (libfranka: "Motion finished commanded, but the robot is still moving!").
+Position, pose and torque motions finish with the last step's last command (held on a
+fixed target, the low-pass filter and rate limiter can keep ringing). Goals are drawn
+by the env's reach task. A reflex is recovered with AutomaticErrorRecovery. Ends with
+one line ``deploy: success_rate=<x> reflexes=<n> link_success_rate=<y>``.
 """
 
 from __future__ import annotations
@@ -20,30 +35,48 @@ import argparse
 import json
 import math
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pylibfranka as fr
 
-from franka_sim_gym.envs.commands import CommandGenerator
+from franka_sim_gym.envs.commands import CARTESIAN, CommandGenerator
 from franka_sim_gym.envs.observation import build_observation, observation_space
 from franka_sim_gym.envs.tasks.reach import Reach
 from franka_sim_gym.fci.tables import FER, FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
 from franka_sim_gym.sim.world import HOME_Q
 
-#: The state fields the command generator reads (libfranka's ControlLoop reads the same).
-_REFERENCE_FIELDS = ("q_d", "dq_d", "ddq_d", "tau_J_d")
+#: The state fields the command generator reads (libfranka's ControlLoop reads the same):
+#: the joint references, and the Cartesian ones of the Cartesian interfaces.
+_REFERENCE_FIELDS = ("q_d", "dq_d", "ddq_d", "tau_J_d", "O_T_EE_c", "O_dP_EE_c", "O_ddP_EE_c")
 #: Cycles at the start of a motion before the success-rate window (100 cycles) is full.
 _WINDOW = 100
+#: The velocity interfaces, whose motions are brought to rest before they are finished.
+_VELOCITY = ("joint_velocity", "cartesian_velocity")
+#: The longest wait for a velocity motion to come to rest after the last step [cycles].
+_SETTLE_CYCLES = 1000
+#: At rest: the reference's velocity (rad/s; m/s and rad/s) and its rate below these.
+_REST_VELOCITY, _REST_ACCELERATION = 1e-3, 5e-2
+DEFAULT_ENV_ID = "FrankaFCI-v0"
+DEFAULT_ALGO = "sac"
 
 
 def _start(robot, interface: str):
-    """Start the motion of ``interface``; returns the control and its command type."""
+    """Start the motion of ``interface``; returns the control and its command type.
+
+    The controller modes are the env's (envs/core.py MOVE): joint impedance under every
+    motion generator (Robot::control's default), torques under the external controller.
+    """
     impedance = fr.ControllerMode.JointImpedance
     if interface == "joint_position":
         return robot.start_joint_position_control(impedance), fr.JointPositions
     if interface == "joint_velocity":
         return robot.start_joint_velocity_control(impedance), fr.JointVelocities
+    if interface == "cartesian_pose":
+        return robot.start_cartesian_pose_control(impedance), fr.CartesianPose
+    if interface == "cartesian_velocity":
+        return robot.start_cartesian_velocity_control(impedance), fr.CartesianVelocities
     if interface == "torque":
         return robot.start_torque_control(), fr.Torques
     raise ValueError(f"unknown action_interface {interface!r}")
@@ -74,21 +107,29 @@ class Reacher:
 
     Args:
         policy: anything with SB3's ``predict(obs, deterministic=True) -> (action, state)``.
-        env_kwargs: the env arguments the policy was trained with (interface, filter, rate).
+        env_kwargs: the env arguments the policy was trained with (interface, filter, rate,
+            Cartesian dof and limits), the registered id's defaults included
+            (:func:`env_settings`).
     """
 
     def __init__(self, policy, env_kwargs: dict) -> None:
+        if env_kwargs.get("gripper", False):
+            raise ValueError("deploy drives the arm only: policies trained with gripper=True")
         self.policy = policy
         self.interface = env_kwargs.get("action_interface", "joint_position")
         policy_hz = float(env_kwargs.get("policy_hz", 25.0))
         self.cycles_per_step = int(round(1000.0 / policy_hz))
         self.max_steps = int(env_kwargs.get("max_episode_steps", 50))
         table = FER if env_kwargs.get("robot", "fr3") == "fer" else FR3
+        limits = env_kwargs.get("cartesian_limits", "conservative")
         self.commands = CommandGenerator(
             self.interface,
             env_kwargs.get("action_filter", "limit_rate"),
             self.cycles_per_step,
             table,
+            cartesian_dof=int(env_kwargs.get("cartesian_dof", 6)),
+            # JSON gives six numbers as a list
+            cartesian_limits=limits if isinstance(limits, str) else tuple(limits),
         )
         self.space = observation_space(table)
         self.task = Reach(
@@ -108,34 +149,75 @@ class Reacher:
         )
         return {key: value[0] for key, value in obs.items()}
 
+    def _mirror(self, state) -> np.ndarray:
+        """The generator's view of ``state``: its references in the env's state array."""
+        mirror = self._state
+        for name in _REFERENCE_FIELDS:
+            mirror[name][0] = getattr(state, name)
+        return mirror
+
+    def _at_rest(self, state) -> bool:
+        """The commanded velocity has come to rest (the reference's velocity and its rate)."""
+        if self.interface in CARTESIAN:
+            velocity, acceleration = state.O_dP_EE_c, state.O_ddP_EE_c
+        else:
+            velocity, acceleration = state.dq_d, state.ddq_d
+        return (
+            float(np.max(np.abs(velocity))) < _REST_VELOCITY
+            and float(np.max(np.abs(acceleration))) < _REST_ACCELERATION
+        )
+
     def reach(self, robot, goal: np.ndarray, rates: list[float]) -> bool:
         """Run one episode towards ``goal``; True when the end pose is within the radius.
 
         ControlException (a reflex) propagates to the caller.
         """
         control, command_type = _start(robot, self.interface)
-        gen, mirror = self.commands, self._state
+        gen = self.commands
         gen.reset()
+        # Velocity motions are stopped after the last step (_stop); the others finish with it.
+        stop = self.interface in _VELOCITY
         last_step, last_cycle = self.max_steps - 1, self.cycles_per_step - 1
         cycle = 0
         for step in range(self.max_steps):
             for k in range(self.cycles_per_step):
                 state, _ = control.readOnce()
-                for name in _REFERENCE_FIELDS:
-                    mirror[name][0] = getattr(state, name)
+                mirror = self._mirror(state)
                 if k == 0:
                     action, _ = self.policy.predict(self.observe(state, goal), deterministic=True)
-                    gen.begin_step(np.asarray(action, dtype=np.float64)[None, :7], mirror)
+                    action = np.asarray(action, dtype=np.float64).reshape(-1)
+                    gen.begin_step(action[None, : gen.action_dim], mirror)
                 command = command_type(gen.command(mirror, k)[0].tolist())
                 if cycle >= _WINDOW:
                     rates.append(state.control_command_success_rate)
                 cycle += 1
-                if step == last_step and k == last_cycle:
+                if step == last_step and k == last_cycle and not stop:
                     command.motion_finished = True
                 control.writeOnce(command)
+        if stop:
+            self._stop(control, command_type, rates, cycle)
         final = robot.read_once()
         ee = np.array(final.O_T_EE)[12:15]
         return bool(self.task.is_success(ee, goal))
+
+    def _stop(self, control, command_type, rates: list[float], cycle: int) -> None:
+        """Bring a velocity motion to rest through the same filters (a zero target: what a
+        unit action of 0 asks), then finish it; at most ``_SETTLE_CYCLES`` cycles."""
+        gen = self.commands
+        last = gen.cycles_per_step - 1
+        for k in range(_SETTLE_CYCLES + 1):
+            state, _ = control.readOnce()
+            mirror = self._mirror(state)
+            if k == 0:
+                gen.begin_step(np.zeros((1, gen.action_dim)), mirror)
+            if cycle + k >= _WINDOW:
+                rates.append(state.control_command_success_rate)
+            command = command_type(gen.command(mirror, min(k, last))[0].tolist())
+            if k == _SETTLE_CYCLES or self._at_rest(state):
+                command.motion_finished = True
+                control.writeOnce(command)
+                return
+            control.writeOnce(command)
 
 
 def deploy(
@@ -146,7 +228,12 @@ def deploy(
     env_kwargs: dict | None = None,
     log: Callable[[str], None] = print,
 ) -> dict:
-    """``episodes`` reaches on the robot at ``host``; success, reflexes and the link's rate."""
+    """``episodes`` reaches on the robot at ``host``; success, reflexes and the link's rate.
+
+    ``env_kwargs`` are the env's arguments including the registered id's own
+    (:func:`env_settings`): e.g. ``{"action_interface": "cartesian_velocity"}`` for a
+    policy trained on FrankaFCICartesianVelocity-v0.
+    """
     env_kwargs = dict(env_kwargs or {})
     reacher = Reacher(policy, env_kwargs)
     noise = float(env_kwargs.get("reset_noise", 0.05))
@@ -176,7 +263,23 @@ def deploy(
     }
 
 
-def load_policy(path: str, algo: str, env_kwargs: dict):
+def env_settings(env_id: str, env_kwargs: dict) -> dict:
+    """The arguments an env of ``env_id`` made with ``env_kwargs`` runs with: the
+    registered id's own (e.g. its action_interface) under the explicit ones."""
+    import gymnasium as gym
+
+    import franka_sim_gym  # noqa: F401  (registers the ids)
+
+    return {**gym.spec(env_id).kwargs, **env_kwargs}
+
+
+def train_config(model: str | Path) -> dict:
+    """train_sb3.py's ``train_config.json`` next to ``model`` ({} when there is none)."""
+    path = Path(model).parent / "train_config.json"
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def load_policy(path: str, algo: str, env_kwargs: dict, env_id: str = DEFAULT_ENV_ID):
     """An SB3 model saved by train_sb3.py (HER-trained models load with an env for spaces)."""
     import gymnasium as gym
     import torch
@@ -185,22 +288,48 @@ def load_policy(path: str, algo: str, env_kwargs: dict):
     import franka_sim_gym  # noqa: F401  (registers the ids)
 
     torch.set_num_threads(1)  # inference inside the 1 kHz loop: no thread pool wake-ups
-    env = gym.make("FrankaFCI-v0", **env_kwargs)
+    env = gym.make(env_id, **env_kwargs)
     return {"sac": SAC, "td3": TD3, "ppo": PPO}[algo].load(path, env=env)
+
+
+def resolve(args: argparse.Namespace) -> tuple[str, str, dict]:
+    """(algo, env id, env kwargs): the flags given, else train_config.json's, else defaults."""
+    config = train_config(args.model)
+    algo = args.algo or config.get("algo", DEFAULT_ALGO)
+    env_id = args.env_id or config.get("env_id", DEFAULT_ENV_ID)
+    if args.env_kwargs is not None:
+        env_kwargs = json.loads(args.env_kwargs)
+    else:
+        env_kwargs = dict(config.get("env_kwargs", {}))
+    return algo, env_id, env_kwargs
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--host", default="127.0.0.1", help="robot (or simulator) address")
     parser.add_argument("--model", required=True, help="model.zip written by train_sb3.py")
-    parser.add_argument("--algo", default="sac", choices=("sac", "td3", "ppo"))
+    parser.add_argument(
+        "--algo",
+        default=None,
+        choices=("sac", "td3", "ppo"),
+        help=f"default: train_config.json's, else {DEFAULT_ALGO}",
+    )
     parser.add_argument("--episodes", type=int, default=10, help="reaches")
     parser.add_argument("--seed", type=int, default=0, help="start poses and goals")
-    parser.add_argument("--env-kwargs", default="{}", help="as given to train_sb3.py (JSON)")
+    parser.add_argument(
+        "--env-id", default=None, help=f"default: train_config.json's, else {DEFAULT_ENV_ID}"
+    )
+    parser.add_argument(
+        "--env-kwargs",
+        default=None,
+        help="JSON, as given to train_sb3.py; default: train_config.json's, else {}",
+    )
     args = parser.parse_args()
-    env_kwargs = json.loads(args.env_kwargs)
-    policy = load_policy(args.model, args.algo, env_kwargs)
-    result = deploy(args.host, policy, args.episodes, args.seed, env_kwargs)
+    algo, env_id, env_kwargs = resolve(args)
+    print(f"policy: {algo} on {env_id} {env_kwargs}")
+    policy = load_policy(args.model, algo, env_kwargs, env_id)
+    settings = env_settings(env_id, env_kwargs)
+    result = deploy(args.host, policy, args.episodes, args.seed, settings)
     print(f"link: min control_command_success_rate {result['link_min_success_rate']:.3f}")
     print(
         f"deploy: success_rate={result['success_rate']:.3f} reflexes={result['reflexes']} "

@@ -1,10 +1,18 @@
-"""examples/deploy_pylibfranka.py with a scripted policy: `python deploy_runner.py HOST EPISODES`.
+"""examples/deploy_pylibfranka.py with a scripted policy:
+`python deploy_runner.py HOST EPISODES [ENV_KWARGS_JSON]`.
 
-The policy has a trained policy's interface (SB3's ``predict``): a proportional
-controller in Cartesian space, mapped to joints by the damped least-squares inverse
-of the flange Jacobian (MuJoCo's, of the simulator's own FR3 model; O_T_EE is the
-flange with libfranka's default end effector). Prints the deploy result as its
-last line (JSON). Run in a child process: libfranka has no reply timeout.
+The policies have a trained policy's interface (SB3's ``predict``); the one run is
+chosen by the env arguments' ``action_interface`` (``POLICIES``):
+
+* joint position (the default): a proportional controller in Cartesian space, mapped
+  to joints by the damped least-squares inverse of the flange Jacobian (MuJoCo's, of
+  the simulator's own FR3 model; O_T_EE is the flange with libfranka's default end
+  effector);
+* Cartesian velocity: the Cartesian error over 0.1 m, clipped to [-1, 1] (a 3-dof
+  translational twist, 0.3 m/s per unit action).
+
+Prints the deploy result as its last line (JSON). Run in a child process: libfranka
+has no reply timeout.
 """
 
 from __future__ import annotations
@@ -53,10 +61,27 @@ class ProportionalReach:
         return action.astype(np.float32), None
 
 
+class CartesianVelocityReach:
+    """``predict(obs) -> (action, None)``: a translational twist towards the goal, full
+    speed beyond ``reach`` [m] of it and proportional within (3 dof)."""
+
+    def __init__(self, reach: float = 0.1) -> None:
+        self.reach = reach
+
+    def predict(self, obs: dict, deterministic: bool = True):
+        error = obs["desired_goal"].astype(np.float64) - obs["achieved_goal"]
+        return np.clip(error / self.reach, -1.0, 1.0).astype(np.float32), None
+
+
+#: The scripted policy of each action interface.
+POLICIES = {"joint_position": ProportionalReach, "cartesian_velocity": CartesianVelocityReach}
+
+
 def main() -> None:
     host, episodes = sys.argv[1], int(sys.argv[2])
     kwargs = json.loads(sys.argv[3]) if len(sys.argv) > 3 else {}
-    result = deploy(host, ProportionalReach(), episodes, seed=0, env_kwargs=kwargs)
+    policy = POLICIES[kwargs.get("action_interface", "joint_position")]()
+    result = deploy(host, policy, episodes, seed=0, env_kwargs=kwargs)
     print(json.dumps(result))
 
 
