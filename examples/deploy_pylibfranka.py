@@ -146,6 +146,7 @@ class Reacher:
             np.array(state.dq)[None],
             np.array(state.O_T_EE)[None, 12:15],
             goal[None],
+            np.array(state.O_dP_EE_c)[None],
         )
         return {key: value[0] for key, value in obs.items()}
 
