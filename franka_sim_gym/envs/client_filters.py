@@ -364,10 +364,10 @@ def cartesian_lowpass_filter(
     T_c = _finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
     T_ref = _finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
     gain = np.asarray(lowpass_gain(cutoff))
+    R_c, R_ref = T_c[..., :3, :3], T_ref[..., :3, :3]
+    q_ref = _rotation_to_quaternion(R_ref)
     q = _quaternion_slerp(
-        _rotation_to_quaternion(T_ref[..., :3, :3]),
-        _rotation_to_quaternion(T_c[..., :3, :3]),
-        gain,
+        q_ref, q_ref if _same_bits(R_c, R_ref) else _rotation_to_quaternion(R_c), gain
     )
     q /= np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
     out = np.array(np.broadcast_to(T_c, np.broadcast_shapes(T_c.shape, T_ref.shape)))
@@ -375,6 +375,13 @@ def cartesian_lowpass_filter(
     out[..., :3, 3] = g * T_c[..., :3, 3] + (1.0 - g) * T_ref[..., :3, 3]
     out[..., :3, :3] = _quaternion_to_rotation(q)
     return out
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two float64 arrays of one shape are equal bit for bit (0.0 and -0.0 differ:
+    a conversion's result may keep the sign of a zero). A translation-only command keeps
+    the reference's orientation exactly: its quaternion is the reference's."""
+    return a.shape == b.shape and count_nonzero(a.view(np.int64) == b.view(np.int64)) == a.size
 
 
 def limit_rate_cartesian_velocity(
