@@ -73,7 +73,7 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     small = angle < 1e-8
     safe = np.where(small, 1.0, angle)
     lead = rotvec.shape[:-1]
-    K = np.zeros((*lead, 9))
+    K = np.zeros((*lead, 9), dtype=rotvec.dtype)
     K[..., _SKEW_SLOTS] = rotvec[..., _SKEW_SOURCE] * _SKEW_SIGN
     K = K.reshape(*lead, 3, 3)
     a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
