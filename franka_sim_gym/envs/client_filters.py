@@ -364,10 +364,10 @@ def cartesian_lowpass_filter(
     T_c = _finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
     T_ref = _finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
     gain = np.asarray(lowpass_gain(cutoff))
+    R_c, R_ref = T_c[..., :3, :3], T_ref[..., :3, :3]
+    q_ref = _rotation_to_quaternion(R_ref)
     q = _quaternion_slerp(
-        _rotation_to_quaternion(T_ref[..., :3, :3]),
-        _rotation_to_quaternion(T_c[..., :3, :3]),
-        gain,
+        q_ref, q_ref if _same_bits(R_c, R_ref) else _rotation_to_quaternion(R_c), gain
     )
     q /= np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
     out = np.array(np.broadcast_to(T_c, np.broadcast_shapes(T_c.shape, T_ref.shape)))
@@ -375,6 +375,13 @@ def cartesian_lowpass_filter(
     out[..., :3, 3] = g * T_c[..., :3, 3] + (1.0 - g) * T_ref[..., :3, 3]
     out[..., :3, :3] = _quaternion_to_rotation(q)
     return out
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two float64 arrays of one shape are equal bit for bit (0.0 and -0.0 differ:
+    a conversion's result may keep the sign of a zero). A translation-only command keeps
+    the reference's orientation exactly: its quaternion is the reference's."""
+    return a.shape == b.shape and count_nonzero(a.view(np.int64) == b.view(np.int64)) == a.size
 
 
 def limit_rate_cartesian_velocity(
@@ -496,9 +503,9 @@ def limit_rate_cartesian_pose(
     t_last = T_last[..., :3, 3]
     R_last = T_last[..., :3, :3]
     R_diff = T_c[..., :3, :3] @ np.swapaxes(R_last, -1, -2)
-    twist = np.concatenate(
-        ((T_c[..., :3, 3] - t_last) / dt, _rotation_vector(R_diff) / dt), axis=-1
-    )
+    twist = np.empty((*R_diff.shape[:-2], 6))
+    np.divide(T_c[..., :3, 3] - t_last, dt, out=twist[..., :3])
+    np.divide(_rotation_vector(R_diff), dt, out=twist[..., 3:])
     rotational = (_ROTATION_POSE_FACTOR * x for x in (v_rot_max, a_rot_max, j_rot_max))
     twist = _limit_twist(twist, twist_last, dtwist_last, v_max, a_max, j_max, *rotational)
     w = twist[..., 3:]
@@ -521,6 +528,9 @@ def limit_rate_cartesian_pose(
 
 def _finite_limits(*limits: ArrayLike) -> list[np.ndarray]:
     names = ("v_max", "a_max", "j_max", "v_rot_max", "a_rot_max", "j_rot_max")
+    if all(type(x) is float and math.isfinite(x) for x in limits):
+        # The common call (the env's six constants): no array round trip per limit.
+        return [np.float64(x) for x in limits]
     return [_finite(name, value) for name, value in zip(names, limits, strict=True)]
 
 
@@ -579,14 +589,15 @@ def _norm(x: np.ndarray) -> np.ndarray:
 
 def _skew(u: np.ndarray) -> np.ndarray:
     """(..., 3) -> (..., 3, 3) cross-product matrices."""
-    K = np.zeros((*u.shape, 3))
-    K[..., 0, 1] = -u[..., 2]
-    K[..., 0, 2] = u[..., 1]
-    K[..., 1, 0] = u[..., 2]
-    K[..., 1, 2] = -u[..., 0]
-    K[..., 2, 0] = -u[..., 1]
-    K[..., 2, 1] = u[..., 0]
-    return K
+    K = np.zeros((*u.shape[:-1], 9))
+    # Entries (0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1): -u2, u1, u2, -u0, -u1, u0.
+    K[..., _SKEW_SLOTS] = u[..., _SKEW_SOURCE] * _SKEW_SIGN
+    return K.reshape(*u.shape, 3)
+
+
+_SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
+_SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
+_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
 
 
 def _rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
@@ -596,60 +607,91 @@ def _rotation_to_quaternion(R: np.ndarray) -> np.ndarray:
     ``w`` is computed first (then ``w > 0``); otherwise the component of the
     largest diagonal entry (first one on ties), so the square root is always
     taken of a number >= 1 and nothing is divided by a small value. Row ``b`` of
-    the symmetric matrix below is ``4 q_b q``; the chosen row divided by
-    ``4 q_b = 2 sqrt(K[b, b])`` is the quaternion.
+    the symmetric matrix ``K`` (:data:`_SHEPPERD_ROWS`) is ``4 q_b q``; the chosen
+    row divided by ``4 q_b = 2 sqrt(K[b, b])`` is the quaternion.
     """
     lead = R.shape[:-2]
-    R = R.reshape(-1, 3, 3)
-    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    flat = R.reshape(-1, 9)
+    m00, m11, m22 = flat[:, 0], flat[:, 4], flat[:, 8]
     trace = m00 + m11 + m22
-    if count_nonzero(trace > 0.0) == len(R):
+    positive = trace > 0.0
+    n_positive = count_nonzero(positive)
+    if n_positive == len(flat):
         # Every angle below 120 degrees -- always so for the pose limiter's one-cycle
         # difference: row 0 for all.
-        t = np.sqrt(trace + 1.0)
-        h = 0.5 / t
-        q = np.empty((len(R), 4))
-        q[:, 0] = 0.5 * t
-        q[:, 1] = (R[:, 2, 1] - R[:, 1, 2]) * h
-        q[:, 2] = (R[:, 0, 2] - R[:, 2, 0]) * h
-        q[:, 3] = (R[:, 1, 0] - R[:, 0, 1]) * h
-        return q.reshape(*lead, 4)
-    K = np.empty((len(R), 4, 4))
-    K[:, 0, 0] = trace + 1.0
-    K[:, 1, 1] = m00 - m11 - m22 + 1.0
-    K[:, 2, 2] = m11 - m22 - m00 + 1.0
-    K[:, 3, 3] = m22 - m00 - m11 + 1.0
-    K[:, 0, 1] = K[:, 1, 0] = R[:, 2, 1] - R[:, 1, 2]
-    K[:, 0, 2] = K[:, 2, 0] = R[:, 0, 2] - R[:, 2, 0]
-    K[:, 0, 3] = K[:, 3, 0] = R[:, 1, 0] - R[:, 0, 1]
-    K[:, 1, 2] = K[:, 2, 1] = R[:, 0, 1] + R[:, 1, 0]
-    K[:, 1, 3] = K[:, 3, 1] = R[:, 0, 2] + R[:, 2, 0]
-    K[:, 2, 3] = K[:, 3, 2] = R[:, 1, 2] + R[:, 2, 1]
-    diag = np.where(m11 > m00, 1, 0)
-    diag = np.where(m22 > np.where(diag == 1, m11, m00), 2, diag)
-    branch = np.where(trace > 0.0, 0, diag + 1)
-    rows = np.arange(len(R))
-    t = np.sqrt(K[rows, branch, branch])
-    q = K[rows, branch] * (0.5 / t)[:, None]
-    q[rows, branch] = 0.5 * t
+        return _quaternion_from_row(flat, 0, trace).reshape(*lead, 4)
+    # The largest diagonal entry, the first one on ties (argmax's rule too).
+    largest = np.argmax(flat[:, ::4], axis=1) + 1
+    branch = largest if n_positive == 0 else np.where(positive, 0, largest)
+    first = int(branch[0])
+    if count_nonzero(branch == first) == len(flat):
+        # One branch for every rotation (always so for one arm; a half turn about x,
+        # the FR3's flange pointing down, takes row 1).
+        return _quaternion_from_row(flat, first, trace).reshape(*lead, 4)
+    q = np.empty((len(flat), 4))
+    for b in np.unique(branch).tolist():
+        rows = branch == b
+        q[rows] = _quaternion_from_row(flat[rows], b, trace[rows])
     return q.reshape(*lead, 4)
 
 
+def _quaternion_from_row(flat: np.ndarray, b: int, trace: np.ndarray) -> np.ndarray:
+    """(n, 4) quaternions from row ``b`` of Shepperd's ``K`` of (n, 9) row-major rotations.
+
+    The diagonal entry ``K[b, b] = 4 q_b^2`` is ``trace + 1`` (b = 0) or, for b = 1, 2, 3,
+    ``1 + 2 m_bb - trace`` evaluated as ``m_bb - m_b'b' - m_b''b'' + 1``; the other three
+    entries of the row are skew differences or symmetric sums of R (:data:`_SHEPPERD_ROWS`).
+    """
+    if b == 0:
+        k_bb = trace + 1.0
+    else:
+        d0, d1, d2 = (flat[:, 4 * ((b - 1 + k) % 3)] for k in range(3))
+        k_bb = d0 - d1 - d2 + 1.0
+    others, plus, minus, sign = _SHEPPERD_ROWS[b]
+    t = np.sqrt(k_bb)
+    q = np.empty((len(flat), 4))
+    q[:, b] = 0.5 * t
+    q[:, others] = (flat[:, plus] + sign * flat[:, minus]) * (0.5 / t)[:, None]
+    return q
+
+
+#: Row b of Shepperd's symmetric K, off the diagonal: the quaternion components it
+#: yields, and each entry as flat[plus] + sign * flat[minus] over the row-major R --
+#: K[0, 1:] = (R21 - R12, R02 - R20, R10 - R01), K[1, 2] = R01 + R10,
+#: K[1, 3] = R02 + R20, K[2, 3] = R12 + R21.
+_SHEPPERD_ROWS = tuple(
+    (np.array(others), np.array(plus), np.array(minus), np.array(sign))
+    for others, plus, minus, sign in (
+        ((1, 2, 3), (7, 2, 3), (5, 6, 1), (-1.0, -1.0, -1.0)),
+        ((0, 2, 3), (7, 1, 2), (5, 3, 6), (-1.0, 1.0, 1.0)),
+        ((0, 1, 3), (2, 1, 5), (6, 3, 7), (-1.0, 1.0, 1.0)),
+        ((0, 1, 2), (3, 2, 5), (1, 6, 7), (-1.0, 1.0, 1.0)),
+    )
+)
+
+
 def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions (w, x, y, z) to (..., 3, 3) rotation matrices."""
-    w, x, y, z = (q[..., i] for i in range(4))
-    tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
-    R = np.empty((*q.shape[:-1], 3, 3))
-    R[..., 0, 0] = 1.0 - (ty * y + tz * z)
-    R[..., 0, 1] = tx * y - tz * w
-    R[..., 0, 2] = tx * z + ty * w
-    R[..., 1, 0] = tx * y + tz * w
-    R[..., 1, 1] = 1.0 - (tx * x + tz * z)
-    R[..., 1, 2] = ty * z - tx * w
-    R[..., 2, 0] = tx * z - ty * w
-    R[..., 2, 1] = ty * z + tx * w
-    R[..., 2, 2] = 1.0 - (tx * x + ty * y)
-    return R
+    """(..., 4) unit quaternions (w, x, y, z) to (..., 3, 3) rotation matrices.
+
+    Entry by entry ``R[i, j] = [1 -] (P[a] +- P[b])`` over the products ``P[k, l] =
+    (2 q_k) q_l`` (:data:`_QUATERNION_TERMS`): e.g. ``R[0, 0] = 1 - (2yy + 2zz)``,
+    ``R[0, 1] = 2xy - 2zw``, as Eigen's ``toRotationMatrix`` -- in a few array calls.
+    """
+    lead = q.shape[:-1]
+    P = ((2.0 * q)[..., :, None] * q[..., None, :]).reshape(*lead, 16)
+    R = P[..., _QUATERNION_TERMS[0]] + _QUATERNION_TERMS[2] * P[..., _QUATERNION_TERMS[1]]
+    R[..., ::4] = 1.0 - R[..., ::4]
+    return R.reshape(*lead, 3, 3)
+
+
+#: _quaternion_to_rotation: for each entry of R (row-major), the flat indices a and b
+#: into the products P (index 4k + l for (2 q_k) q_l, q = (w, x, y, z)) and the sign
+#: of P[b]; the diagonal entries are then taken from 1.
+_QUATERNION_TERMS = (
+    np.array([10, 6, 7, 6, 5, 11, 7, 11, 5]),  # yy, xy, xz; xy, xx, yz; xz, yz, xx
+    np.array([15, 12, 8, 12, 15, 4, 8, 4, 10]),  # zz, zw, yw; zw, zz, xw; yw, xw, yy
+    np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0]),
+)
 
 
 def _quaternion_slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -657,10 +699,14 @@ def _quaternion_slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarr
     d = np.einsum("...i,...i->...", q0, q1)
     abs_d = np.abs(d)
     linear = abs_d >= _SLERP_LINEAR
-    theta = np.arccos(np.minimum(abs_d, 1.0))
-    sin_theta = np.where(linear, 1.0, np.sin(theta))
-    s0 = np.where(linear, 1.0 - t, np.sin((1.0 - t) * theta) / sin_theta)
-    s1 = np.where(linear, t, np.sin(t * theta) / sin_theta)
+    if count_nonzero(linear) == linear.size:
+        # Every pair (nearly) equal -- a settled orientation: no trigonometry.
+        s0, s1 = np.broadcast_to(1.0 - t, d.shape), np.broadcast_to(t, d.shape)
+    else:
+        theta = np.arccos(np.minimum(abs_d, 1.0))
+        sin_theta = np.where(linear, 1.0, np.sin(theta))
+        s0 = np.where(linear, 1.0 - t, np.sin((1.0 - t) * theta) / sin_theta)
+        s1 = np.where(linear, t, np.sin(t * theta) / sin_theta)
     s1 = np.where(d < 0.0, -s1, s1)
     return s0[..., None] * q0 + s1[..., None] * q1
 

@@ -181,14 +181,19 @@ class CartesianGenerators:
         else:
             elbow = self.elbow
         has_elbow = e_new | e_keep
+        # The elbow's history matters only while some robot streams (or streamed) one.
+        elbow_in_use = bool(count_nonzero(has_elbow) or count_nonzero(self.has_elbow))
         # -- derivatives ----------------------------------------------------------------------
         d = rules.pose_derivatives(T_cand, self.T, self.v, self.omega, self.a, self.alpha, 1)
         dtwist = (twist - self.twist) / _DT
         ddtwist = (dtwist - self.dtwist) / _DT
-        de = rules.elbow_derivatives(elbow[:, 0], self.elbow[:, 0], self.de, self.dde, 1)
+        if elbow_in_use:
+            de = rules.elbow_derivatives(elbow[:, 0], self.elbow[:, 0], self.de, self.dde, 1)
+        else:  # unread: row 17 needs an elbow, the history is kept only while one streams
+            de = rules.ElbowDerivatives(*(np.zeros(c.n),) * 3)
         # -- the joint side: IK from the previous solution -----------------------------------
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
-        e_fixed = np.where(has_elbow, elbow[:, 0], np.nan)
+        e_fixed = np.where(has_elbow, elbow[:, 0], np.nan) if elbow_in_use else None
         ik = self.kinematics.solve(T_cand, self.q_ik, F_T_EE, e_fixed, rows=active)
         dq, ddq, dddq = rules.joint_side(ik.q, self.q_ik, self.dq_ik, self.ddq_ik, 1)
         warm = ik.converged & ~first
@@ -299,13 +304,13 @@ class CartesianGenerators:
         real = have & apply
         a = apply[:, None]
         at_rest = (first & apply)[:, None]
-        zero3 = np.zeros((c.n, 3))
         np.copyto(self.T, T_cand, where=a[:, :, None])
         v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
         if any_lost:
             v, omega = np.where(x, v_ex, v), np.where(x, w_ex, omega)
             acc, alpha = np.where(x, self.a_frozen, acc), np.where(x, self.alpha_frozen, alpha)
         if count_nonzero(first):
+            zero3 = np.zeros((c.n, 3))
             v, omega = np.where(at_rest, zero3, v), np.where(at_rest, zero3, omega)
             acc, alpha = np.where(at_rest, zero3, acc), np.where(at_rest, zero3, alpha)
         np.copyto(self.v, v, where=a)
@@ -326,8 +331,9 @@ class CartesianGenerators:
         # then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
         # acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion).
         if m.n_cartesian_position:
-            w_base = np.einsum("nij,nj->ni", self.T[:, :3, :3], self.omega)
-            spatial = np.concatenate([self.v, w_base], axis=1)
+            spatial = np.empty((c.n, 6))
+            spatial[:, :3] = self.v
+            np.einsum("nij,nj->ni", self.T[:, :3, :3], self.omega, out=spatial[:, 3:])
             reported = (
                 spatial
                 if m.n_cartesian_position == c.n

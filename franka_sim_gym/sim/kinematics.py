@@ -20,6 +20,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from ..fci._fast import count_nonzero
 from .world import ArmLayout
 
 #: Joint 3 is the FR3's redundancy angle (seed "RobotState fields": elbow[0] = q[2]).
@@ -45,18 +46,18 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     skew part's direction, except within 1e-6 of pi, where the skew part vanishes
     and the axis comes from the symmetric part.
     """
-    vee = np.stack(
-        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
-        axis=-1,
-    )
+    flat = R.reshape(*R.shape[:-2], 9)
+    # (R21 - R12, R02 - R20, R10 - R01): one gather each side instead of three stacks.
+    vee = flat[..., _VEE_PLUS] - flat[..., _VEE_MINUS]
     two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
-    two_cos = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0
+    two_cos = flat[..., 0] + flat[..., 4] + flat[..., 8] - 1.0
     angle = np.arctan2(two_sin, two_cos)
     # angle / (2 sin angle) -> 1/2 + angle^2 / 12 as the angle -> 0.
-    scale = np.where(two_sin > 1e-12, angle / np.where(two_sin > 1e-12, two_sin, 1.0), 0.5)
+    turning = two_sin > 1e-12
+    scale = np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)
     out = vee * scale[..., None]
     near_pi = np.pi - angle < 1e-6
-    if near_pi.any():
+    if count_nonzero(near_pi):
         sym = (R[near_pi] + np.eye(3)) * 0.5
         k = np.argmax(np.diagonal(sym, axis1=-2, axis2=-1), axis=-1)
         axis = sym[np.arange(len(k)), :, k]
@@ -67,19 +68,14 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
 
 def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     """(..., 3) rotation vectors to (..., 3, 3) matrices (Rodrigues)."""
-    angle = np.linalg.norm(rotvec, axis=-1)
+    # np.linalg.norm's own arithmetic, without its dispatch.
+    angle = np.sqrt(np.add.reduce(rotvec * rotvec, axis=-1))
     small = angle < 1e-8
     safe = np.where(small, 1.0, angle)
-    kx, ky, kz = (rotvec[..., i] for i in range(3))
-    zero = np.zeros_like(kx)
-    K = np.stack(
-        [
-            np.stack([zero, -kz, ky], -1),
-            np.stack([kz, zero, -kx], -1),
-            np.stack([-ky, kx, zero], -1),
-        ],
-        -2,
-    )
+    lead = rotvec.shape[:-1]
+    K = np.zeros((*lead, 9), dtype=rotvec.dtype)
+    K[..., _SKEW_SLOTS] = rotvec[..., _SKEW_SOURCE] * _SKEW_SIGN
+    K = K.reshape(*lead, 3, 3)
     a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
     b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
     return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
@@ -97,6 +93,14 @@ def _rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 _VEE_A = np.array([2, 0, 1])
 _VEE_B = np.array([1, 2, 0])
+#: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
+_VEE_PLUS = np.array([7, 2, 3])
+_VEE_MINUS = np.array([5, 6, 1])
+#: rotation_exp's cross-product matrix K of k, flat: entries (0, 1), (0, 2), (1, 0),
+#: (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
+_SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
+_SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
+_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
 
 
 class ArmKinematics:
@@ -143,7 +147,7 @@ class ArmKinematics:
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
         """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q."""
-        if self._cached is not None and np.array_equal(q, self._cached_q):
+        if self._cached is not None and count_nonzero(q == self._cached_q) == q.size:
             return self._cached
         d = self.data
         d.qpos[self._qpos] = q
@@ -204,7 +208,7 @@ class ArmKinematics:
         fixed = None
         if elbow is not None:
             fixed = active & np.isfinite(elbow)
-            if fixed.any():
+            if count_nonzero(fixed):
                 q[fixed, ELBOW_JOINT] = elbow[fixed]
             else:
                 fixed = None
@@ -218,7 +222,8 @@ class ArmKinematics:
             e_rot = np.sqrt(np.einsum("ij,ij->i", e[:, 3:], e[:, 3:]))
             converged = (e_pos <= self.tolerance) & (e_rot <= self.tolerance)
             todo = active & ~converged
-            if iteration == self.max_iterations or not todo.any():
+            n_todo = count_nonzero(todo)
+            if iteration == self.max_iterations or not n_todo:
                 break
             if fixed is not None:
                 J = J.copy()
@@ -227,7 +232,7 @@ class ArmKinematics:
             JJt += self._eye6
             y = np.linalg.solve(JJt, e[..., None])
             step = (J.transpose(0, 2, 1) @ y)[..., 0]
-            if not todo.all():
+            if n_todo != self.n:
                 step[~todo] = 0.0
             q += step
         return IkResult(q, converged | ~active, e_pos, e_rot)

@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...sim.kinematics import rotation_log
+from .._fast import count_nonzero
 from ..errors import Error
 from ..frames import from_wire
 from ..tables import RobotTable
@@ -205,7 +206,7 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
     kMaxElbow* limits (after the first command)."""
     continuing = later & elbow.has & elbow.had
     sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
-    if not elbow.has.any():
+    if not count_nonzero(elbow.has):
         return sign, elbow.has
     e_c, d = elbow.command[:, 0], elbow.derivatives
     out_of_range = ~((e_c >= table.q_lower[2]) & (e_c <= table.q_upper[2]))
@@ -220,15 +221,26 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
 def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     """The IK solution's acceleration over kMaxJointAcceleration, its jerk over
     kMaxJointJerk (the robot's per-joint tables times the discontinuity scale)."""
-    acc = joint.checked & (np.abs(joint.ddq) > table.ik_ddq_max * scale).any(axis=1)
-    jerk = joint.checked & (np.abs(joint.dddq) > table.ik_dddq_max * scale).any(axis=1)
-    return acc, jerk
+    checked = joint.checked
+    if not count_nonzero(checked):
+        return checked, checked
+    return (
+        checked & _any_row(np.abs(joint.ddq) > table.ik_ddq_max * scale),
+        checked & _any_row(np.abs(joint.dddq) > table.ik_dddq_max * scale),
+    )
+
+
+def _any_row(x: np.ndarray) -> np.ndarray:
+    """(n,) ``x.any(axis=1)`` of a bool (n, k), without the reduction when none is set."""
+    return x.any(axis=1) if count_nonzero(x) else np.zeros(len(x), dtype=bool)
 
 
 def _over(halves: list, limits2: np.ndarray) -> np.ndarray:
     """(n, k) each (n, 3) vector's norm over its limit, in one pass ("not inside": NaN
     trips). ``limits2`` are the squared limits, (k,)."""
-    x = np.stack(halves, axis=1)
+    x = np.empty((len(halves[0]), len(halves), 3))
+    for k, half in enumerate(halves):  # np.stack's copy, without its checks
+        x[:, k] = half
     return ~(np.einsum("nkj,nkj->nk", x, x) <= limits2)
 
 
@@ -280,7 +292,7 @@ def check_cartesian_pose(
     """
     first = np.asarray(first, dtype=bool)
     later = ~first
-    starting = first.any()
+    starting = count_nonzero(first) > 0
     if starting:
         T_m = from_wire(O_T_EE)
         dp = _norm(T_c[:, :3, 3] - T_m[:, :3, 3])
@@ -301,9 +313,9 @@ def check_cartesian_pose(
     over &= later[:, None]
     ik29, ik30 = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, later, table)
-    if not (starting or elbow.has.any() or over.any() or ik29.any() or ik30.any()):
+    if not (starting or _any(elbow.has, over, ik29, ik30)):
         # Mid-motion, no elbow, nothing over: the common case, without the selection.
-        return CartesianCheck(np.full(first.shape[0], NO_ERROR, np.int64), None)
+        return _no_error(len(first))
     acc = over[:, 0] | over[:, 1]
     vel = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
@@ -333,11 +345,23 @@ def check_cartesian_velocity(
     over = _over(halves + [ddtwist[:, :3], ddtwist[:, 3:]], _limits2(table))
     ik_acc, ik_jerk = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
+    if not _any(over, ik_acc, ik_jerk, sign, elbow_limit):
+        return _no_error(len(first))  # nothing over: the common case, without the selection
     acc = over[:, 0] | over[:, 1]
     vel = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
     tripped = np.stack([acc, jerk, vel, ik_acc | ik_jerk, sign, elbow_limit], axis=1)
     return CartesianCheck(select(tripped, TWIST_CODES), tripped)
+
+
+def _any(*tripped: np.ndarray) -> bool:
+    """Whether any of the bool arrays has an entry set."""
+    return any(count_nonzero(x) for x in tripped)
+
+
+def _no_error(n: int) -> CartesianCheck:
+    """No robot tripped a row (``tripped`` is then not built)."""
+    return CartesianCheck(np.full(n, NO_ERROR, np.int64), None)
 
 
 def describe_cartesian(i: int, error: int, row: str, quantities: dict) -> Violation:
