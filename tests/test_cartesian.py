@@ -470,3 +470,27 @@ def test_fr3_calibration_2_5_passes_and_3_5_is_refused(a, refused):
     assert errors(c) == (
         ("cartesian_motion_generator_joint_velocity_discontinuity",) if refused else ()
     )
+
+
+def test_an_unreachable_pose_holds_the_arm_at_its_last_usable_solution(caplog):
+    """A resumed stream 1 m off (what a stalled client sends with enforcement off): the
+    IK cannot converge; the servo holds the last usable solution instead of following a
+    diverging iterate into the stops, and the arm comes back when the pose does."""
+    c = start(CP, enforce_motion_limits=False)
+    T0 = pose0(c)
+    c.send(O_T_EE_c=T0)
+    held = c.ctrl.engine.cartesian.q_ik[0].copy()
+    far = T0.copy()
+    far[12] += 1.0
+    far[14] -= 1.0
+    with caplog.at_level("WARNING"):
+        for _ in range(300):
+            c.send(O_T_EE_c=far)
+    assert "no converged IK solution" in caplog.text
+    assert c.state["robot_mode"] == RobotMode.kMove
+    np.testing.assert_array_equal(c.ctrl.engine.cartesian.q_ik[0], held)
+    assert np.abs(c.state["dq"]).max() < 1e-2  # at rest, not flailing
+    np.testing.assert_allclose(c.state["q"], held, atol=2e-3)
+    for _ in range(500):
+        c.send(O_T_EE_c=T0)
+    np.testing.assert_allclose(c.state["O_T_EE"][12:15], T0[12:15], atol=1e-3)

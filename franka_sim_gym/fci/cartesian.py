@@ -30,7 +30,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..sim.kinematics import ArmKinematics, rotation_exp
+from ..sim.kinematics import (
+    USABLE_POSITION_ERROR,
+    USABLE_ROTATION_ERROR,
+    ArmKinematics,
+    rotation_exp,
+)
 from . import extrapolation
 from ._fast import count_nonzero
 from .errors import Error
@@ -358,7 +363,14 @@ class CartesianGenerators:
             self.has_elbow = np.where(apply, has_elbow, self.has_elbow)
         # The joint history: rebased at rest on the opening command and after a failure.
         rebase = apply & (first | ~ik.converged)
-        np.copyto(self.q_ik, ik.q, where=a)
+        # The servo's reference: the solution, unless the solve ended far from the target
+        # (an unreachable pose): then it holds the last usable one instead of following a
+        # diverging iterate into the stops (the arm would flail at full torque).
+        usable = ik.converged | (
+            (ik.position_error <= USABLE_POSITION_ERROR)
+            & (ik.rotation_error <= USABLE_ROTATION_ERROR)
+        )
+        np.copyto(self.q_ik, ik.q, where=(apply & usable)[:, None])
         np.copyto(self.dq_ik, np.where(rebase[:, None], 0.0, dq), where=a)
         np.copyto(self.ddq_ik, np.where(rebase[:, None], 0.0, ddq), where=a)
         # The opening command starts the history at rest, which is true: the joint side is

@@ -103,6 +103,17 @@ _SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
 _SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
 
 
+#: The largest joint change [rad] of one Gauss-Newton update. A tracked pose moves the
+#: solution by milliradians a cycle; only a jump to an unreachable pose hits this.
+MAX_STEP = 0.5
+
+#: A solution this close to its target [m, rad] still drives the servo when the solve
+#: stopped short of ``tolerance`` (near a singularity); farther, the target is
+#: unreachable from here and the servo holds the last usable solution.
+USABLE_POSITION_ERROR = 1e-3
+USABLE_ROTATION_ERROR = 1e-2
+
+
 class ArmKinematics:
     """Kinematics of the n arms of a world, on a private MjData (physics is not touched).
 
@@ -234,5 +245,10 @@ class ArmKinematics:
             step = (J.transpose(0, 2, 1) @ y)[..., 0]
             if n_todo != self.n:
                 step[~todo] = 0.0
+            # An unreachable target makes the damped step grow without bound near a
+            # singularity; cap it, so a solve that cannot converge cannot run away.
+            biggest = np.abs(step).max(axis=1)
+            if (biggest > MAX_STEP).any():
+                step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
             q += step
         return IkResult(q, converged | ~active, e_pos, e_rot)
