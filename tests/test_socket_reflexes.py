@@ -23,8 +23,18 @@ pytestmark = pytest.mark.socket
 def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
     serve, client, provocation, error
 ):
-    server = serve("--enforce-motion-limits")
-    r = client("pylibfranka", "reflex", server.host, env={"REFLEX": provocation}, timeout=90)
+    # With enforcement on, a cycle a loaded machine steals from the client's next motion
+    # trips a discontinuity when its stream resumes (the seed's real-robot trap). Such an
+    # attempt (the next motion aborted after lost cycles, by the server's own count)
+    # proves nothing about recovery and is repeated; any other outcome is judged.
+    for _attempt in range(3):
+        server = serve("--enforce-motion-limits")
+        r = client("pylibfranka", "reflex", server.host, env={"REFLEX": provocation}, timeout=90)
+        server.stop()
+        summaries = motion_summaries(server.log())
+        lost_in_next = summaries[-1][1] if len(summaries) >= 2 else 0
+        if not (r.get("next_motion_error") and lost_in_next > 0):
+            break
     assert "exception" not in r, r
     assert r["error"] is not None, r
     assert "motion aborted by reflex" in r["error"]
