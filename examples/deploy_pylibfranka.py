@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 import pylibfranka as fr
+from evaluate import DEFAULT_ALGO, DEFAULT_ENV_ID, load_model  # examples/evaluate.py
 
 from franka_sim_gym.envs.commands import CARTESIAN, CommandGenerator
 from franka_sim_gym.envs.observation import build_observation, observation_space
@@ -58,8 +59,6 @@ _VELOCITY = ("joint_velocity", "cartesian_velocity")
 _SETTLE_CYCLES = 1000
 #: At rest: the reference's velocity (rad/s; m/s and rad/s) and its rate below these.
 _REST_VELOCITY, _REST_ACCELERATION = 1e-3, 5e-2
-DEFAULT_ENV_ID = "FrankaFCI-v0"
-DEFAULT_ALGO = "sac"
 
 
 def _start(robot, interface: str):
@@ -274,37 +273,6 @@ def env_settings(env_id: str, env_kwargs: dict) -> dict:
     return {**gym.spec(env_id).kwargs, **env_kwargs}
 
 
-def train_config(model: str | Path) -> dict:
-    """train_sb3.py's ``train_config.json`` next to ``model`` ({} when there is none)."""
-    path = Path(model).parent / "train_config.json"
-    return json.loads(path.read_text()) if path.exists() else {}
-
-
-def load_policy(path: str, algo: str, env_kwargs: dict, env_id: str = DEFAULT_ENV_ID):
-    """An SB3 model saved by train_sb3.py (HER-trained models load with an env for spaces)."""
-    import gymnasium as gym
-    import torch
-    from stable_baselines3 import PPO, SAC, TD3
-
-    import franka_sim_gym  # noqa: F401  (registers the ids)
-
-    torch.set_num_threads(1)  # inference inside the 1 kHz loop: no thread pool wake-ups
-    env = gym.make(env_id, **env_kwargs)
-    return {"sac": SAC, "td3": TD3, "ppo": PPO}[algo].load(path, env=env)
-
-
-def resolve(args: argparse.Namespace) -> tuple[str, str, dict]:
-    """(algo, env id, env kwargs): the flags given, else train_config.json's, else defaults."""
-    config = train_config(args.model)
-    algo = args.algo or config.get("algo", DEFAULT_ALGO)
-    env_id = args.env_id or config.get("env_id", DEFAULT_ENV_ID)
-    if args.env_kwargs is not None:
-        env_kwargs = json.loads(args.env_kwargs)
-    else:
-        env_kwargs = dict(config.get("env_kwargs", {}))
-    return algo, env_id, env_kwargs
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--host", default="127.0.0.1", help="robot (or simulator) address")
@@ -326,9 +294,10 @@ def main() -> None:
         help="JSON, as given to train_sb3.py; default: train_config.json's, else {}",
     )
     args = parser.parse_args()
-    algo, env_id, env_kwargs = resolve(args)
-    print(f"policy: {algo} on {env_id} {env_kwargs}")
-    policy = load_policy(args.model, algo, env_kwargs, env_id)
+    kwargs = json.loads(args.env_kwargs) if args.env_kwargs is not None else None
+    policy, config = load_model(Path(args.model), args.algo, args.env_id, kwargs)
+    env_id, env_kwargs = config["env_id"], config["env_kwargs"]
+    print(f"policy: {config['algo']} on {env_id} {env_kwargs}")
     settings = env_settings(env_id, env_kwargs)
     result = deploy(args.host, policy, args.episodes, args.seed, settings)
     print(f"link: min control_command_success_rate {result['link_min_success_rate']:.3f}")

@@ -23,6 +23,10 @@ import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 
+#: Without a train_config.json: what train_sb3.py's first versions trained.
+DEFAULT_ALGO = "sac"
+DEFAULT_ENV_ID = "FrankaFCI-v0"
+
 
 def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> dict:
     """One deterministic episode per arm of a batched env of ``episodes`` arms.
@@ -81,25 +85,34 @@ def record_gif(model, env_id: str, env_kwargs: dict, seed: int, path: Path) -> N
     images[0].save(path, save_all=True, append_images=images[1:], duration=step_ms, loop=0)
 
 
-def load_model(path: Path, env_id: str | None = None, env_kwargs: dict | None = None):
-    """The model and its training config (train_config.json next to it, when present)."""
+def load_model(
+    path: Path,
+    algo: str | None = None,
+    env_id: str | None = None,
+    env_kwargs: dict | None = None,
+):
+    """The model and the settings it runs with: the arguments given, else those of its
+    train_config.json (written by train_sb3.py next to it), else SAC on FrankaFCI-v0.
+
+    Returns (model, {"algo", "env_id", "env_kwargs"}).
+    """
+    import torch
     from stable_baselines3 import PPO, SAC, TD3
 
-    config = _config(path)
-    algo = {"sac": SAC, "td3": TD3, "ppo": PPO}[config.get("algo", "sac")]
-    env_id = env_id or config.get("env_id", "FrankaFCI-v0")
-    env_kwargs = config.get("env_kwargs", {}) if env_kwargs is None else env_kwargs
+    torch.set_num_threads(1)  # small networks: a thread pool costs more than it gives
+    config = train_config(path)
+    algo = algo or config.get("algo", DEFAULT_ALGO)
+    env_id = env_id or config.get("env_id", DEFAULT_ENV_ID)
+    env_kwargs = dict(config.get("env_kwargs", {})) if env_kwargs is None else env_kwargs
     # HER's replay buffer needs an env (for its spaces) to load the model.
     env = gym.make(env_id, **env_kwargs)
-    return algo.load(path, env=env, device="cpu"), {
-        **config,
-        "env_id": env_id,
-        "env_kwargs": env_kwargs,
-    }
+    model = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo].load(path, env=env, device="cpu")
+    return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 
 
-def _config(model_path: Path) -> dict:
-    config_path = model_path.parent / "train_config.json"
+def train_config(model_path: str | Path) -> dict:
+    """train_sb3.py's ``train_config.json`` next to the model ({} when there is none)."""
+    config_path = Path(model_path).parent / "train_config.json"
     return json.loads(config_path.read_text()) if config_path.exists() else {}
 
 
@@ -113,7 +126,7 @@ def main() -> None:
     parser.add_argument("--video", type=Path, default=None, help="write one episode as a GIF")
     args = parser.parse_args()
     kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
-    model, config = load_model(args.model, args.env_id, kwargs)
+    model, config = load_model(args.model, env_id=args.env_id, env_kwargs=kwargs)
     env_id, kwargs = config["env_id"], config["env_kwargs"]
     result = evaluate(model, env_id, kwargs, args.episodes, args.seed)
     print(f"{env_id} {kwargs}: {args.episodes} episodes")

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from franka_sim_gym.fci.tables import MAX_LOST_CYCLES
+
 ROOT = Path(__file__).resolve().parent.parent
 CLIENTS = Path(__file__).resolve().parent / "clients"
 _addresses = itertools.count(1)
@@ -104,9 +106,9 @@ def motion_summaries(log: str) -> list[tuple[str, int, int]]:
     return [(m[1], int(m[2]), int(m[3])) for m in re.finditer(pattern, log)]
 
 
-#: The robot extrapolates at most 20 consecutive lost cycles, then holds (seed,
-#: "What the sim does with a lost cycle"); a longer run is a starved client.
-STARVED_RUN = 20
+#: The robot extrapolates at most this many consecutive lost cycles, then holds (seed,
+#: "What the sim does with a lost cycle"); a run that long is a starved client.
+STARVED_RUN = MAX_LOST_CYCLES
 
 
 def unstarved(

@@ -173,7 +173,8 @@ class CommandGenerator:
             self._target = a * np.asarray(self.scale.torque)
 
     def command(self, state: np.ndarray, k: int, sent: np.ndarray | None = None) -> np.ndarray:
-        """The (n, 7) command for cycle ``k`` (0-based) of the step, given the newest state.
+        """Cycle ``k``'s (0-based) command, given the newest state: (n, 7) joint values or
+        torques, (n, 16) column-major O_T_EE_c, or (n, 6) O_dP_EE_c.
 
         ``sent`` marks the robots whose command is actually sent this cycle (None: all);
         a robot's first-command status ends only with a command sent.
@@ -202,10 +203,7 @@ class CommandGenerator:
             self._start = state["O_dP_EE_c"].astype(np.float64)
             self._target = six * np.repeat([sc.linear_velocity, sc.angular_velocity], 3)
             return
-        # The step's reference is the state's O_T_EE_c (float32 on the wire): re-orthonormalise
-        # its rotation so every pose sent passes libfranka's isHomogeneousTransformation.
-        T = from_wire(state["O_T_EE_c"])
-        T[:, :3, :3] = _orthonormal(T[:, :3, :3])
+        T = _reference_pose(state)
         target = T.copy()
         target[:, :3, 3] += six[:, :3] * sc.translation
         target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
@@ -223,8 +221,7 @@ class CommandGenerator:
             turn = rotation_log(target[:, :3, :3] @ start[:, :3, :3].transpose(0, 2, 1))
             out[:, :3, :3] = rotation_exp(s * turn) @ start[:, :3, :3]
             return out
-        ref = from_wire(state["O_T_EE_c"])
-        ref[:, :3, :3] = _orthonormal(ref[:, :3, :3])
+        ref = _reference_pose(state)
         out = cf.cartesian_lowpass_filter(target, ref, self.cutoff)
         if self.action_filter != "limit_rate":
             return out
@@ -240,13 +237,7 @@ class CommandGenerator:
         target = self._target
         if self.interface == "cartesian_velocity":
             ref = state["O_dP_EE_c"].astype(np.float64)
-            out = cf.lowpass_filter(target, ref, self.cutoff)
-            if self.action_filter != "limit_rate":
-                return out
-            return cf.limit_rate_cartesian_velocity(
-                out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
-            )
-        if self.interface == "joint_position":
+        elif self.interface == "joint_position":
             ref = state["q_d"].astype(np.float64)
             if self._n_first:
                 ref = np.where(self._first[:, None], target, ref)
@@ -257,6 +248,10 @@ class CommandGenerator:
         out = cf.lowpass_filter(target, ref, self.cutoff)
         if self.action_filter != "limit_rate":
             return out
+        if self.interface == "cartesian_velocity":
+            return cf.limit_rate_cartesian_velocity(
+                out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
+            )
         t, m = self.table, LIMITER_MARGIN
         a_max, j_max = t.ddq_max - m["ddq"], t.dddq_max - m["dddq"]
         if self.interface == "joint_position":
@@ -287,7 +282,13 @@ class CommandGenerator:
         return cf.limit_rate_torques(out, tau_d, t.dtau_max - m["dtau"])
 
 
-def _orthonormal(R: np.ndarray) -> np.ndarray:
-    """The nearest rotation to each (n, 3, 3) matrix (polar decomposition by SVD)."""
-    u, _, vt = np.linalg.svd(R)
-    return u @ vt
+def _reference_pose(state: np.ndarray) -> np.ndarray:
+    """The state's O_T_EE_c as (n, 4, 4) matrices, its rotation re-orthonormalised.
+
+    The v10 state carries it in float32; the nearest rotation (polar decomposition by
+    SVD) keeps every pose built on it inside libfranka's isHomogeneousTransformation.
+    """
+    T = from_wire(state["O_T_EE_c"])
+    u, _, vt = np.linalg.svd(T[:, :3, :3])
+    T[:, :3, :3] = u @ vt
+    return T

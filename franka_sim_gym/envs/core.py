@@ -180,18 +180,8 @@ class FciBatch:
         states, ee, width = self._measured()
         zeros = np.zeros(self.n, dtype=np.int64)
         no_violations = np.zeros((self.n, self.controller.errors.shape[1]), dtype=bool)
-        obs = build_observation(
-            self.observation_space,
-            states["q"],
-            states["dq"],
-            ee,
-            self.goals,
-            states["O_dP_EE_c"],
-            width,
-        )
-        info = self._info(states, ee, zeros, no_violations)
-        info["reflex_penalty"] = np.zeros(self.n)
-        return obs, info
+        obs = self._observation(states, ee, width)
+        return obs, self._info(states, ee, zeros, no_violations, np.zeros(self.n))
 
     # -- the step ------------------------------------------------------------------------------
 
@@ -278,15 +268,7 @@ class FciBatch:
         violations[running] |= ctrl.violations.take()[running]
         self.steps[active] += 1
         states, ee, width = self._measured(frozen, snapshot)
-        obs = build_observation(
-            self.observation_space,
-            states["q"],
-            states["dq"],
-            ee,
-            self.goals,
-            states["O_dP_EE_c"],
-            width,
-        )
+        obs = self._observation(states, ee, width)
         task = self.task
         reward = task.compute_reward(obs["achieved_goal"], obs["desired_goal"]).astype(np.float64)
         terminated = frozen
@@ -300,9 +282,7 @@ class FciBatch:
             penalty[frozen] = task.worst_step_reward * (remaining + 1)
             reward += penalty
         truncated = active & ~terminated & (self.steps >= self.max_episode_steps)
-        info = self._info(states, ee, lost, violations)
-        info["reflex_penalty"] = penalty
-        return obs, reward, terminated, truncated, info
+        return obs, reward, terminated, truncated, self._info(states, ee, lost, violations, penalty)
 
     # -- internals -----------------------------------------------------------------------------
 
@@ -334,7 +314,18 @@ class FciBatch:
                 width = np.where(frozen, snapshot[2], width)
         return states, ee, width
 
-    def _info(self, states, ee, lost, violations) -> dict[str, np.ndarray]:
+    def _observation(self, states, ee, width) -> dict[str, np.ndarray]:
+        return build_observation(
+            self.observation_space,
+            states["q"],
+            states["dq"],
+            ee,
+            self.goals,
+            states["O_dP_EE_c"],
+            width,
+        )
+
+    def _info(self, states, ee, lost, violations, penalty) -> dict[str, np.ndarray]:
         return {
             "errors": _names(states["errors"]),
             "reflex_reason": _names(states["reflex_reason"]),
@@ -347,6 +338,7 @@ class FciBatch:
             "violations": _names(violations),
             "cycles": self.cycles.copy(),
             "is_success": np.asarray(self.task.is_success(ee, self.goals), dtype=bool),
+            "reflex_penalty": penalty,
         }
 
     def _transmit(self, command: np.ndarray, sending: np.ndarray, lost: np.ndarray) -> None:
