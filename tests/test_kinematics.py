@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from franka_sim_gym.sim.arm import ArmPhysics
-from franka_sim_gym.sim.kinematics import ArmKinematics, rotation_exp, rotation_log
+from franka_sim_gym.sim.kinematics import (
+    ArmKinematics,
+    relative_rotation_log,
+    rotation_exp,
+    rotation_log,
+)
 from franka_sim_gym.sim.world import HOME_Q
 
 
@@ -70,3 +75,18 @@ def test_rotation_log_inverts_rotation_exp_up_to_pi():
     np.testing.assert_allclose(
         rotation_log(rotation_exp(np.array([[0, 0, np.pi]]))), [[0, 0, np.pi]]
     )
+
+
+def test_relative_rotation_log_is_the_log_of_the_relative_rotation():
+    """log(R_a^T R_b) from the pair, without the product: the pose generator's
+    angular velocity. Small, ordinary, exactly zero and near-pi relative angles."""
+    rng = np.random.default_rng(3)
+    R_a = rotation_exp(rng.normal(size=(6, 3)))
+    axes = rng.normal(size=(6, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.array([1e-9, 1e-4, 0.7, 2.5, np.pi - 1e-8, 0.0])
+    R_b = R_a @ rotation_exp(axes * angles[:, None])
+    got = relative_rotation_log(R_a, R_b)
+    np.testing.assert_allclose(got, rotation_log(R_a.transpose(0, 2, 1) @ R_b), atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(got, axis=1), angles, atol=1e-7)
+    assert not got[-1].any()

@@ -66,9 +66,15 @@ class CartesianGenerators:
         self.kinematics = ArmKinematics(physics.model, physics.layout)
         #: the commanded (pose motion) or twist-integrated (twist motion) EE pose
         self.T = np.tile(np.eye(4), (n, 1, 1))
-        self.v, self.omega = np.zeros((n, 3)), np.zeros((n, 3))
-        self.a, self.alpha = np.zeros((n, 3)), np.zeros((n, 3))
-        self.a_frozen, self.alpha_frozen = np.zeros((n, 3)), np.zeros((n, 3))
+        #: the pose's history side by side, (n, 2, 6): [[v | omega], [a | alpha]];
+        #: v, omega, a and alpha are its views (one difference per order a cycle)
+        self.history = np.zeros((n, 2, 6))
+        self.v, self.omega = self.history[:, 0, :3], self.history[:, 0, 3:]
+        self.a, self.alpha = self.history[:, 1, :3], self.history[:, 1, 3:]
+        #: the acceleration frozen for extrapolation, [a | alpha]; a_frozen, alpha_frozen views
+        self.acceleration_frozen = np.zeros((n, 6))
+        self.a_frozen = self.acceleration_frozen[:, :3]
+        self.alpha_frozen = self.acceleration_frozen[:, 3:]
         #: the commanded twist, its acceleration and the frozen acceleration
         self.twist, self.dtwist, self.dtwist_frozen = (np.zeros((n, 6)) for _ in range(3))
         #: the twist the state reports (O_dP_EE_d / O_dP_EE_c) and its rate (O_ddP_EE_c)
@@ -164,7 +170,8 @@ class CartesianGenerators:
             # (translation in the base frame, rotation composed on the left: base-frame omega).
             T_tw = self.T.copy()
             T_tw[:, :3, 3] += twist[:, :3] * _DT
-            T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ self.T[:, :3, :3]
+            if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
+                T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ self.T[:, :3, :3]
             T_cand = (
                 T_tw
                 if m.n_cartesian_velocity == c.n
@@ -189,9 +196,18 @@ class CartesianGenerators:
         # The elbow's history matters only while some robot streams (or streamed) one.
         elbow_in_use = bool(count_nonzero(has_elbow) or count_nonzero(self.has_elbow))
         # -- derivatives ----------------------------------------------------------------------
-        d = rules.pose_derivatives(T_cand, self.T, self.v, self.omega, self.a, self.alpha, 1)
-        dtwist = (twist - self.twist) / _DT
-        ddtwist = (dtwist - self.dtwist) / _DT
+        # The pose's derivatives judge pose motions (and feed their extrapolation and
+        # reported twist); the twist's judge twist motions. Each only when one runs.
+        d = (
+            rules.pose_derivatives(
+                T_cand, self.T, self.v, self.omega, self.a, self.alpha, 1, self.history
+            )
+            if m.n_cartesian_position
+            else None
+        )
+        if m.n_cartesian_velocity:
+            dtwist = (twist - self.twist) / _DT
+            ddtwist = (dtwist - self.dtwist) / _DT
         if elbow_in_use:
             de = rules.elbow_derivatives(elbow[:, 0], self.elbow[:, 0], self.de, self.dde, 1)
         else:  # unread: row 17 needs an elbow, the history is kept only while one streams
@@ -310,26 +326,31 @@ class CartesianGenerators:
         a = apply[:, None]
         at_rest = (first & apply)[:, None]
         np.copyto(self.T, T_cand, where=a[:, :, None])
-        v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
-        if any_lost:
-            v, omega = np.where(x, v_ex, v), np.where(x, w_ex, omega)
-            acc, alpha = np.where(x, self.a_frozen, acc), np.where(x, self.alpha_frozen, alpha)
-        if count_nonzero(first):
-            zero3 = np.zeros((c.n, 3))
-            v, omega = np.where(at_rest, zero3, v), np.where(at_rest, zero3, omega)
-            acc, alpha = np.where(at_rest, zero3, acc), np.where(at_rest, zero3, alpha)
-        np.copyto(self.v, v, where=a)
-        np.copyto(self.omega, omega, where=a)
-        np.copyto(self.a, acc, where=a)
-        np.copyto(self.alpha, alpha, where=a)
         r3 = real[:, None]
-        np.copyto(self.a_frozen, self.a, where=r3)
-        np.copyto(self.alpha_frozen, self.alpha, where=r3)
-        np.copyto(self.twist, twist, where=a)
-        np.copyto(
-            self.dtwist, np.where(x, self.dtwist_frozen, dtwist) if any_lost else dtwist, where=a
-        )
-        np.copyto(self.dtwist_frozen, self.dtwist, where=r3)
+        if d is not None:
+            if any_lost or count_nonzero(first):
+                v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
+                if any_lost:
+                    v, omega = np.where(x, v_ex, v), np.where(x, w_ex, omega)
+                    acc = np.where(x, self.a_frozen, acc)
+                    alpha = np.where(x, self.alpha_frozen, alpha)
+                if count_nonzero(first):
+                    zero3 = np.zeros((c.n, 3))
+                    v, omega = np.where(at_rest, zero3, v), np.where(at_rest, zero3, omega)
+                    acc, alpha = np.where(at_rest, zero3, acc), np.where(at_rest, zero3, alpha)
+                np.copyto(self.v, v, where=a)
+                np.copyto(self.omega, omega, where=a)
+                np.copyto(self.a, acc, where=a)
+                np.copyto(self.alpha, alpha, where=a)
+            else:  # every value a real difference: the history's two orders in one copy
+                np.copyto(self.history, d.stacked[:, :2], where=a[:, :, None])
+            np.copyto(self.acceleration_frozen, self.history[:, 1], where=r3)
+        if m.n_cartesian_velocity:
+            np.copyto(self.twist, twist, where=a)
+            if any_lost:
+                dtwist = np.where(x, self.dtwist_frozen, dtwist)
+            np.copyto(self.dtwist, dtwist, where=a)
+            np.copyto(self.dtwist_frozen, self.dtwist, where=r3)
         # What the state reports as the commanded twist and its rate. A twist motion: its own
         # twist. A pose motion: the commanded pose's twist in the base frame, rotation as
         # log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and

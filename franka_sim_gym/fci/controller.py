@@ -522,6 +522,16 @@ class FciController:
             return finite.all(axis=1)
         if m.n_external == n and m.n_torque_only == n:
             return np.isfinite(commands["tau_J_d"]).all(axis=1)
+        if m.n_cartesian == n and not count_nonzero(commands["valid_elbow"]):
+            # Every robot in one Cartesian generator, no elbow: the common case.
+            if m.n_cartesian_position == n:
+                verdict = frames.is_homogeneous_wire(commands["O_T_EE_c"])
+                return self._all_true if verdict is None else verdict
+            if m.n_cartesian_velocity == n:
+                finite = np.isfinite(commands["O_dP_EE_c"])
+                if count_nonzero(finite) == finite.size:
+                    return self._all_true
+                return finite.all(axis=1)
         ok = np.ones(n, dtype=bool)
         if m.n_joint_position:
             ok &= ~m.joint_position | np.isfinite(commands["q_c"]).all(axis=1)
@@ -531,8 +541,9 @@ class FciController:
             ok &= ~m.external | np.isfinite(commands["tau_J_d"]).all(axis=1)
         if m.n_cartesian_position:
             # 31: libfranka's isHomogeneousTransformation (NaN fails it too).
-            pose_ok = frames.is_homogeneous(frames.from_wire(commands["O_T_EE_c"]))
-            ok &= ~m.cartesian_position | pose_ok
+            pose_ok = frames.is_homogeneous_wire(commands["O_T_EE_c"])
+            if pose_ok is not None:
+                ok &= ~m.cartesian_position | pose_ok
         if m.n_cartesian_velocity:
             ok &= ~m.cartesian_velocity | np.isfinite(commands["O_dP_EE_c"]).all(axis=1)
         if m.n_cartesian:

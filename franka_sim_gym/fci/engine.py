@@ -28,7 +28,6 @@ if TYPE_CHECKING:
     from .controller import FciController
 
 
-
 class MotionLimitEngine:
     """Judges what the controller is about to apply, and what the arm did."""
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._fast import count_nonzero
+
 IDENTITY16 = np.eye(4).reshape(16)
 IDENTITY16.setflags(write=False)
 
@@ -31,6 +33,43 @@ def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
     rows = np.abs(np.sqrt(np.einsum("nij,nij->ni", R, R)) - 1.0) <= tol
     cols = np.abs(np.sqrt(np.einsum("nij,nij->nj", R, R)) - 1.0) <= tol
     return bottom & rows.all(axis=1) & cols.all(axis=1) & np.isfinite(T).all(axis=(1, 2))
+
+
+def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | None:
+    """:func:`is_homogeneous` of (n, 16) column-major wire poses, for the 1 kHz path.
+
+    Returns None when every pose passes; otherwise the (n,) verdict of
+    :func:`is_homogeneous`. The quick test accepts only squared norms well inside
+    the band (half the tolerance), so a pose it passes passes the exact test too;
+    anything nearer the edge, or failing, is judged by the exact test.
+    """
+    n = len(values)
+    if count_nonzero(np.isfinite(values)) != 16 * n:  # (and no inf * 0 in the product below)
+        return is_homogeneous(from_wire(values), tol)
+    # Row and column norms alike (the wire holds R transposed: the set is the same).
+    norms2 = np.square(values.reshape(n, 4, 4)[:, :3, :3]).reshape(n, 9) @ _ROW_COL_SUMS
+    lo, hi = _quick_band(tol)
+    if (
+        count_nonzero((norms2 > lo) & (norms2 < hi)) == 6 * n
+        and count_nonzero(values[:, _BOTTOM_SLOTS] == _BOTTOM) == 4 * n
+    ):
+        return None
+    return is_homogeneous(from_wire(values), tol)
+
+
+#: (9, 6): a flat 3x3 block's squared entries to its three row sums and three column sums.
+_ROW_COL_SUMS = np.zeros((9, 6))
+for _r in range(3):
+    for _c in range(3):
+        _ROW_COL_SUMS[3 * _r + _c, _r] = _ROW_COL_SUMS[3 * _r + _c, 3 + _c] = 1.0
+#: The bottom row [0, 0, 0, 1] in the column-major wire array.
+_BOTTOM_SLOTS = np.array([3, 7, 11, 15])
+_BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _quick_band(tol: float) -> tuple[float, float]:
+    """Squared norms strictly inside |norm - 1| <= tol / 2 (so inside the exact band)."""
+    return (1.0 - 0.5 * tol) ** 2, (1.0 + 0.5 * tol) ** 2
 
 
 def is_homogeneous_transformation(values: np.ndarray, tol: float = 1e-5) -> bool:

@@ -19,9 +19,9 @@ log = logging.getLogger("franka_sim_gym.fci")
 
 #: Seed "joint_velocity_violation (3)": a commanded-envelope violation (13)
 #: latches the safety controller's 3 with it, in the same abort.
-_PAIRED = {int(Error.joint_motion_generator_velocity_limits_violation): int(
-    Error.joint_velocity_violation
-)}
+_PAIRED = {
+    int(Error.joint_motion_generator_velocity_limits_violation): int(Error.joint_velocity_violation)
+}
 
 
 def latched_bits(error: int) -> list[int]:

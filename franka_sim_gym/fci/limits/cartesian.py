@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import rotation_log
+from ...sim.kinematics import relative_rotation_log, rotation_log
 from .._fast import count_nonzero
 from ..errors import Error
 from ..frames import from_wire
@@ -113,6 +113,8 @@ class PoseDerivatives(NamedTuple):
     alpha: np.ndarray
     jerk: np.ndarray
     zeta: np.ndarray  # rotational jerk
+    #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the fields above are its views
+    stacked: np.ndarray | None = None
 
 
 class ElbowDerivatives(NamedTuple):
@@ -173,15 +175,32 @@ def pose_derivatives(
     a_prev: np.ndarray,
     alpha_prev: np.ndarray,
     steps,
+    history: np.ndarray | None = None,
 ) -> PoseDerivatives:
     """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
-    rotation as the body-frame rotation vector of R_prev^T R_c per interval."""
+    rotation as the body-frame rotation vector of R_prev^T R_c per interval.
+
+    ``history`` is the caller's (n, 2, 6) [[v | omega], [a | alpha]] when it keeps the
+    four previous values side by side (then they are its views): one difference per
+    order instead of two.
+    """
     h = interval(steps)
-    v = (T_c[:, :3, 3] - T_prev[:, :3, 3]) / h
-    omega = rotation_log(T_prev[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]) / h
-    a = (v - v_prev) / h
-    alpha = (omega - omega_prev) / h
-    return PoseDerivatives(v, omega, a, alpha, (a - a_prev) / h, (alpha - alpha_prev) / h)
+    n = len(T_c)
+    D = np.empty((n, 3, 6))
+    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=D[:, 0, :3])
+    D[:, 0, 3:] = relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3])
+    D[:, 0] /= h
+    if history is None:
+        history = np.empty((n, 2, 6))
+        history[:, 0, :3], history[:, 0, 3:] = v_prev, omega_prev
+        history[:, 1, :3], history[:, 1, 3:] = a_prev, alpha_prev
+    np.subtract(D[:, 0], history[:, 0], out=D[:, 1])
+    D[:, 1] /= h
+    np.subtract(D[:, 1], history[:, 1], out=D[:, 2])
+    D[:, 2] /= h
+    return PoseDerivatives(
+        D[:, 0, :3], D[:, 0, 3:], D[:, 1, :3], D[:, 1, 3:], D[:, 2, :3], D[:, 2, 3:], D
+    )
 
 
 def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
@@ -224,10 +243,25 @@ def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     checked = joint.checked
     if not count_nonzero(checked):
         return checked, checked
+    both = np.abs(np.concatenate((joint.ddq, joint.dddq), axis=1))
+    if not count_nonzero(both > _ik_limits(table, scale)):  # nothing over: the common case
+        return np.zeros_like(checked), np.zeros_like(checked)
     return (
         checked & _any_row(np.abs(joint.ddq) > table.ik_ddq_max * scale),
         checked & _any_row(np.abs(joint.dddq) > table.ik_dddq_max * scale),
     )
+
+
+def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
+    """(14,) the joint side's acceleration and jerk limits side by side, scaled."""
+    key = (table.name, scale)
+    cached = _IK_LIMITS.get(key)
+    if cached is None:
+        cached = _IK_LIMITS[key] = np.concatenate((table.ik_ddq_max, table.ik_dddq_max)) * scale
+    return cached
+
+
+_IK_LIMITS: dict[tuple[str, float], np.ndarray] = {}
 
 
 def _any_row(x: np.ndarray) -> np.ndarray:
@@ -261,6 +295,10 @@ def _limits2(table: RobotTable) -> np.ndarray:
 
 
 _LIMITS2: dict[str, np.ndarray] = {}
+#: PoseDerivatives.stacked's norm order [v, omega, a, alpha, jerk, zeta] from
+#: _limits2's [a, alpha, v, omega, jerk, zeta], and back.
+_STACKED_ORDER = np.array([2, 3, 0, 1, 4, 5])
+_FROM_STACKED = np.array([2, 3, 0, 1, 4, 5])
 
 
 def check_cartesian_pose(
@@ -309,7 +347,12 @@ def check_cartesian_pose(
         )
     else:
         start_pose = start_elbow = first
-    over = _over([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], _limits2(table))
+    if d.stacked is not None:  # the six norms in one pass, rows [v, omega, a, alpha, j, zeta]
+        D = d.stacked.reshape(len(first), 6, 3)
+        over = ~(np.einsum("nkj,nkj->nk", D, D) <= _limits2(table)[_STACKED_ORDER])
+        over = over[:, _FROM_STACKED]
+    else:
+        over = _over([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], _limits2(table))
     over &= later[:, None]
     ik29, ik30 = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, later, table)

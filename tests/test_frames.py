@@ -1,0 +1,53 @@
+"""The wire-level homogeneity test (error 31's gate on the 1 kHz path) agrees with the
+exact one on every pose, including those at the edge of libfranka's 1e-5 band."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from franka_sim_gym.fci.frames import from_wire, is_homogeneous, is_homogeneous_wire, to_wire
+from franka_sim_gym.sim.kinematics import rotation_exp
+
+
+def _poses(rng: np.random.Generator, n: int) -> np.ndarray:
+    T = np.zeros((n, 4, 4))
+    T[:, :3, :3] = rotation_exp(rng.normal(size=(n, 3)))
+    T[:, :3, 3] = rng.uniform(-1, 1, size=(n, 3))
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def _verdict(values: np.ndarray) -> np.ndarray:
+    quick = is_homogeneous_wire(values)
+    return np.ones(len(values), dtype=bool) if quick is None else quick
+
+
+def test_valid_poses_pass_quickly() -> None:
+    wire = to_wire(_poses(np.random.default_rng(0), 64))
+    assert is_homogeneous_wire(wire) is None
+
+
+@pytest.mark.parametrize("scale", [0.0, 2e-6, 4.9e-6, 5.1e-6, 9.9e-6, 1.01e-5, 3e-5, 1e-3])
+def test_scaled_rotation_blocks_get_the_exact_verdict(scale: float) -> None:
+    """A rotation block stretched along one row by ``scale`` sits inside, at or past the
+    band's edge; the quick test must never pass what the exact test fails."""
+    rng = np.random.default_rng(1)
+    T = _poses(rng, 32)
+    rows = rng.integers(0, 3, size=32)
+    T[np.arange(32), rows, :3] *= 1.0 + scale
+    wire = to_wire(T)
+    expected = is_homogeneous(from_wire(wire))
+    np.testing.assert_array_equal(_verdict(wire), expected)
+    assert expected.all() == (scale < 1e-5)
+
+
+@pytest.mark.parametrize("slot", [3, 7, 11, 15, 0, 5, 12, 14])
+@pytest.mark.parametrize("value", [np.nan, np.inf, 1e-9])
+def test_a_bad_entry_fails_only_its_own_pose(slot: int, value: float) -> None:
+    wire = to_wire(_poses(np.random.default_rng(2), 4))
+    wire[2, slot] = value
+    verdict = _verdict(wire)
+    np.testing.assert_array_equal(verdict, is_homogeneous(from_wire(wire)))
+    if not np.isfinite(value) or slot in (3, 7, 11, 15):
+        assert verdict.tolist() == [True, True, False, True]
