@@ -5,9 +5,18 @@ step, and the hand is polled every 4 ticks as the gripper server's 250 Hz
 timer polls it. Behaviours: state-and-command-fidelity.md "Gripper fidelity",
 with its listed divergences closed (force is a limit, stop halts in place,
 is_grasped appears as the fingers close).
+
+Everything runs in simulated time, in-process (the server's tick thread and
+250 Hz gripper timer are wall-clock paced; ``Rig`` steps both here), so the 4 s
+settle timeout is reached in well under a second of wall time. Disturbances
+are real forces in the real MjData (``Rig.push``), not mocks.
 """
 
 from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -17,14 +26,24 @@ from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.finger_drive import FingerDrive
 from franka_sim_gym.sim.gripper import Outcome
 from franka_sim_gym.sim.hand_load import hand_load
-from franka_sim_gym.sim.physics_hand import MOVE_TOLERANCE, SETTLE_POLLS, PhysicsHand
+from franka_sim_gym.sim.physics_hand import (
+    MOVE_TOLERANCE,
+    SETTLE_POLLS,
+    SETTLE_TIMEOUT,
+    PhysicsHand,
+)
 from franka_sim_gym.sim.world import HOME_Q, build_world
 
 POLL_TICKS = 4  # the gripper server's 250 Hz timer against the 1 kHz tick
 
 
 class Rig:
-    """One arm with the hand mounted, stepped tick by tick like the robot server."""
+    """One arm with the hand mounted, stepped tick by tick like the robot server.
+
+    ``push``, if set, is an external generalized force [N] on finger_joint1
+    (positive opens) as a function of simulated time, written into the real
+    MjData's ``qfrc_applied`` before every step: a disturbance, not a mock.
+    """
 
     def __init__(self, object_width: float | None = None) -> None:
         self.physics = ArmPhysics(n_arms=1, hand=True, object_width=object_width)
@@ -32,9 +51,19 @@ class Rig:
         self.hand = PhysicsHand(self.drive, object_width=object_width)
         self.ticks = 0
         self.is_grasped_while_busy = False
+        self.push: Callable[[float], float] | None = None
+        self._finger_dof = int(self.physics.layout.finger_dof_adr[0][0])
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return self.physics.time
 
     def tick(self, n: int = 1) -> None:
         for _ in range(n):
+            if self.push is not None:
+                data = self.physics.data
+                data.qfrc_applied[self._finger_dof] = self.push(float(data.time))
             self.physics.step(HOME_Q[None, :], None)
             self.drive.tick()
             self.ticks += 1
@@ -87,6 +116,82 @@ def test_settling_takes_three_consecutive_quiet_polls():
     assert rig.hand.busy
     rig.tick(POLL_TICKS)
     assert rig.hand.outcome is Outcome.SUCCESS
+
+
+#: A disturbance the fingers cannot settle under: a 10 Hz sine of 0.3 N on
+#: finger_joint1 swings the width by up to +-0.5 mm (measured; inside
+#: MOVE_TOLERANCE), so the width's velocity swings by ~3 cm/s and passes
+#: through the SETTLE_SPEED band in about a millisecond, even on top of the
+#: 2 cm/s ramp: never for the three consecutive 4 ms polls a settle needs.
+#: (0.2 N was too weak on the ramp: it let a pushed move settle by chance.)
+SHAKE_HZ = 10.0
+SHAKE_FORCE = 0.3
+#: The disturbance runs this long [ticks] before the command, so the action
+#: meets it in steady state (switched on with the command, the push jolts the
+#: fingers while the ramp starts).
+PRE_ROLL_TICKS = 500
+#: A steady inward push [N] under the shake: the servo (kp 1000 N/m per
+#: finger, models/hand.xml) yields 1.5 mm per finger, a width 3 mm short of
+#: the target, farther than MOVE_TOLERANCE.
+PUSH_INWARD = -1.5
+TARGET, SPEED = 0.04, 0.02  # a 2 s ramp from the open hand
+
+
+def shaking(offset: float = 0.0) -> Callable[[float], float]:
+    """The external force on finger_joint1 at simulated time t: ``offset`` plus the shake."""
+    return lambda t: offset + SHAKE_FORCE * math.sin(2.0 * math.pi * SHAKE_HZ * t)
+
+
+def timeout_records(caplog: pytest.LogCaptureFixture) -> list[logging.LogRecord]:
+    return [r for r in caplog.records if "gripper-settle-timeout" in r.getMessage()]
+
+
+def test_undisturbed_move_settles_long_before_the_timeout(caplog):
+    """The control case of the timeout test below: same move, no disturbance."""
+    caplog.set_level(logging.WARNING, logger="franka_sim_gym.gripper")
+    rig = Rig()
+    ramp = abs(TARGET - rig.hand.width) / SPEED
+    rig.hand.move(TARGET, SPEED)
+    seconds = rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS
+    assert seconds < ramp + 0.1 < ramp + SETTLE_TIMEOUT
+    assert timeout_records(caplog) == []
+
+
+@pytest.mark.parametrize(
+    ("offset", "outcome"),
+    [(0.0, Outcome.SUCCESS), (PUSH_INWARD, Outcome.UNSUCCESSFUL)],
+    ids=["within-tolerance", "short-of-target"],
+)
+def test_fingers_that_never_settle_are_answered_at_the_timeout(caplog, offset, outcome):
+    """Seed "Command coverage": 4 s timeout, here from the ramp's nominal end; the
+    action is then judged like a settled one (physics_hand.py)."""
+    caplog.set_level(logging.WARNING, logger="franka_sim_gym.gripper")
+    rig = Rig()
+    rig.push = shaking(offset)
+    rig.tick(PRE_ROLL_TICKS)
+    start = rig.time
+    ramp = abs(TARGET - rig.hand.width) / SPEED
+    action = rig.hand.move(TARGET, SPEED)
+    timeout_at = start + ramp + SETTLE_TIMEOUT
+
+    # Up to the last tick before ramp end + 4 s: not answered, nothing logged.
+    rig.tick(round((timeout_at - start) * 1000) - 1)
+    assert rig.hand.busy and rig.hand.take_finished() == []
+    assert timeout_records(caplog) == []
+
+    rig.run(seconds=0.1)
+    # Answered at the timeout: the first poll at or after it (the deadline counts
+    # from the action's first fresh sample, at most one poll after the command).
+    assert not rig.hand.busy
+    assert timeout_at <= rig.time <= timeout_at + 2 * POLL_TICKS * 1e-3 + 1e-9
+    assert rig.hand.take_finished() == [(action, outcome)]
+    assert len(timeout_records(caplog)) == 1
+    off_target = abs(rig.hand.width - TARGET)
+    if outcome is Outcome.SUCCESS:
+        assert off_target <= MOVE_TOLERANCE
+    else:
+        assert off_target > MOVE_TOLERANCE
 
 
 def test_grasp_of_thin_air_stalls_at_zero_and_fails():
