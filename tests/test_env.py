@@ -228,3 +228,16 @@ def test_the_mounted_hand_is_in_the_arm_dynamics():
         torques.append(float(env.unwrapped.controller.states[0]["tau_J"][3]))
     assert torques[0] == pytest.approx(18.96, abs=0.3)
     assert torques[1] - torques[0] == pytest.approx(3.3, abs=0.3)
+
+
+def test_with_the_hand_the_achieved_goal_is_its_tcp():
+    """gripper=True mounts the Franka Hand configured as Desk does (F_T_NE at its TCP):
+    O_T_EE, and so the reach task's achieved goal, is the point between the fingertips."""
+    env = gym.make("FrankaFCI-v0", gripper=True)
+    obs, _ = env.reset(seed=0)
+    physics = env.unwrapped.controller.physics
+    tcp = physics.data.site_xpos[physics.layout.tcp_site[0]] - physics.base_pos[0]
+    flange, _ = physics.flange_pose()
+    np.testing.assert_allclose(obs["achieved_goal"], tcp, atol=1e-5)
+    np.testing.assert_allclose(obs["observation"][14:17], tcp, atol=1e-5)
+    assert np.linalg.norm(obs["achieved_goal"] - flange[0]) == pytest.approx(0.1034, abs=1e-5)

@@ -5,26 +5,49 @@ step, and the hand is polled every 4 ticks as the gripper server's 250 Hz
 timer polls it. Behaviours: state-and-command-fidelity.md "Gripper fidelity",
 with its listed divergences closed (force is a limit, stop halts in place,
 is_grasped appears as the fingers close).
+
+Everything runs in simulated time, in-process (the server's tick thread and
+250 Hz gripper timer are wall-clock paced; ``Rig`` steps both here), so the 4 s
+settle timeout is reached in well under a second of wall time. Disturbances
+are real forces in the real MjData (``Rig.push``), not mocks.
 """
 
 from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 import pytest
 
+from franka_sim_gym.fci import frames
+from franka_sim_gym.fci.controller import FciController
+from franka_sim_gym.fci.protocol import SetterStatus
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.finger_drive import FingerDrive
 from franka_sim_gym.sim.gripper import Outcome
 from franka_sim_gym.sim.hand_load import hand_load
-from franka_sim_gym.sim.physics_hand import MOVE_TOLERANCE, SETTLE_POLLS, PhysicsHand
+from franka_sim_gym.sim.kinematics import ArmKinematics
+from franka_sim_gym.sim.physics_hand import (
+    MOVE_TOLERANCE,
+    SETTLE_POLLS,
+    SETTLE_TIMEOUT,
+    PhysicsHand,
+)
 from franka_sim_gym.sim.world import HOME_Q, build_world
 
 POLL_TICKS = 4  # the gripper server's 250 Hz timer against the 1 kHz tick
 
 
 class Rig:
-    """One arm with the hand mounted, stepped tick by tick like the robot server."""
+    """One arm with the hand mounted, stepped tick by tick like the robot server.
+
+    ``push``, if set, is an external generalized force [N] on finger_joint1
+    (positive opens) as a function of simulated time, written into the real
+    MjData's ``qfrc_applied`` before every step: a disturbance, not a mock.
+    """
 
     def __init__(self, object_width: float | None = None) -> None:
         self.physics = ArmPhysics(n_arms=1, hand=True, object_width=object_width)
@@ -32,9 +55,19 @@ class Rig:
         self.hand = PhysicsHand(self.drive, object_width=object_width)
         self.ticks = 0
         self.is_grasped_while_busy = False
+        self.push: Callable[[float], float] | None = None
+        self._finger_dof = int(self.physics.layout.finger_dof_adr[0][0])
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return self.physics.time
 
     def tick(self, n: int = 1) -> None:
         for _ in range(n):
+            if self.push is not None:
+                data = self.physics.data
+                data.qfrc_applied[self._finger_dof] = self.push(float(data.time))
             self.physics.step(HOME_Q[None, :], None)
             self.drive.tick()
             self.ticks += 1
@@ -87,6 +120,82 @@ def test_settling_takes_three_consecutive_quiet_polls():
     assert rig.hand.busy
     rig.tick(POLL_TICKS)
     assert rig.hand.outcome is Outcome.SUCCESS
+
+
+#: A disturbance the fingers cannot settle under: a 10 Hz sine of 0.3 N on
+#: finger_joint1 swings the width by up to +-0.5 mm (measured; inside
+#: MOVE_TOLERANCE), so the width's velocity swings by ~3 cm/s and passes
+#: through the SETTLE_SPEED band in about a millisecond, even on top of the
+#: 2 cm/s ramp: never for the three consecutive 4 ms polls a settle needs.
+#: (0.2 N was too weak on the ramp: it let a pushed move settle by chance.)
+SHAKE_HZ = 10.0
+SHAKE_FORCE = 0.3
+#: The disturbance runs this long [ticks] before the command, so the action
+#: meets it in steady state (switched on with the command, the push jolts the
+#: fingers while the ramp starts).
+PRE_ROLL_TICKS = 500
+#: A steady inward push [N] under the shake: the servo (kp 1000 N/m per
+#: finger, models/hand.xml) yields 1.5 mm per finger, a width 3 mm short of
+#: the target, farther than MOVE_TOLERANCE.
+PUSH_INWARD = -1.5
+TARGET, SPEED = 0.04, 0.02  # a 2 s ramp from the open hand
+
+
+def shaking(offset: float = 0.0) -> Callable[[float], float]:
+    """The external force on finger_joint1 at simulated time t: ``offset`` plus the shake."""
+    return lambda t: offset + SHAKE_FORCE * math.sin(2.0 * math.pi * SHAKE_HZ * t)
+
+
+def timeout_records(caplog: pytest.LogCaptureFixture) -> list[logging.LogRecord]:
+    return [r for r in caplog.records if "gripper-settle-timeout" in r.getMessage()]
+
+
+def test_undisturbed_move_settles_long_before_the_timeout(caplog):
+    """The control case of the timeout test below: same move, no disturbance."""
+    caplog.set_level(logging.WARNING, logger="franka_sim_gym.gripper")
+    rig = Rig()
+    ramp = abs(TARGET - rig.hand.width) / SPEED
+    rig.hand.move(TARGET, SPEED)
+    seconds = rig.run()
+    assert rig.hand.outcome is Outcome.SUCCESS
+    assert seconds < ramp + 0.1 < ramp + SETTLE_TIMEOUT
+    assert timeout_records(caplog) == []
+
+
+@pytest.mark.parametrize(
+    ("offset", "outcome"),
+    [(0.0, Outcome.SUCCESS), (PUSH_INWARD, Outcome.UNSUCCESSFUL)],
+    ids=["within-tolerance", "short-of-target"],
+)
+def test_fingers_that_never_settle_are_answered_at_the_timeout(caplog, offset, outcome):
+    """Seed "Command coverage": 4 s timeout, here from the ramp's nominal end; the
+    action is then judged like a settled one (physics_hand.py)."""
+    caplog.set_level(logging.WARNING, logger="franka_sim_gym.gripper")
+    rig = Rig()
+    rig.push = shaking(offset)
+    rig.tick(PRE_ROLL_TICKS)
+    start = rig.time
+    ramp = abs(TARGET - rig.hand.width) / SPEED
+    action = rig.hand.move(TARGET, SPEED)
+    timeout_at = start + ramp + SETTLE_TIMEOUT
+
+    # Up to the last tick before ramp end + 4 s: not answered, nothing logged.
+    rig.tick(round((timeout_at - start) * 1000) - 1)
+    assert rig.hand.busy and rig.hand.take_finished() == []
+    assert timeout_records(caplog) == []
+
+    rig.run(seconds=0.1)
+    # Answered at the timeout: the first poll at or after it (the deadline counts
+    # from the action's first fresh sample, at most one poll after the command).
+    assert not rig.hand.busy
+    assert timeout_at <= rig.time <= timeout_at + 2 * POLL_TICKS * 1e-3 + 1e-9
+    assert rig.hand.take_finished() == [(action, outcome)]
+    assert len(timeout_records(caplog)) == 1
+    off_target = abs(rig.hand.width - TARGET)
+    if outcome is Outcome.SUCCESS:
+        assert off_target <= MOVE_TOLERANCE
+    else:
+        assert off_target > MOVE_TOLERANCE
 
 
 def test_grasp_of_thin_air_stalls_at_zero_and_fails():
@@ -198,3 +307,108 @@ def test_hand_load_is_the_hand_the_arm_carries():
     expected = jacp[:, layout.dof_adr[0]].T @ np.array([0.0, 0.0, load.m_ee * 9.81])
     np.testing.assert_allclose(with_hand - without, expected, atol=1e-6)
     assert (with_hand - without)[3] == pytest.approx(3.3, abs=0.1)  # docs/gripper.md
+
+
+# -- the hand as Desk's end effector: F_T_NE at its TCP -------------------------------------
+
+#: Desk's Franka Hand end-effector transformation as a real robot reports it in F_T_NE
+#: (column-major; libfranka include/franka/robot.h: NE is "configured outside of
+#: libfranka (in DESK)"): Rz(-pi/4), 0.1034 m along the flange z axis.
+DESK_HAND_F_T_NE = [0.7071, -0.7071, 0, 0, 0.7071, 0.7071, 0, 0, 0, 0, 1, 0, 0, 0, 0.1034, 1]
+#: An arm pose off home, so no flange axis lines up with a base axis.
+POSE_Q = np.array([0.3, -0.5, 0.2, -2.2, 0.4, 1.9, 0.1])
+
+
+def hand_controller(q: np.ndarray = POSE_Q) -> FciController:
+    ctrl = FciController(ArmPhysics(n_arms=1, hand=True))
+    ctrl.reset([0], q[None, :])
+    return ctrl
+
+
+def site_pose(physics: ArmPhysics, site: int) -> np.ndarray:
+    """Row-major 4x4 pose of a MuJoCo site in arm 0's base frame."""
+    T = np.eye(4)
+    T[:3, :3] = physics.data.site_xmat[site].reshape(3, 3)
+    T[:3, 3] = physics.data.site_xpos[site] - physics.base_pos[0]
+    return T
+
+
+def test_the_hand_tcp_is_desks_franka_hand_frame():
+    model, layout = build_world(hand=True)
+    F_T_NE = hand_load(model, layout).F_T_NE
+    np.testing.assert_allclose(frames.to_wire(F_T_NE), DESK_HAND_F_T_NE, atol=1e-4)
+    assert frames.is_homogeneous_transformation(frames.to_wire(F_T_NE), tol=1e-12)
+
+
+def test_the_state_reports_the_hand_tcp_as_nominal_end_effector():
+    ctrl = hand_controller()
+    s = ctrl.states[0]
+    np.testing.assert_allclose(s["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)
+    np.testing.assert_array_equal(s["F_T_EE"], s["F_T_NE"])  # NE_T_EE is identity
+    np.testing.assert_array_equal(s["NE_T_EE"], frames.IDENTITY16)
+    assert s["m_ee"] == pytest.approx(0.7126, abs=1e-4)  # the same Desk configuration
+
+
+def test_o_t_ee_is_the_flange_fk_composed_with_the_hand_tcp():
+    ctrl = hand_controller()
+    F_T_NE = frames.from_wire(ctrl.states[0]["F_T_NE"].astype(float))
+    flange = ArmKinematics(ctrl.physics.model, ctrl.physics.layout).forward(POSE_Q[None, :])[0]
+    O_T_EE = frames.from_wire(ctrl.states[0]["O_T_EE"].astype(float))
+    np.testing.assert_allclose(O_T_EE, flange @ F_T_NE, atol=1e-6)  # float32 wire
+    # ... which is the MuJoCo hand's own TCP site, between the fingertips.
+    tcp = site_pose(ctrl.physics, int(ctrl.physics.layout.tcp_site[0]))
+    np.testing.assert_allclose(O_T_EE, tcp, atol=1e-6)
+    assert np.linalg.norm(O_T_EE[:3, 3] - flange[:3, 3]) == pytest.approx(0.1034, abs=1e-6)
+
+
+def test_home_o_t_ee_with_the_hand_is_the_tcp_pointing_down():
+    """A real FR3 with the Franka Hand configured reports this EE pose at home."""
+    ctrl = hand_controller(HOME_Q)
+    O_T_EE = frames.from_wire(ctrl.states[0]["O_T_EE"].astype(float))
+    np.testing.assert_allclose(O_T_EE[:3, 3], [0.306891, 0.0, 0.590282 - 0.1034], atol=1e-5)
+    np.testing.assert_allclose(O_T_EE[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-6)
+
+
+def test_the_ee_jacobian_is_the_tcp_jacobian():
+    """Cartesian IK and the EE speed act at F_T_EE: with the hand, at the TCP site."""
+    ctrl = hand_controller()
+    physics = ctrl.physics
+    J = ArmKinematics(physics.model, physics.layout).jacobian(POSE_Q[None, :], ctrl.writer.F_T_EE)[
+        0
+    ]
+    jacp, jacr = np.zeros((3, physics.model.nv)), np.zeros((3, physics.model.nv))
+    mujoco.mj_jacSite(physics.model, physics.data, jacp, jacr, int(physics.layout.tcp_site[0]))
+    dofs = physics.layout.dof_adr[0]
+    np.testing.assert_allclose(J[:3], jacp[:, dofs], atol=1e-9)
+    np.testing.assert_allclose(J[3:], jacr[:, dofs], atol=1e-9)
+
+
+def test_set_ne_to_ee_is_relative_to_the_tcp_and_a_disconnect_resets_it_to_the_tcp():
+    ctrl = hand_controller()
+    hand = frames.from_wire(ctrl.states[0]["F_T_NE"].astype(float))
+    np.testing.assert_allclose(frames.to_wire(hand), DESK_HAND_F_T_NE, atol=1e-4)
+    tcp_pose = frames.from_wire(ctrl.states[0]["O_T_EE"].astype(float))
+    NE_T_EE = np.eye(4)
+    NE_T_EE[2, 3] = 0.05  # 5 cm beyond the TCP, along its z axis
+    assert ctrl.set_ne_to_ee(0, frames.to_wire(NE_T_EE)) == SetterStatus.kSuccess
+    ctrl.step()
+    s = ctrl.states[0]
+    np.testing.assert_allclose(s["F_T_EE"], frames.to_wire(hand @ NE_T_EE), atol=1e-7)
+    np.testing.assert_allclose(s["F_T_NE"], frames.to_wire(hand), atol=1e-7)
+    O_T_EE = frames.from_wire(s["O_T_EE"].astype(float))
+    np.testing.assert_allclose(O_T_EE[:3, 3], tcp_pose[:3, 3] + 0.05 * tcp_pose[:3, 2], atol=1e-5)
+
+    ctrl.end_session(0)
+    ctrl.step()
+    s = ctrl.states[0]
+    np.testing.assert_array_equal(s["NE_T_EE"], frames.IDENTITY16)
+    np.testing.assert_allclose(s["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)  # Desk's stays
+    np.testing.assert_array_equal(s["F_T_EE"], s["F_T_NE"])
+    np.testing.assert_allclose(frames.from_wire(s["O_T_EE"].astype(float)), tcp_pose, atol=1e-5)
+
+
+def test_a_bare_flange_keeps_identity_frames():
+    ctrl = FciController(ArmPhysics(n_arms=1))
+    s = ctrl.states[0]
+    for name in ("F_T_NE", "F_T_EE", "NE_T_EE"):
+        np.testing.assert_array_equal(s[name], frames.IDENTITY16)

@@ -17,11 +17,16 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
+from franka_sim_gym.fci import protocol as p
+
 from .conftest import CLIENTS, ROOT, fresh_address, unstarved
+from .raw_client import RawClient
+from .test_socket_pylibfranka import column_major, fk_flange
 
 pytestmark = pytest.mark.socket
 
@@ -121,3 +126,79 @@ def test_an_object_wider_than_the_stroke_is_refused_at_startup():
     )
     assert proc.returncode == 2
     assert "object width 0.09" in proc.stderr
+
+
+# -- the hand as Desk's end effector: F_T_NE at its TCP -------------------------------------
+
+#: Desk's Franka Hand configuration as a real robot reports it in F_T_NE, column-major:
+#: Rz(-pi/4), 0.1034 m along the flange z axis (tests/test_physics_hand.py checks it
+#: against the MJCF hand's TCP site).
+DESK_HAND_F_T_NE = [0.7071, -0.7071, 0, 0, 0.7071, 0.7071, 0, 0, 0, 0, 1, 0, 0, 0, 0.1034, 1]
+IDENTITY = np.eye(4).reshape(16)
+
+
+def test_read_once_reports_the_hand_tcp_as_f_t_ne(serve, client):
+    """pylibfranka reads what a real FR3 with the Franka Hand configured in Desk sends:
+    F_T_NE = F_T_EE at the TCP, NE_T_EE identity, O_T_EE at the TCP."""
+    first = client("pylibfranka", "read_once", serve(PHYSICS).host)["first"]
+    np.testing.assert_allclose(first["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)
+    np.testing.assert_allclose(first["F_T_EE"], DESK_HAND_F_T_NE, atol=1e-4)
+    np.testing.assert_allclose(first["NE_T_EE"], IDENTITY)
+    expected = fk_flange(np.array(first["q"])) @ column_major(DESK_HAND_F_T_NE)
+    np.testing.assert_allclose(column_major(first["O_T_EE"]), expected, atol=1e-4)
+
+
+def test_libfranka_model_jacobian_is_at_the_hand_tcp(serve, client):
+    """libfranka's Model takes the EE frame from the state's F_T_EE: its Jacobian's
+    linear rows are the TCP's velocity per joint (central differences of the
+    independent DH forward kinematics composed with the hand TCP)."""
+    r = client("pylibfranka", "load_model", serve(PHYSICS).host)
+    q = np.asarray(r["q"])
+    hand = column_major(DESK_HAND_F_T_NE)
+    J = np.asarray(r["zero_jacobian"]).reshape(7, 6).T  # column-major 6x7
+    h = 1e-6
+    numeric = np.empty((3, 7))
+    for j in range(7):
+        dq = np.eye(7)[j] * h
+        numeric[:, j] = ((fk_flange(q + dq) @ hand)[:3, 3] - (fk_flange(q - dq) @ hand)[:3, 3]) / (
+            2 * h
+        )
+    np.testing.assert_allclose(J[:3], numeric, atol=1e-4)
+
+
+def test_a_new_connection_finds_ne_t_ee_reset_and_the_hand_tcp_kept(serve):
+    server = serve(PHYSICS)
+    first = RawClient(server.host)
+    first.connect()
+    NE_T_EE = np.eye(4)
+    NE_T_EE[2, 3] = 0.05
+    wire = tuple(NE_T_EE.T.reshape(16).tolist())
+    command_id = first.request(p.Command.kSetNEToEE, p.SetNEToEERequest(wire).payload())
+    assert first.reply(command_id).payload[0] == p.SetterStatus.kSuccess
+    state = first.latest_state()
+    np.testing.assert_allclose(state["NE_T_EE"], wire, atol=1e-7)
+    hand = column_major(DESK_HAND_F_T_NE)
+    np.testing.assert_allclose(column_major(state["F_T_EE"]), hand @ NE_T_EE, atol=1e-4)
+    first.close()
+
+    second = connect_when_free(server.host)
+    state = second.latest_state()
+    np.testing.assert_allclose(state["NE_T_EE"], IDENTITY)
+    np.testing.assert_allclose(state["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)
+    np.testing.assert_array_equal(state["F_T_EE"], state["F_T_NE"])
+    second.close()
+
+
+def connect_when_free(host: str, timeout: float = 5.0) -> RawClient:
+    """Connect once the server has let the previous client go (it refuses a second one)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        raw = RawClient(host)
+        try:
+            raw.connect()
+            return raw
+        except (ConnectionError, OSError):
+            raw.close()
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)

@@ -42,7 +42,8 @@ class FrankaFCIEnv(gym.Env):
         render_mode: None, "rgb_array" (MuJoCo offscreen: EGL unless MUJOCO_GL says
             otherwise) or "human" (MuJoCo's viewer; needs a display).
         width, height: the rgb_array frame size [px].
-        gripper: mount the Franka Hand (its mass is then in the arm's dynamics) and add
+        gripper: mount the Franka Hand (its mass is then in the arm's dynamics, and the
+            EE frame, O_T_EE and the achieved goal are its TCP, as F_T_NE reports) and add
             an eighth action, the commanded opening width (-1 closed … 1 open, 0.08 m),
             applied through the same hand model as the gripper server (the fingers move
             at ``gripper_speed``); the observation gains the measured width.

@@ -32,9 +32,12 @@ class StateWriter:
 
     def __init__(self, n: int, ee_load=None) -> None:
         self.n = n
-        #: the mounted hand's mass, centre of mass and inertia (sim.hand_load.HandLoad),
-        #: reported in m_ee / F_x_Cee / I_ee; None for a bare flange
+        #: the mounted hand's mass, centre of mass, inertia and TCP (sim.hand_load.HandLoad),
+        #: reported in m_ee / F_x_Cee / I_ee / F_T_NE; None for a bare flange
         self.ee_load = ee_load
+        #: the nominal end effector (row-major): the hand's TCP, as Desk configures it
+        #: for a mounted Franka Hand; identity on a bare flange
+        self.F_T_NE = np.eye(4) if ee_load is None else np.array(ee_load.F_T_NE, dtype=np.float64)
         self.states = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
         raw = self.states.view(np.uint8).reshape(n, ROBOT_STATE_SIZE)
         self._wire = raw[:, _FLOAT_BEGIN:_FLOAT_END].view("<f4")
@@ -77,12 +80,16 @@ class StateWriter:
     # -- configuration fields -------------------------------------------------------------------
 
     def reset_configuration(self, i: int) -> None:
-        """Identity frames, no load: a fresh connection's configuration."""
-        for name in ("F_T_EE", "EE_T_K", "F_T_NE", "NE_T_EE"):
+        """A fresh connection's configuration: what a client sets is reset, Desk's stays.
+
+        NE_T_EE and EE_T_K return to identity and the payload to none; the
+        nominal end effector F_T_NE and the end-effector load (Desk's, on the
+        robot: the mounted hand here) stay, so F_T_EE = F_T_NE.
+        """
+        for name in ("EE_T_K", "NE_T_EE"):
             self.field[name][i] = frames.IDENTITY16
-        self.F_T_EE[i] = np.eye(4)
-        self._custom_ee[i] = False
-        self._any_custom_ee = bool(self._custom_ee.any())
+        self._set_F_T_EE(i, self.F_T_NE)
+        self.field["F_T_NE"][i] = frames.to_wire(self.F_T_NE)
         for name in ("m_load", "F_x_Cload", "I_load"):
             self.field[name][i] = 0.0
         load = self.ee_load
@@ -92,17 +99,25 @@ class StateWriter:
             self.field["I_ee"][i] = load.I_ee_wire()
 
     def set_end_effector(self, i: int, NE_T_EE=None, EE_T_K=None) -> None:
-        """SetNEToEE / SetEEToK: F_T_EE follows NE_T_EE (F_T_NE is identity: no hand configured)."""
+        """SetNEToEE / SetEEToK: F_T_EE = F_T_NE · NE_T_EE (libfranka Robot::setEE).
+
+        NE_T_EE is relative to the nominal end effector: with the hand mounted,
+        to its TCP, as on a robot whose Desk configures the Franka Hand.
+        """
         if NE_T_EE is not None:
             self.field["NE_T_EE"][i] = NE_T_EE
-            F_T_NE = frames.from_wire(self.field["F_T_NE"][i])
-            F_T_EE = F_T_NE @ frames.from_wire(np.asarray(NE_T_EE, dtype=np.float64))
-            self.F_T_EE[i] = F_T_EE
-            self._custom_ee[i] = not np.array_equal(F_T_EE, np.eye(4))
-            self._any_custom_ee = bool(self._custom_ee.any())
-            self.field["F_T_EE"][i] = frames.to_wire(F_T_EE)
+            self._set_F_T_EE(
+                i, self.F_T_NE @ frames.from_wire(np.asarray(NE_T_EE, dtype=np.float64))
+            )
         if EE_T_K is not None:
             self.field["EE_T_K"][i] = EE_T_K
+
+    def _set_F_T_EE(self, i: int, F_T_EE: np.ndarray) -> None:
+        """Robot i's EE frame (row-major), where write_measured measures O_T_EE."""
+        self.F_T_EE[i] = F_T_EE
+        self._custom_ee[i] = not np.array_equal(F_T_EE, np.eye(4))
+        self._any_custom_ee = bool(self._custom_ee.any())
+        self.field["F_T_EE"][i] = frames.to_wire(F_T_EE)
 
     def set_load(self, i: int, m_load: float, F_x_Cload: np.ndarray, I_load: np.ndarray) -> None:
         """SetLoad: reflected back in later states."""

@@ -80,7 +80,8 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
     hand.add_argument(
         "--gripper-physics",
         action="store_true",
-        help="mount the Franka Hand on the arm's flange in MuJoCo and drive its fingers on a "
+        help="mount the Franka Hand on the arm's flange in MuJoCo (reported as Desk's "
+        "end-effector configuration: load, F_T_NE at its TCP) and drive its fingers on a "
         "force-limited PD servo (default: the kinematic hand, not mounted)",
     )
     serve.add_argument(
@@ -162,7 +163,8 @@ def _servers(
 
     The kinematic hand is not mounted on the arm. --gripper-physics mounts the
     hand (and the virtual object) in the arm's MuJoCo world, whose tick thread
-    then runs the finger drive.
+    then runs the finger drive; the controller then reports the hand's load and
+    TCP (F_T_NE) in the RobotState (FciController reads them off the model).
     """
     if args.no_gripper:
         return RobotServer(config, options), None

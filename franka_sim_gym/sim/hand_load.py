@@ -1,11 +1,14 @@
-"""The mounted Franka Hand as libfranka's end-effector load: m_ee, F_x_Cee, I_ee.
+"""The mounted Franka Hand as Desk's end-effector configuration: m_ee, F_x_Cee, I_ee, F_T_NE.
 
 On the robot, Desk's end-effector configuration (the Franka Hand) sets these
-RobotState fields, and libfranka's Model adds that load to the URDF arm it
-computes with (``franka::Model`` takes the total load of m_ee and m_load;
-fci-wire-protocol.md §7.2). The simulation's hand is a real MuJoCo subtree
-(models/hand.xml, franka_description's inertials), so its load is read off the
-compiled model rather than written down a second time.
+RobotState fields: libfranka's Model adds the load to the URDF arm it computes
+with (``franka::Model`` takes the total load of m_ee and m_load;
+fci-wire-protocol.md §7.2), and the hand's TCP is the nominal end effector
+frame F_T_NE, "configured outside of libfranka (in DESK)" (libfranka
+include/franka/robot.h, "Nominal end effector frame NE"). The simulation's
+hand is a real MuJoCo subtree (models/hand.xml, franka_description's
+inertials and TCP), so both are read off the compiled model rather than
+written down a second time.
 """
 
 from __future__ import annotations
@@ -20,17 +23,24 @@ from .world import HOME_Q, ArmLayout
 
 @dataclass(frozen=True)
 class HandLoad:
-    """The hand's mass properties in the flange frame (libfranka's conventions).
+    """The hand's mass properties and TCP in the flange frame (libfranka's conventions).
 
     Attributes:
         m_ee: total mass [kg] of the hand and its fingers.
         F_x_Cee: centre of mass [m] in the flange frame.
         I_ee: 3x3 inertia [kg m^2] about the centre of mass, flange axes.
+        F_T_NE: row-major 4x4 pose of the hand's TCP (hand.xml site ``tcp``) in
+            the flange frame: 0.1034 m along the flange z axis, rotated -pi/4
+            about it (franka_description: hand_joint rpy 0 0 -pi/4,
+            hand_tcp_joint xyz 0 0 0.1034). Desk's Franka Hand configuration
+            is the same transform rounded to 4 digits, column-major [0.7071,
+            -0.7071, 0, 0, 0.7071, 0.7071, 0, 0, 0, 0, 1, 0, 0, 0, 0.1034, 1].
     """
 
     m_ee: float
     F_x_Cee: np.ndarray
     I_ee: np.ndarray
+    F_T_NE: np.ndarray
 
     def I_ee_wire(self) -> np.ndarray:
         """I_ee as the 9 column-major values of the RobotState field."""
@@ -38,7 +48,7 @@ class HandLoad:
 
 
 def hand_load(model: mujoco.MjModel, layout: ArmLayout, arm: int = 0) -> HandLoad:
-    """The load of arm ``arm``'s hand, fingers as the model's keyframe sets them (open).
+    """The load and TCP of arm ``arm``'s hand, fingers as the model's keyframe sets them (open).
 
     The arm pose does not matter (the hand is rigid on the flange); home is used.
     """
@@ -63,7 +73,23 @@ def hand_load(model: mujoco.MjModel, layout: ArmLayout, arm: int = 0) -> HandLoa
     site = int(layout.flange_site[arm])
     F_R_O = data.site_xmat[site].reshape(3, 3).T  # world -> flange axes
     F_x_C = F_R_O @ (com - data.site_xpos[site])
-    return HandLoad(m_ee=mass, F_x_Cee=F_x_C, I_ee=F_R_O @ inertia @ F_R_O.T)
+    return HandLoad(
+        m_ee=mass,
+        F_x_Cee=F_x_C,
+        I_ee=F_R_O @ inertia @ F_R_O.T,
+        F_T_NE=_site_in_flange(data, site, int(layout.tcp_site[arm])),
+    )
+
+
+def _site_in_flange(data: mujoco.MjData, flange: int, site: int) -> np.ndarray:
+    """Row-major 4x4 pose of ``site`` in the frame of the ``flange`` site."""
+    F_R_O = data.site_xmat[flange].reshape(3, 3).T
+    T = np.eye(4)
+    T[:3, :3] = F_R_O @ data.site_xmat[site].reshape(3, 3)
+    T[:3, 3] = F_R_O @ (data.site_xpos[site] - data.site_xpos[flange])
+    # Clear the world-frame round-off (~1e-16) where the transform has exact zeros.
+    T[np.abs(T) < 1e-12] = 0.0
+    return T
 
 
 def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:

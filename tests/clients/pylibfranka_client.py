@@ -37,6 +37,7 @@ def state_dict(state) -> dict:
         "O_T_EE_d",
         "O_T_EE_c",
         "F_T_EE",
+        "F_T_NE",
         "NE_T_EE",
         "elbow",
         "O_ddP_O",
