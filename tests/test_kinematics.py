@@ -90,3 +90,20 @@ def test_relative_rotation_log_is_the_log_of_the_relative_rotation():
     np.testing.assert_allclose(got, rotation_log(R_a.transpose(0, 2, 1) @ R_b), atol=1e-9)
     np.testing.assert_allclose(np.linalg.norm(got, axis=1), angles, atol=1e-7)
     assert not got[-1].any()
+
+
+def test_forward_kinematics_follows_a_changed_tool_frame_at_the_same_q():
+    """The evaluation cache is keyed on the EE frame as well as on q: after SetNEToEE
+    moves the frame, the same joint positions give the new frame's pose."""
+    physics = ArmPhysics(n_arms=1)
+    kin = ArmKinematics(physics.model, physics.layout)
+    q = HOME_Q[None].copy()
+    tool = np.eye(4)[None].copy()
+    tool[0, 2, 3] = 0.1
+    flange = kin.forward(q)
+    at_tool = kin.forward(q, tool)
+    np.testing.assert_allclose(at_tool[0, :3, 3], flange[0, :3, 3] + 0.1 * flange[0, :3, 2])
+    tool[0, 2, 3] = 0.2  # the same array, moved in place (as the state writer does)
+    moved = kin.forward(q, tool)
+    np.testing.assert_allclose(moved[0, :3, 3], flange[0, :3, 3] + 0.2 * flange[0, :3, 2])
+    np.testing.assert_allclose(kin.forward(q)[0], flange[0])

@@ -123,10 +123,16 @@ class CartesianGenerators:
         if not count_nonzero(rows):
             return
         r = rows[:, None]
-        np.copyto(self.T_cmd, from_wire(commands["O_T_EE_c"]), where=r[:, :, None])
-        np.copyto(self.twist_cmd, commands["O_dP_EE_c"], where=r)
-        np.copyto(self.elbow_cmd, commands["elbow_c"], where=r)
-        np.copyto(self.elbow_valid, commands["valid_elbow"].astype(bool), where=rows)
+        m = self.c.modes
+        # Each generator reads its own field only (the other is not looked at).
+        if m.n_cartesian_position:
+            np.copyto(self.T_cmd, from_wire(commands["O_T_EE_c"]), where=r[:, :, None])
+        if m.n_cartesian_velocity:
+            np.copyto(self.twist_cmd, commands["O_dP_EE_c"], where=r)
+        valid = commands["valid_elbow"]
+        if count_nonzero(valid) or count_nonzero(self.elbow_valid):
+            np.copyto(self.elbow_cmd, commands["elbow_c"], where=r)
+            np.copyto(self.elbow_valid, valid.astype(bool), where=rows)
 
     # -- the cycle ----------------------------------------------------------------------------
 
@@ -206,8 +212,14 @@ class CartesianGenerators:
             else None
         )
         if m.n_cartesian_velocity:
-            dtwist = (twist - self.twist) / _DT
-            ddtwist = (dtwist - self.dtwist) / _DT
+            # Side by side, (n, 3, 6): [dtwist, twist, ddtwist] -- the norms' check order.
+            twist_stack = np.empty((c.n, 3, 6))
+            dtwist, ddtwist = twist_stack[:, 0], twist_stack[:, 2]
+            np.subtract(twist, self.twist, out=dtwist)
+            dtwist /= _DT
+            twist_stack[:, 1] = twist
+            np.subtract(dtwist, self.dtwist, out=ddtwist)
+            ddtwist /= _DT
         if elbow_in_use:
             de = rules.elbow_derivatives(elbow[:, 0], self.elbow[:, 0], self.de, self.dde, 1)
         else:  # unread: row 17 needs an elbow, the history is kept only while one streams
@@ -292,7 +304,7 @@ class CartesianGenerators:
         judged_twist = active & twist_rows
         if count_nonzero(judged_twist):
             check = rules.check_cartesian_velocity(
-                twist, dtwist, ddtwist, first, elbow_stream, joint, table, scale
+                twist, dtwist, ddtwist, first, elbow_stream, joint, table, scale, twist_stack
             )
 
             def twist_quantities() -> dict:  # built only for a log line

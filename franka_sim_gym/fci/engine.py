@@ -21,7 +21,7 @@ from . import extrapolation, limits
 from ._fast import count_nonzero
 from .cartesian import CartesianGenerators
 from .errors import ERROR_NAMES, Error
-from .tables import DELTA_T, MAX_LOST_CYCLES
+from .tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
 from .violations import ViolationLog, latched_bits
 
 if TYPE_CHECKING:
@@ -41,6 +41,11 @@ class MotionLimitEngine:
         # The velocity envelope at the reference's q, valid until the reference
         # changes outside a cycle (a Move, a reset, a rewind).
         self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
+        # The safety controller's check of measured dq: [dq | -dq] against the envelope's
+        # halves, whose measured rows are widened by the margin (the shift per row).
+        self._signed_dq = np.zeros((n, 14))
+        self._envelope_shift = np.zeros((2, 1))  # measured row, reference row
+        self._envelope_margin: float | None = None
         #: late datagrams applied (not recorded) this cycle: the servo's target
         self.late = np.zeros(n, dtype=bool)
         self.late_q = np.zeros((n, 7))
@@ -367,17 +372,29 @@ class MotionLimitEngine:
         dq = physics.dq
         # One envelope call for two uses: measured q (for 3, now) and the reference
         # just recorded (the q_prev the next cycle's commands are judged at).
+        # The measured rows widened by the margin: [upper + margin | -(lower - margin)].
         n = self.c.n
-        upper2, lower2 = table.velocity_envelope(np.concatenate((physics.q, self.c.reference.q)))
-        upper, lower = upper2[:n], lower2[:n]
-        self._envelope_cache = (upper2[n:], lower2[n:])
+        if margin != self._envelope_margin:
+            self._envelope_shift[0] = JOINT_VELOCITY_LIMIT_TOLERANCE - margin
+            self._envelope_shift[1] = JOINT_VELOCITY_LIMIT_TOLERANCE
+            self._envelope_margin = margin
+        # (n, 2, 14): per robot [q | q] measured, then [q | q] of the reference.
+        q, q_ref = physics.q, self.c.reference.q
+        both = table.velocity_envelope_halves(
+            np.concatenate((q, q, q_ref, q_ref), axis=1).reshape(n, 2, 14), self._envelope_shift
+        )
+        reference = both[:, 1]
+        self._envelope_cache = (reference[:, :7], -reference[:, 7:])
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
         v_ee = w.O_T_EE[:, 12:15] - self.ee_prev
         v_ee *= 1.0 / DELTA_T
         # Cheap booleans first; the rule functions name the error only on a trip.
         # Written as "not inside" so that a NaN physics state trips too.
-        fast = ~((dq <= upper + margin) & (dq >= lower - margin))
+        signed = self._signed_dq
+        signed[:, :7] = dq
+        np.negative(dq, out=signed[:, 7:])
+        fast = ~(signed <= both[:, 0])
         speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
         close = close_link_pairs(
             physics.model, physics.data, physics.layout, self.c.config.self_collision_distance

@@ -69,6 +69,10 @@ class StateWriter:
         self.F_T_EE = np.tile(np.eye(4), (n, 1, 1))
         self._custom_ee = np.zeros(n, dtype=bool)
         self._any_custom_ee = False
+        # O_T_EE's position and rotation block as views (column-major: the block is R^T).
+        self._O_T_EE_position = self.O_T_EE[:, 12:15]
+        self._O_T_EE_rotation = self.O_T_EE.reshape(n, 4, 4)[:, :3, :3]
+        assert np.shares_memory(self._O_T_EE_rotation, self.shadow)
         # O_T_EE's constant entries (bottom row 0 0 0 1 in column-major).
         self.O_T_EE[:, 15] = 1.0
         # libfranka docs fix O_ddP_O at (0, 0, -9.81), and Model::gravity(state)
@@ -137,10 +141,15 @@ class StateWriter:
         np.subtract(tau, self.tau_J, out=self.dtau_J)
         self.dtau_J *= 1.0 / DELTA_T
         self.tau_J[...] = tau
-        pos, xmat = physics.flange_pose_raw()
         pose = self.O_T_EE
-        pose[:, _ROT_WIRE] = xmat[:, _ROT_XMAT]
-        pose[:, 12:15] = pos
+        views = physics.flange_views
+        if views is not None:  # straight from MjData's arrays, no gathers
+            np.subtract(views[0], physics.base_pos, out=self._O_T_EE_position)
+            self._O_T_EE_rotation[...] = views[1]
+        else:
+            pos, xmat = physics.flange_pose_raw()
+            pose[:, _ROT_WIRE] = xmat[:, _ROT_XMAT]
+            pose[:, 12:15] = pos
         if self._any_custom_ee:
             pose[...] = frames.to_wire(frames.from_wire(pose) @ self.F_T_EE)
         self.elbow[:, 0] = q[:, 2]

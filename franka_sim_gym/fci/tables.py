@@ -90,24 +90,38 @@ class RobotTable:
         libfranka >= 0.18 src/joint_velocity_limits.cpp (limits.md §4):
         upper = min(v_max, max(0, -v_off + sqrt(max(0, 2 a_dec (q_max - q))))) - tol,
         lower = max(-v_max, min(0, v_off - sqrt(max(0, 2 a_dec (q - q_min))))) + tol.
-        Computed as one (..., 14) pass: lower = -(the same law on the mirrored range).
         """
-        tol = JOINT_VELOCITY_LIMIT_TOLERANCE
+        r = self.velocity_envelope_halves(q)
+        return r[..., :7], -r[..., 7:]
+
+    def velocity_envelope_halves(
+        self, q: np.ndarray, shift: float | np.ndarray = JOINT_VELOCITY_LIMIT_TOLERANCE
+    ) -> np.ndarray:
+        """(..., 14): [upper | -lower] of :meth:`velocity_envelope`, in one pass (lower is
+        the same law on the mirrored range), with ``shift`` in place of the tolerance
+        (broadcast against the rows: the safety controller widens some by its margin).
+        ``q`` is (..., 7), or already doubled as (..., 14) [q | q] (then overwritten).
+        """
+        doubled = np.shape(q)[-1] == 14
         if self.dq_offset is None:
-            upper = np.broadcast_to(self.dq_max - tol, np.shape(q))
-            return upper, -upper
+            vmax = np.concatenate([self.dq_max] * 2)
+            return np.broadcast_to(vmax, (*np.shape(q)[:-1], 14)) - shift
         two_a, bound, offset, vmax = self._envelope_constants
-        r = np.concatenate((q, q), axis=-1)
-        r[..., 7:] *= -1.0
+        r = q if doubled else np.concatenate((q, q), axis=-1)
+        r *= _MIRROR
         np.subtract(bound, r, out=r)  # distance to the stop, both sides
         r *= two_a
         np.maximum(r, 0.0, out=r)
         np.sqrt(r, out=r)
+        np.maximum(r, offset, out=r)  # max(0, s - v_off), as max(s, v_off) - v_off
         r -= offset
-        np.maximum(r, 0.0, out=r)
         np.minimum(r, vmax, out=r)
-        r -= tol
-        return r[..., :7], -r[..., 7:]
+        r -= shift
+        return r
+
+
+#: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
+_MIRROR = np.concatenate((np.ones(7), -np.ones(7)))
 
 
 #: FR3 behind FCI v10. Joint ranges, velocities, offsets, deceleration and

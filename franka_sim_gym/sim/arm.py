@@ -114,6 +114,13 @@ class ArmPhysics:
         step = int(sites[1] - sites[0]) if n_arms > 1 else 1
         evenly = step > 0 and np.array_equal(sites, sites[0] + step * np.arange(n_arms))
         self._flange_sites = slice(int(sites[0]), int(sites[-1]) + 1, step) if evenly else sites
+        #: live views of the flange's world position (n, 3) and of its rotation
+        #: transposed (n, 3, 3) -- the column-major wire layout of O_T_EE's block --
+        #: when the sites are evenly spaced; None otherwise
+        self.flange_views: tuple[np.ndarray, np.ndarray] | None = None
+        if evenly:
+            xmat = self.data.site_xmat[self._flange_sites].reshape(n_arms, 3, 3)
+            self.flange_views = (self.data.site_xpos[self._flange_sites], xmat.transpose(0, 2, 1))
         self._effective_inertia = self._home_inertia()
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))

@@ -197,11 +197,17 @@ class ArmKinematics:
         # The last evaluation, reused when the next solve starts where it ended.
         self._cached_q = np.full((self.n, 7), np.nan)
         self._cached: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._cached_F: np.ndarray | None = None  # the EE frame it was evaluated at
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
         """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q."""
-        if self._cached is not None and count_nonzero(q == self._cached_q) == q.size:
+        if (
+            self._cached is not None
+            and count_nonzero(q == self._cached_q) == q.size
+            and self._same_frame(F_T_EE)
+        ):
             return self._cached
+        self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
         d.qpos[self._qpos] = q
         mujoco.mj_kinematics(self.model, d)
@@ -221,6 +227,12 @@ class ArmKinematics:
         self._cached_q[...] = q
         self._cached = (p, R, J)
         return self._cached
+
+    def _same_frame(self, F_T_EE: np.ndarray | None) -> bool:
+        cached = self._cached_F
+        if F_T_EE is None or cached is None:
+            return F_T_EE is None and cached is None
+        return count_nonzero(F_T_EE == cached) == F_T_EE.size
 
     def forward(self, q: np.ndarray, F_T_EE: np.ndarray | None = None) -> np.ndarray:
         """(n, 4, 4) end-effector poses in each arm's base frame at joint positions q."""

@@ -376,16 +376,23 @@ def check_cartesian_velocity(
     joint: JointSide,
     table: RobotTable,
     scale: float,
+    stacked: np.ndarray | None = None,
 ) -> CartesianCheck:
     """Judge n O_dP_EE_c commands; one latched error per robot.
 
     ``twist`` (n, 6) is [v, omega] in the base frame; ``dtwist`` / ``ddtwist`` its
     backward differences against the published O_dP_EE_c history (zero at rest, so
     the opening twist is an acceleration from standstill, as on the robot).
+    ``stacked``: the caller's (n, 3, 6) [dtwist, twist, ddtwist] when it has them side
+    by side (the norms then take one pass, no copies).
     """
     first = np.asarray(first, dtype=bool)
-    halves = [dtwist[:, :3], dtwist[:, 3:], twist[:, :3], twist[:, 3:]]
-    over = _over(halves + [ddtwist[:, :3], ddtwist[:, 3:]], _limits2(table))
+    if stacked is not None:
+        x = stacked.reshape(len(first), 6, 3)
+        over = ~(np.einsum("nkj,nkj->nk", x, x) <= _limits2(table))
+    else:
+        halves = [dtwist[:, :3], dtwist[:, 3:], twist[:, :3], twist[:, 3:]]
+        over = _over(halves + [ddtwist[:, :3], ddtwist[:, 3:]], _limits2(table))
     ik_acc, ik_jerk = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
     if not _any(over, ik_acc, ik_jerk, sign, elbow_limit):
