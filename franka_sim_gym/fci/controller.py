@@ -151,7 +151,7 @@ class FciController:
             accepted = fresh | late
             self._log_unanswerable(mask & ~accepted, ids)
         finite = self._finite(commands)
-        if count_nonzero(finite) < n:
+        if finite is not self._all_true and count_nonzero(finite) < n:
             refused = accepted & ~finite
             self._log_non_finite(refused)
             self._refused |= refused
@@ -190,7 +190,8 @@ class FciController:
                 commands["torque_command_finished"],
                 commands["motion_generation_finished"],
             )
-        self._finish |= accepted & finished
+        if count_nonzero(finished):  # (the last command of a motion only)
+            self._finish |= accepted & finished
 
     @staticmethod
     def _take(dst: np.ndarray, src: np.ndarray, accepted: np.ndarray, all_in: bool) -> None:
@@ -237,8 +238,8 @@ class FciController:
             if count_nonzero(self._finish):
                 for i in np.flatnonzero(self._finish & m.in_motion).tolist():
                     self._end_motion(i, MoveStatus.kSuccess, hold_reference=True)
+                self._finish[...] = False
             self._have[...] = False
-            self._finish[...] = False
         if self._n_recovering:
             self._advance_recovery()
         self._publish_rest()
