@@ -199,7 +199,31 @@ def lowpass_filter(
     gain = lowpass_gain(cutoff)
     x = _finite("x", x, _MSG_SIGNAL)
     x_ref = _finite("x_ref", x_ref, _MSG_SIGNAL)
+    return lowpass_core(x, x_ref, gain)
+
+
+# -- the filters' arithmetic on validated inputs -------------------------------------------
+# The public functions above and below validate every argument, as libfranka does, on
+# every call. A caller that validated its inputs once (the env: a finite action, a
+# checked cutoff and constant limits; the states are the controller's own) calls these
+# cores per cycle instead -- the same arithmetic, without ~10 array checks a cycle.
+
+
+def lowpass_core(x: np.ndarray, x_ref: np.ndarray, gain) -> np.ndarray:
+    """:func:`lowpass_filter`'s arithmetic: float64 arrays, ``gain`` from :func:`lowpass_gain`."""
     return gain * x + (1.0 - gain) * x_ref
+
+
+def limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
+    """:func:`limit_rate_joint_positions`'s arithmetic on validated float64 arrays."""
+    v = limit_velocities_core((q_c - q_last) / DELTA_T, v_last, a_last, upper, lower, a_max, j_max)
+    return q_last + v * DELTA_T
+
+
+def limit_torques_core(tau_c, tau_last, d_max) -> np.ndarray:
+    """:func:`limit_rate_torques`'s arithmetic on validated float64 arrays."""
+    rate = (tau_c - tau_last) / DELTA_T
+    return tau_last + np.maximum(np.minimum(rate, d_max), -d_max) * DELTA_T
 
 
 def limit_rate_joint_velocities(
@@ -253,10 +277,10 @@ def limit_rate_joint_velocities(
     lower = _finite("lower", lower)
     a_max = _finite("ddq_max", ddq_max)
     j_max = _finite("dddq_max", dddq_max)
-    return _limit_velocity(dq_c, v_last, a_last, upper, lower, a_max, j_max)
+    return limit_velocities_core(dq_c, v_last, a_last, upper, lower, a_max, j_max)
 
 
-def _limit_velocity(v_c, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
+def limit_velocities_core(v_c, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
     """The scalar velocity limiter of src/rate_limiting.cpp, on validated float64 arrays."""
     dt = DELTA_T
     # Differentiate to get jerk.
@@ -308,9 +332,7 @@ def limit_rate_joint_positions(
     lower = _finite("lower", lower)
     a_max = _finite("ddq_max", ddq_max)
     j_max = _finite("dddq_max", dddq_max)
-    v_c = (q_c - q_last) / DELTA_T
-    v = _limit_velocity(v_c, v_last, a_last, upper, lower, a_max, j_max)
-    return q_last + v * DELTA_T
+    return limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max)
 
 
 def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLike) -> np.ndarray:
@@ -327,8 +349,7 @@ def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLik
     tau_c = _finite("tau_c", tau_c, _MSG_COMMAND)
     tau_last = _finite("tau_last", tau_last)
     d_max = _finite("dtau_max", dtau_max)
-    rate = (tau_c - tau_last) / DELTA_T
-    return tau_last + np.maximum(np.minimum(rate, d_max), -d_max) * DELTA_T
+    return limit_torques_core(tau_c, tau_last, d_max)
 
 
 def cartesian_lowpass_filter(

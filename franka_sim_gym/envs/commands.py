@@ -140,6 +140,11 @@ class CommandGenerator:
         self.table = table
         self.scale = scale or ActionScale()
         self.cutoff = cutoff
+        # Validated once here; the per-cycle filters use the cores of client_filters.
+        self._gain = cf.lowpass_gain(cutoff)
+        m = LIMITER_MARGIN
+        self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
+        self._dtau_max = table.dtau_max - m["dtau"]
         self._start = None
         self._target = None
         #: per robot: its motion's first command is still to be sent (no reference yet)
@@ -245,41 +250,26 @@ class CommandGenerator:
             ref = state["dq_d"].astype(np.float64)
         else:
             ref = state["tau_J_d"].astype(np.float64)
-        out = cf.lowpass_filter(target, ref, self.cutoff)
+        out = cf.lowpass_core(target, ref, self._gain)
         if self.action_filter != "limit_rate":
             return out
         if self.interface == "cartesian_velocity":
             return cf.limit_rate_cartesian_velocity(
                 out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
             )
-        t, m = self.table, LIMITER_MARGIN
-        a_max, j_max = t.ddq_max - m["ddq"], t.dddq_max - m["dddq"]
-        if self.interface == "joint_position":
+        t, margin = self.table, LIMITER_MARGIN["dq"]
+        if self.interface in ("joint_position", "joint_velocity"):
             q_d = state["q_d"].astype(np.float64)
-            upper, lower = t.velocity_envelope(q_d)
-            return cf.limit_rate_joint_positions(
-                out,
-                q_d,
-                state["dq_d"].astype(np.float64),
-                state["ddq_d"].astype(np.float64),
-                upper - m["dq"],
-                lower + m["dq"],
-                a_max,
-                j_max,
-            )
-        if self.interface == "joint_velocity":
-            upper, lower = t.velocity_envelope(state["q_d"].astype(np.float64))
-            return cf.limit_rate_joint_velocities(
-                out,
-                state["dq_d"].astype(np.float64),
-                state["ddq_d"].astype(np.float64),
-                upper - m["dq"],
-                lower + m["dq"],
-                a_max,
-                j_max,
-            )
-        tau_d = state["tau_J_d"].astype(np.float64)
-        return cf.limit_rate_torques(out, tau_d, t.dtau_max - m["dtau"])
+            both = t.velocity_envelope_halves(q_d)  # [upper | -lower]
+            both -= margin  # upper - margin and -(lower + margin), as libfranka's own
+            upper, lower = both[:, :7], -both[:, 7:]
+            dq_d = state["dq_d"].astype(np.float64)
+            ddq_d = state["ddq_d"].astype(np.float64)
+            a_max, j_max = self._ddq_max, self._dddq_max
+            if self.interface == "joint_position":
+                return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
+            return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
+        return cf.limit_torques_core(out, state["tau_J_d"].astype(np.float64), self._dtau_max)
 
 
 def _reference_pose(state: np.ndarray) -> np.ndarray:
