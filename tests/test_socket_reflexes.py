@@ -53,18 +53,19 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
 
 
 def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, client):
-    # The fold runs ~14 s of Python control loop. A loaded machine that starves the
-    # client for 20 cycles makes the robot hold its reference, and the resumed stream
-    # then trips a discontinuity in the preparatory motion, as on the robot. Such an
-    # attempt (its first motion aborted after a lost run of 20) proves nothing about
-    # the fold and is repeated; any other outcome is judged.
+    # The fold runs ~14 s of Python control loop under enforcement. A loaded machine
+    # that steals cycles from the client makes the robot extrapolate, and the resumed
+    # stream then trips a discontinuity in the preparatory motion, as on the robot (CI
+    # saw one after a run of 10). Such an attempt (its first motion aborted after lost
+    # cycles, counted by the server) proves nothing about the fold and is repeated;
+    # any other outcome is judged.
     for _attempt in range(3):
         server = serve("--enforce-motion-limits")
         r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
         server.stop()
         first = motion_summaries(server.log())[:1]
         starved = "exception" in r and first and first[0][0] == "kReflexAborted"
-        if not (starved and first[0][2] >= 20):
+        if not (starved and first[0][1] > 0):
             break
     assert "exception" not in r, (r, first)
     assert r["error"] is not None, r
