@@ -34,7 +34,9 @@ def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> 
     Returns the success rate, the reflex rate, the reflexes by error name and the mean
     control_command_success_rate at the last step of the episodes that did not end in a
     reflex (a reflex stops the motion, and the robot reports 0.0 between motions; NaN
-    when every episode ended in one).
+    when every episode ended in one). An episode that ended in a reflex is not a
+    success, even when the reflex caught the arm within the goal's radius (the env's
+    ``is_success`` judges the position only): on a robot, that reach failed.
     """
     envs = gym.make_vec(
         env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
@@ -50,7 +52,7 @@ def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> 
         obs, _, terminated, truncated, info = envs.step(actions)
         done = (terminated | truncated) & ~ended
         for i in np.flatnonzero(done).tolist():
-            success[i] = bool(info["is_success"][i])
+            success[i] = bool(info["is_success"][i]) and not terminated[i]
             link[i] = float(info["control_command_success_rate"][i])
             if terminated[i]:
                 reflex[i] = True

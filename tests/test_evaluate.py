@@ -48,3 +48,23 @@ def test_a_policy_that_stands_still_succeeds_only_where_the_goal_is_near():
     r = evaluate(Still(), "FrankaFCICartesianVelocity-v0", KWARGS, episodes=8, seed=0)
     assert r["reflex_rate"] == 0.0
     assert r["success_rate"] < 0.5
+
+
+class Jerk:
+    """Full twist from the first step: unfiltered, the robot refuses it at once."""
+
+    def predict(self, obs, deterministic=True):
+        return np.ones((len(obs["desired_goal"]), 3), np.float32), None
+
+
+def test_an_episode_ending_in_a_reflex_is_no_success_even_inside_the_radius():
+    """Where the goal lies within reach of the start (Still succeeds there), a reflex on
+    the first cycle leaves the arm inside the radius: the env's is_success says so, the
+    evaluation does not count it."""
+    near = {**KWARGS, "distance_threshold": 0.3}
+    still = evaluate(Still(), "FrankaFCICartesianVelocity-v0", near, episodes=16, seed=0)
+    assert still["success_rate"] > 0.0  # some goals are that near
+    kwargs = {**near, "action_filter": "none"}
+    r = evaluate(Jerk(), "FrankaFCICartesianVelocity-v0", kwargs, episodes=16, seed=0)
+    assert r["reflex_rate"] == 1.0
+    assert r["success_rate"] == 0.0

@@ -140,6 +140,23 @@ def test_franky_gripper_homing_and_move_work(serve, client):
     assert result["opened"] is True and result["width"] == pytest.approx(0.08)
 
 
+def test_franky_gripper_grasps_the_object_and_fails_on_thin_air(serve, client):
+    server = serve()
+    empty = client("franky_gripper", "grasp", server.host, timeout=30)
+    assert empty["ok"] is False and empty["is_grasped"] is False, empty
+    server = serve("--gripper-object-width", "0.04")
+    held = client("franky_gripper", "grasp", server.host, timeout=30)
+    assert held["ok"] is True and held["is_grasped"] is True, held
+    assert held["width"] == pytest.approx(0.04, abs=1e-6)
+
+
+def test_franky_gripper_out_of_stroke_width_raises(serve, client):
+    server = serve()
+    result = client("franky_gripper", "out_of_stroke", server.host, timeout=30)
+    assert result["error"] is not None and "Command failed" in result["error"], result
+    assert result["homing_after"] is True
+
+
 def test_second_gripper_client_is_refused_while_the_first_keeps_working(serve, client):
     server = serve()
     first = subprocess.Popen(

@@ -63,5 +63,24 @@ def scenario_stop_mid_move(host: str) -> dict:
     }
 
 
+def scenario_grasp(host: str) -> dict:
+    """grasp(0.04) at 5 cm/s from fully open (franky passes libfranka's 5 mm epsilons)."""
+    gripper = franky.Gripper(host)
+    gripper.move(0.08, 0.1)
+    ok = gripper.grasp(0.04, 0.05, 20.0, epsilon_inner=0.005, epsilon_outer=0.005)
+    return {"ok": ok, **state_dict(gripper)}
+
+
+def scenario_out_of_stroke(host: str) -> dict:
+    """A width beyond the stroke raises through franky too; the connection keeps working."""
+    gripper = franky.Gripper(host)
+    try:
+        gripper.move(0.1, 0.1)
+        error = None
+    except Exception as exc:
+        error = f"{type(exc).__name__}: {exc}"
+    return {"error": error, "homing_after": gripper.homing(), **state_dict(gripper)}
+
+
 if __name__ == "__main__":
     scenario_main.run(globals())
