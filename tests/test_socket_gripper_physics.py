@@ -86,10 +86,11 @@ def test_the_arm_serves_a_joint_motion_while_the_hand_moves(serve, client):
             hand.kill()
         return {"arm": arm, "out": out}
 
-    _, both = unstarved(serve, arm_and_hand, PHYSICS)
+    server, both = unstarved(serve, arm_and_hand, PHYSICS)
     arm, out = both["arm"], both["out"]
     assert "exception" not in arm, arm
-    assert arm["max_tracking_error"] < 1e-2
+    # CI once saw 287 rad here (never reproduced): the server's log says what happened.
+    assert arm["max_tracking_error"] < 1e-2, server.log()[-4000:]
     assert arm["final"]["robot_mode"] == "Idle"
     np.testing.assert_allclose(arm["final"]["q"], arm["q_start"], atol=2e-3)
     fingers = json.loads(out.strip().splitlines()[-1])
