@@ -42,11 +42,11 @@ import pylibfranka as fr
 from evaluate import DEFAULT_ALGO, DEFAULT_ENV_ID, load_model  # examples/evaluate.py
 
 from franka_sim_gym.envs.commands import CARTESIAN, CommandGenerator
+from franka_sim_gym.envs.core import draw_episode
 from franka_sim_gym.envs.observation import build_observation, observation_space
 from franka_sim_gym.envs.tasks.reach import Reach
 from franka_sim_gym.fci.tables import FER, FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
-from franka_sim_gym.sim.world import HOME_Q
 
 #: The state fields the command generator reads (libfranka's ControlLoop reads the same):
 #: the joint references, and the Cartesian ones of the Cartesian interfaces.
@@ -312,9 +312,7 @@ def deploy(
     robot = fr.Robot(host, fr.RealtimeConfig.kIgnore)
     successes, reflexes, rates = 0, 0, []
     for episode in range(episodes):
-        # Drawn as the env's reset draws them: the start pose's noise, then the goal.
-        start = HOME_Q + rng.uniform(-noise, noise, size=7)
-        goal = reacher.task.sample_goal(rng)
+        start, goal = draw_episode(rng, noise, reacher.task)  # as the env's reset draws them
         move_home(robot, start)
         try:
             success = reacher.reach(robot, goal, rates)
@@ -340,9 +338,10 @@ def deploy(
 
 def in_process(policy, env_id: str, env_kwargs: dict, episodes: int = 10, seed: int = 0) -> float:
     """The success rate of the same reaches in the env, in-process: the starts and goals
-    :func:`deploy` draws (one generator, start noise then goal, reach after reach), the
-    same policy, success judged at the episode's last step. What the deployed rate is
-    to be compared with."""
+    :func:`deploy` draws (one generator, ``envs.core.draw_episode`` reach after reach),
+    the same policy, success judged at the episode's last step. What the deployed rate
+    is to be compared with. (A lossy channel model also draws from that generator while
+    it runs: with one, the later reaches' starts and goals differ from deploy's.)"""
     import gymnasium as gym
 
     import franka_sim_gym  # noqa: F401  (registers the ids)

@@ -25,6 +25,19 @@ import pytest
 from franka_sim_gym.fci.tables import MAX_LOST_CYCLES
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def load_example(name: str):
+    """examples/NAME.py as a module (the examples import each other as siblings, so
+    examples/ goes on the path once and each loads under its own name, once)."""
+    import importlib
+
+    examples = str(ROOT / "examples")
+    if examples not in sys.path:
+        sys.path.insert(0, examples)
+    return importlib.import_module(name)
+
+
 CLIENTS = Path(__file__).resolve().parent / "clients"
 _addresses = itertools.count(1)
 
@@ -106,11 +119,6 @@ def motion_summaries(log: str) -> list[tuple[str, int, int]]:
     return [(m[1], int(m[2]), int(m[3])) for m in re.finditer(pattern, log)]
 
 
-#: The robot extrapolates at most this many consecutive lost cycles, then holds (seed,
-#: "What the sim does with a lost cycle"); a run that long is a starved client.
-STARVED_RUN = MAX_LOST_CYCLES
-
-
 def unstarved(
     serve, run: Callable[[ServerProcess], dict], *flags: str, attempts: int = 3
 ) -> tuple[ServerProcess, dict]:
@@ -128,9 +136,9 @@ def unstarved(
         result = run(server)
         server.stop()
         runs = [longest for *_, longest in motion_summaries(server.log())]
-        if not runs or max(runs) < STARVED_RUN:
+        if not runs or max(runs) < MAX_LOST_CYCLES:
             return server, result
-    pytest.fail(f"{attempts} attempts starved the client for {STARVED_RUN} cycles: too loaded")
+    pytest.fail(f"{attempts} attempts starved the client for {MAX_LOST_CYCLES} cycles: too loaded")
 
 
 def run_client(

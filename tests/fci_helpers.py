@@ -78,3 +78,9 @@ class LoopClient:
 
     def move_statuses(self) -> list[int]:
         return [e.status for e in self.events if e.kind is EventKind.MOVE_FINISHED]
+
+
+#: Desk's Franka Hand end-effector transformation as a real robot reports it in F_T_NE
+#: (column-major; libfranka include/franka/robot.h: NE is "configured outside of
+#: libfranka (in DESK)"): Rz(-pi/4), 0.1034 m along the flange z axis.
+DESK_HAND_F_T_NE = [0.7071, -0.7071, 0, 0, 0.7071, 0.7071, 0, 0, 0, 0, 1, 0, 0, 0, 0.1034, 1]

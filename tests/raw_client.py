@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from franka_sim_gym.fci import frames
 from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
 
@@ -60,6 +61,12 @@ class RawClient:
         self.next_id += 1
         self.send_raw(p.encode_connect_request(command_id, self.udp_port, version))
         return p.decode_connect_reply(self.reply(command_id).payload)
+
+    def set_ne_to_ee(self, NE_T_EE: np.ndarray) -> tuple[tuple[float, ...], int]:
+        """SetNEToEE with a row-major 4x4: (the column-major values sent, the reply status)."""
+        wire = tuple(frames.to_wire(np.asarray(NE_T_EE, dtype=np.float64)).tolist())
+        command_id = self.request(p.Command.kSetNEToEE, p.SetNEToEERequest(wire).payload())
+        return wire, self.reply(command_id).payload[0]
 
     def state(self) -> np.ndarray:
         """The next state datagram (remembering where commands must go)."""

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from franka_sim_gym.envs import client_filters as cf
+from franka_sim_gym.fci.frames import is_homogeneous
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.sim.kinematics import rotation_exp, rotation_log
 
@@ -469,8 +470,12 @@ def test_pose_limiter_rejects_non_finite_then_invalid_transforms():
             ValueError, match="O_T_EE_c is invalid transformation matrix. Has to be column major!"
         ):
             cf.limit_rate_cartesian_pose(broken[None], T, zero, zero, *LIMITS)
-    # Within libfranka's 1e-5 tolerance a slightly denormalised rotation is accepted.
-    cf.limit_rate_cartesian_pose(np.diag([1.0, 1.0, 1.0 + 5e-6, 1.0])[None], T, zero, zero, *LIMITS)
+    # Within libfranka's 1e-5 tolerance a slightly denormalised rotation is accepted, and
+    # the limiter's output (built from a unit quaternion) is homogeneous again.
+    out = cf.limit_rate_cartesian_pose(
+        np.diag([1.0, 1.0, 1.0 + 5e-6, 1.0])[None], T, zero, zero, *LIMITS
+    )
+    assert is_homogeneous(out, 1e-9).all()
     with pytest.raises(ValueError, match="T_last"):
         cf.limit_rate_cartesian_pose(T, nan, zero, zero, *LIMITS)
 

@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.envs.core import draw_episode
 from franka_sim_gym.envs.tasks.reach import Reach
-from franka_sim_gym.sim.world import HOME_Q
 
-from .conftest import ROOT
+from .conftest import load_example
 
 pytest.importorskip("pylibfranka")
 pytest.importorskip("stable_baselines3")
 
-sys.path.insert(0, str(ROOT / "examples"))  # deploy imports evaluate as a sibling
-_spec = importlib.util.spec_from_file_location(
-    "deploy_pylibfranka", ROOT / "examples" / "deploy_pylibfranka.py"
-)
-deploy = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(deploy)
+deploy = load_example("deploy_pylibfranka")
 
 ENV_ID = "FrankaFCICartesianVelocity-v0"
 KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
@@ -81,10 +73,6 @@ def test_the_in_process_reference_runs_the_deployed_reaches():
     policy = _TowardTheGoal()
     assert deploy.in_process(policy, ENV_ID, KWARGS, episodes=4, seed=7) == 1.0
     rng = np.random.default_rng(7)
-    task = Reach()
-    expected = []
-    for _ in range(4):
-        rng.uniform(-0.05, 0.05, size=7) + HOME_Q
-        expected.append(task.sample_goal(rng))
+    expected = [draw_episode(rng, 0.05, Reach())[1] for _ in range(4)]
     np.testing.assert_allclose(np.array(policy.goals), np.array(expected), atol=1e-6)
     assert deploy.in_process(_Still(), ENV_ID, KWARGS, episodes=4, seed=7) == 0.0

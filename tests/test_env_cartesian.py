@@ -15,12 +15,13 @@ import pytest
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.commands import CARTESIAN_LIMITS, CommandGenerator
 from franka_sim_gym.fci.frames import from_wire, is_homogeneous
+from franka_sim_gym.fci.tables import FER, FR3
 from franka_sim_gym.sim.kinematics import rotation_log
 
 IDS = ("FrankaFCICartesianPose-v0", "FrankaFCICartesianVelocity-v0")
 
 
-def random_episodes(env, episodes: int, scale: float = 1.0, seed: int = 0):
+def random_episodes(env, episodes: int, seed: int = 0):
     """Uniform random actions; returns (reflex reasons, violations seen, steps)."""
     rng = np.random.default_rng(seed)
     reasons, violations, steps = [], set(), 0
@@ -28,7 +29,7 @@ def random_episodes(env, episodes: int, scale: float = 1.0, seed: int = 0):
         env.reset(seed=seed + ep)
         done = False
         while not done:
-            a = rng.uniform(-scale, scale, env.action_space.shape).astype(np.float32)
+            a = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
             _, _, terminated, truncated, info = env.step(a)
             violations.update(info["violations"])
             steps += 1
@@ -126,21 +127,26 @@ def test_six_dof_actions_turn_the_end_effector():
     assert turn[2] > 0.1 and abs(turn[0]) < 1e-3 and abs(turn[1]) < 1e-3
 
 
-def test_every_pose_the_client_sends_is_a_homogeneous_transform():
+def test_every_pose_the_client_sends_is_a_homogeneous_transform(monkeypatch):
     """The step's reference comes from the float32 state; the client re-orthonormalises it
-    so libfranka's isHomogeneousTransformation (1e-5) never refuses a command."""
+    so libfranka's isHomogeneousTransformation (1e-5) never refuses a command. Every
+    command the env sends over five steps is recorded and checked to 1e-9."""
     env = gym.make("FrankaFCICartesianPose-v0", action_filter="limit_rate")
     env.reset(seed=6)
-    ctrl = env.unwrapped.controller
     gen = env.unwrapped.commands
+    sent, command = [], gen.command
+
+    def recording(*args, **kwargs):
+        out = command(*args, **kwargs)
+        sent.append(out.copy())
+        return out
+
+    monkeypatch.setattr(gen, "command", recording)
     rng = np.random.default_rng(6)
     for _ in range(5):
-        a = rng.uniform(-1, 1, (1, 6))
-        gen.begin_step(a, ctrl.states)
-        for k in range(3):
-            T = from_wire(gen.command(ctrl.states, k))
-            assert is_homogeneous(T, 1e-9).all()
-        env.step(a[0].astype(np.float32))
+        env.step(rng.uniform(-1, 1, 6).astype(np.float32))
+    assert len(sent) == 5 * 40
+    assert is_homogeneous(from_wire(np.concatenate(sent)), 1e-9).all()
 
 
 def test_bad_cartesian_arguments_are_clear_errors():
@@ -151,6 +157,20 @@ def test_bad_cartesian_arguments_are_clear_errors():
     with pytest.raises(ValueError, match="cartesian_limits must be one of"):
         CommandGenerator("cartesian_pose", "limit_rate", 40, cartesian_limits=(1.0, 2.0))
     assert set(CARTESIAN_LIMITS) == {"libfranka", "conservative"}
+    # "libfranka" is the robot's own rate_limiting.h targets, per robot table.
+    for table in (FR3, FER):
+        gen = CommandGenerator(
+            "cartesian_velocity", "limit_rate", 40, table, cartesian_limits="libfranka"
+        )
+        assert gen.cartesian_limits == (
+            table.v_trans_max,
+            table.a_trans_max,
+            table.j_trans_max,
+            table.v_rot_max,
+            table.a_rot_max,
+            table.j_rot_max,
+        )
+    assert FR3.v_trans_max == 3.0 - 1e-3 and FER.v_trans_max == 1.7 - 1e-3
     # Six numbers, as a tuple or as the list JSON gives (train_config.json).
     listed = CommandGenerator("cartesian_velocity", "limit_rate", 40, cartesian_limits=[1] * 6)
     assert listed.cartesian_limits == (1.0,) * 6

@@ -72,9 +72,8 @@ def test_set_ne_to_ee_is_reflected_and_moves_o_t_ee(serve):
     before = client.state()
     T = np.eye(4)
     T[2, 3] = 0.1
-    wire = tuple(T.T.reshape(16).tolist())
-    command_id = client.request(p.Command.kSetNEToEE, p.SetNEToEERequest(wire).payload())
-    assert client.reply(command_id).payload[0] == p.SetterStatus.kSuccess
+    wire, status = client.set_ne_to_ee(T)
+    assert status == p.SetterStatus.kSuccess
     after = client.latest_state()
     np.testing.assert_allclose(after["NE_T_EE"], wire, atol=1e-7)
     np.testing.assert_allclose(after["F_T_EE"], wire, atol=1e-7)

@@ -153,8 +153,9 @@ def test_franky_gripper_grasps_the_object_and_fails_on_thin_air(serve, client):
 def test_franky_gripper_out_of_stroke_width_raises(serve, client):
     server = serve()
     result = client("franky_gripper", "out_of_stroke", server.host, timeout=30)
-    assert result["error"] is not None and "Command failed" in result["error"], result
+    assert result["error"] == "CommandException: libfranka gripper: Command failed!", result
     assert result["homing_after"] is True
+    assert "invalid-argument" in server.log()
 
 
 def test_second_gripper_client_is_refused_while_the_first_keeps_working(serve, client):

@@ -23,8 +23,10 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.frames import IDENTITY16
 
 from .conftest import CLIENTS, ROOT, fresh_address, unstarved
+from .fci_helpers import DESK_HAND_F_T_NE
 from .raw_client import RawClient
 from .test_socket_pylibfranka import column_major, fk_flange
 
@@ -131,12 +133,6 @@ def test_an_object_wider_than_the_stroke_is_refused_at_startup():
 
 # -- the hand as Desk's end effector: F_T_NE at its TCP -------------------------------------
 
-#: Desk's Franka Hand configuration as a real robot reports it in F_T_NE, column-major:
-#: Rz(-pi/4), 0.1034 m along the flange z axis (tests/test_physics_hand.py checks it
-#: against the MJCF hand's TCP site).
-DESK_HAND_F_T_NE = [0.7071, -0.7071, 0, 0, 0.7071, 0.7071, 0, 0, 0, 0, 1, 0, 0, 0, 0.1034, 1]
-IDENTITY = np.eye(4).reshape(16)
-
 
 def test_read_once_reports_the_hand_tcp_as_f_t_ne(serve, client):
     """pylibfranka reads what a real FR3 with the Franka Hand configured in Desk sends:
@@ -144,7 +140,7 @@ def test_read_once_reports_the_hand_tcp_as_f_t_ne(serve, client):
     first = client("pylibfranka", "read_once", serve(PHYSICS).host)["first"]
     np.testing.assert_allclose(first["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)
     np.testing.assert_allclose(first["F_T_EE"], DESK_HAND_F_T_NE, atol=1e-4)
-    np.testing.assert_allclose(first["NE_T_EE"], IDENTITY)
+    np.testing.assert_allclose(first["NE_T_EE"], IDENTITY16)
     expected = fk_flange(np.array(first["q"])) @ column_major(DESK_HAND_F_T_NE)
     np.testing.assert_allclose(column_major(first["O_T_EE"]), expected, atol=1e-4)
 
@@ -173,9 +169,8 @@ def test_a_new_connection_finds_ne_t_ee_reset_and_the_hand_tcp_kept(serve):
     first.connect()
     NE_T_EE = np.eye(4)
     NE_T_EE[2, 3] = 0.05
-    wire = tuple(NE_T_EE.T.reshape(16).tolist())
-    command_id = first.request(p.Command.kSetNEToEE, p.SetNEToEERequest(wire).payload())
-    assert first.reply(command_id).payload[0] == p.SetterStatus.kSuccess
+    wire, status = first.set_ne_to_ee(NE_T_EE)
+    assert status == p.SetterStatus.kSuccess
     state = first.latest_state()
     np.testing.assert_allclose(state["NE_T_EE"], wire, atol=1e-7)
     hand = column_major(DESK_HAND_F_T_NE)
@@ -184,7 +179,7 @@ def test_a_new_connection_finds_ne_t_ee_reset_and_the_hand_tcp_kept(serve):
 
     second = connect_when_free(server.host)
     state = second.latest_state()
-    np.testing.assert_allclose(state["NE_T_EE"], IDENTITY)
+    np.testing.assert_allclose(state["NE_T_EE"], IDENTITY16)
     np.testing.assert_allclose(state["F_T_NE"], DESK_HAND_F_T_NE, atol=1e-4)
     np.testing.assert_array_equal(state["F_T_EE"], state["F_T_NE"])
     second.close()

@@ -84,6 +84,7 @@ from numpy.typing import ArrayLike
 from ..fci._fast import count_nonzero
 from ..fci.frames import is_homogeneous
 from ..fci.tables import DELTA_T
+from ..sim.kinematics import skew
 
 __all__ = [
     "DELTA_T",
@@ -534,7 +535,7 @@ def limit_rate_cartesian_pose(
     rotating = w_norm > _NORM_EPS
     axis = w / np.where(rotating, w_norm, 1.0)[..., None]
     theta = dt * w_norm
-    K = _skew(axis)
+    K = skew(axis)
     step = (
         np.eye(3)
         + np.sin(theta)[..., None, None] * K
@@ -586,7 +587,7 @@ def _limit_norm(v_c, v_last, a_last, v_max, a_max, j_max) -> np.ndarray:
     jerk = ((v_c - v_last) / dt - a_last) / dt
     jerk_norm = _norm(jerk)
     jerking = jerk_norm > eps
-    jerk_step = np.maximum(np.minimum(jerk_norm, j_max), -j_max)
+    jerk_step = np.minimum(jerk_norm, j_max)  # (libfranka also clamps at -J: a norm never is)
     acc = a_last + jerk / np.where(jerking, jerk_norm, 1.0)[..., None] * jerk_step[..., None] * dt
     acc = np.where(jerking[..., None], acc, a_last)
     # Distance from v_last, along the acceleration's direction, to the sphere |v| = V.
@@ -606,19 +607,6 @@ def _limit_norm(v_c, v_last, a_last, v_max, a_max, j_max) -> np.ndarray:
 def _norm(x: np.ndarray) -> np.ndarray:
     """Euclidean norm over the last axis."""
     return np.sqrt(np.einsum("...i,...i->...", x, x))
-
-
-def _skew(u: np.ndarray) -> np.ndarray:
-    """(..., 3) -> (..., 3, 3) cross-product matrices."""
-    K = np.zeros((*u.shape[:-1], 9))
-    # Entries (0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1): -u2, u1, u2, -u0, -u1, u0.
-    K[..., _SKEW_SLOTS] = u[..., _SKEW_SOURCE] * _SKEW_SIGN
-    return K.reshape(*u.shape, 3)
-
-
-_SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
-_SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
-_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
 
 
 def _rotation_to_quaternion(R: np.ndarray) -> np.ndarray:

@@ -55,17 +55,25 @@ FILTERS = ("none", "interpolate", "lowpass", "limit_rate")
 
 #: The Cartesian rate limiter's targets: translation velocity [m/s], acceleration [m/s^2],
 #: jerk [m/s^3], then rotation [rad/s, rad/s^2, rad/s^3].
-CARTESIAN_LIMITS: dict[str, tuple[float, ...]] = {
-    # include/franka/rate_limiting.h (0.10.0 on, FR3): 3.0 / 9.0 / 4500 and 2.5 / 17 / 8500,
-    # each minus kLimitEps = 1e-3. A stream at these trips the joint side (29 / 30) as it
-    # does on the robot: at home joint 2 moves 3.2 rad per metre along x, so 9 m/s^2 asks
-    # ~29 rad/s^2 of it against the robot's 10.
-    "libfranka": (2.999, 8.999, 4499.999, 2.499, 16.999, 8499.999),
+CARTESIAN_LIMITS: dict[str, tuple[float, ...] | None] = {
+    # libfranka's own limiter targets, include/franka/rate_limiting.h: the robot table's
+    # Cartesian limits (fci/tables.py; FR3 3.0 / 9.0 / 4500 and 2.5 / 17 / 8500, each
+    # minus kLimitEps), resolved per robot by the generator. A stream at these trips the
+    # joint side (29 / 30) as it does on the robot: at home joint 2 moves 3.2 rad per
+    # metre along x, so 9 m/s^2 asks ~29 rad/s^2 of it against the robot's 10.
+    "libfranka": None,
     # What the joint side accepts across the reach workspace (measured with random
     # actions: tests/test_env_cartesian.py): 1.5 m/s^2 already reached 10.4 rad/s^2 on
     # joint 4 with the arm half stretched (q4 = -1.35); 1.0 keeps a third in hand.
     "conservative": (0.5, 1.0, 200.0, 1.0, 2.0, 400.0),
 }
+
+
+def libfranka_cartesian_limits(table: RobotTable) -> tuple[float, ...]:
+    """libfranka's Cartesian limiter targets for ``table``'s robot, in CARTESIAN_LIMITS's
+    order (rate_limiting.h's kMax* values, which the robot's table holds)."""
+    t = table
+    return (t.v_trans_max, t.a_trans_max, t.j_trans_max, t.v_rot_max, t.a_rot_max, t.j_rot_max)
 
 
 @dataclass
@@ -123,7 +131,9 @@ class CommandGenerator:
             raise ValueError(f"unknown action_filter {action_filter!r}: expected {FILTERS}")
         if cartesian_dof not in (3, 6):
             raise ValueError(f"cartesian_dof must be 3 or 6, got {cartesian_dof!r}")
-        if isinstance(cartesian_limits, str):
+        if cartesian_limits == "libfranka":
+            limits = libfranka_cartesian_limits(table)
+        elif isinstance(cartesian_limits, str):
             limits = CARTESIAN_LIMITS.get(cartesian_limits, cartesian_limits)
         else:  # six numbers (a JSON list works too)
             limits = tuple(cartesian_limits)
@@ -145,8 +155,11 @@ class CommandGenerator:
         m = LIMITER_MARGIN
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
+        # A unit twist action's twist, per component.
+        self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
         self._target = None
+        self._turn = None
         #: per robot: its motion's first command is still to be sent (no reference yet)
         self._first = np.ones(n, dtype=bool)
         self._n_first = n
@@ -206,13 +219,15 @@ class CommandGenerator:
         sc = self.scale
         if self.interface == "cartesian_velocity":
             self._start = state["O_dP_EE_c"].astype(np.float64)
-            self._target = six * np.repeat([sc.linear_velocity, sc.angular_velocity], 3)
+            self._target = six * self._twist_scale
             return
         T = _reference_pose(state)
         target = T.copy()
         target[:, :3, 3] += six[:, :3] * sc.translation
         target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
         self._start, self._target = T, target
+        if self.action_filter == "interpolate":  # the step's rotation, interpolated per cycle
+            self._turn = rotation_log(target[:, :3, :3] @ T[:, :3, :3].transpose(0, 2, 1))
 
     def _pose_command(self, state: np.ndarray, k: int) -> np.ndarray:
         """Cycle k's O_T_EE_c as (n, 4, 4) matrices."""
@@ -223,8 +238,7 @@ class CommandGenerator:
             s = (k + 1) / self.cycles_per_step
             out = target.copy()
             out[:, :3, 3] = cf.interpolate(start[:, :3, 3], target[:, :3, 3], s)
-            turn = rotation_log(target[:, :3, :3] @ start[:, :3, :3].transpose(0, 2, 1))
-            out[:, :3, :3] = rotation_exp(s * turn) @ start[:, :3, :3]
+            out[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
             return out
         ref = _reference_pose(state)
         out = cf.cartesian_lowpass_filter(target, ref, self.cutoff)
@@ -239,37 +253,42 @@ class CommandGenerator:
         )
 
     def _filtered(self, state: np.ndarray) -> np.ndarray:
-        target = self._target
-        if self.interface == "cartesian_velocity":
-            ref = state["O_dP_EE_c"].astype(np.float64)
-        elif self.interface == "joint_position":
-            ref = state["q_d"].astype(np.float64)
-            if self._n_first:
-                ref = np.where(self._first[:, None], target, ref)
-        elif self.interface == "joint_velocity":
-            ref = state["dq_d"].astype(np.float64)
+        target, interface = self._target, self.interface
+        # The reference the filters run against, read off the state once.
+        ref = state[_REFERENCE[interface]].astype(np.float64)
+        if interface == "joint_position" and self._n_first:
+            # A position motion's first command is its own reference (no q_d to filter to).
+            out = cf.lowpass_core(target, np.where(self._first[:, None], target, ref), self._gain)
         else:
-            ref = state["tau_J_d"].astype(np.float64)
-        out = cf.lowpass_core(target, ref, self._gain)
+            out = cf.lowpass_core(target, ref, self._gain)
         if self.action_filter != "limit_rate":
             return out
-        if self.interface == "cartesian_velocity":
+        if interface == "cartesian_velocity":
             return cf.limit_rate_cartesian_velocity(
                 out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
             )
-        t, margin = self.table, LIMITER_MARGIN["dq"]
-        if self.interface in ("joint_position", "joint_velocity"):
-            q_d = state["q_d"].astype(np.float64)
-            both = t.velocity_envelope_halves(q_d)  # [upper | -lower]
-            both -= margin  # upper - margin and -(lower + margin), as libfranka's own
-            upper, lower = both[:, :7], -both[:, 7:]
-            dq_d = state["dq_d"].astype(np.float64)
-            ddq_d = state["ddq_d"].astype(np.float64)
-            a_max, j_max = self._ddq_max, self._dddq_max
-            if self.interface == "joint_position":
-                return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
-            return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
-        return cf.limit_torques_core(out, state["tau_J_d"].astype(np.float64), self._dtau_max)
+        if interface == "torque":
+            return cf.limit_torques_core(out, ref, self._dtau_max)
+        q_d = ref if interface == "joint_position" else state["q_d"].astype(np.float64)
+        dq_d = ref if interface == "joint_velocity" else state["dq_d"].astype(np.float64)
+        ddq_d = state["ddq_d"].astype(np.float64)
+        both = self.table.velocity_envelope_halves(q_d)  # [upper | -lower]
+        # upper - margin and -(lower + margin), in libfranka's order of operations
+        both -= LIMITER_MARGIN["dq"]
+        upper, lower = both[:, :7], -both[:, 7:]
+        a_max, j_max = self._ddq_max, self._dddq_max
+        if interface == "joint_position":
+            return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
+        return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
+
+
+#: The state field each interface's filters run against (libfranka's ControlLoop).
+_REFERENCE = {
+    "joint_position": "q_d",
+    "joint_velocity": "dq_d",
+    "torque": "tau_J_d",
+    "cartesian_velocity": "O_dP_EE_c",
+}
 
 
 def _reference_pose(state: np.ndarray) -> np.ndarray:

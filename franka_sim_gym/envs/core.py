@@ -66,6 +66,14 @@ SILENT_CYCLES = 2
 _MODE_NAMES = {int(m): m.name for m in RobotMode}
 
 
+def draw_episode(rng: np.random.Generator, noise: float, task) -> tuple[np.ndarray, np.ndarray]:
+    """An episode's start pose (the home pose plus uniform noise of +-``noise`` rad per
+    joint) and its goal (``task.sample_goal``), drawn from ``rng`` in that order: what a
+    reset draws, and what examples/deploy_pylibfranka.py draws for the same reaches."""
+    start = HOME_Q + rng.uniform(-noise, noise, size=7)
+    return start, task.sample_goal(rng)
+
+
 class FciBatch:
     """n reach episodes on n simulated FR3s, stepped together (see the module docstring).
 
@@ -152,8 +160,8 @@ class FciBatch:
         arm): teleport to the home pose plus seeded noise, Move, draw a goal."""
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         ctrl = self.controller
-        noise = self.reset_noise
-        q = np.stack([HOME_Q + rngs[i].uniform(-noise, noise, size=7) for i in arms.tolist()])
+        drawn = [draw_episode(rngs[i], self.reset_noise, self.task) for i in arms.tolist()]
+        q = np.stack([start for start, _ in drawn])
         ids = ctrl.writer.message_id.copy()
         ctrl.reset(arms, q)
         # The reset publishes the teleported state under a new message id, for every arm.
@@ -167,7 +175,7 @@ class FciBatch:
             if self.gripper:
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller_mode), int(generator))
-            self.goals[i] = self.task.sample_goal(rngs[i])
+        self.goals[arms] = [goal for _, goal in drawn]
         self.commands.reset(arms)
         self.steps[arms] = 0
         self.cycles[arms] = 0
@@ -270,17 +278,19 @@ class FciBatch:
         states, ee, width = self._measured(frozen, snapshot)
         obs = self._observation(states, ee, width)
         task = self.task
-        reward = task.compute_reward(obs["achieved_goal"], obs["desired_goal"]).astype(np.float64)
         terminated = frozen
         penalty = np.zeros(n)
         if frozen.any():
             # A reflex must never be a shortcut to a higher return: charge the worst
             # reward for every step the episode would still have had. The charge rides in
-            # the info, so compute_reward charges it again when HER relabels the goal (a
-            # relabelled terminal step would otherwise look like a free success).
+            # the info, and the step's reward is compute_reward of that info: HER's
+            # relabelling charges it the same way (a relabelled terminal step would
+            # otherwise look like a free success).
             remaining = self.max_episode_steps - self.steps[frozen]
             penalty[frozen] = task.worst_step_reward * (remaining + 1)
-            reward += penalty
+        reward = task.compute_reward(
+            obs["achieved_goal"], obs["desired_goal"], {"reflex_penalty": penalty}
+        ).astype(np.float64)
         truncated = active & ~terminated & (self.steps >= self.max_episode_steps)
         return obs, reward, terminated, truncated, self._info(states, ee, lost, violations, penalty)
 

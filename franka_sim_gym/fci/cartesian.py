@@ -205,19 +205,17 @@ class CartesianGenerators:
         # The pose's derivatives judge pose motions (and feed their extrapolation and
         # reported twist); the twist's judge twist motions. Each only when one runs.
         d = (
-            rules.pose_derivatives(
-                T_cand, self.T, self.v, self.omega, self.a, self.alpha, 1, self.history
-            )
+            rules.pose_derivatives(T_cand, self.T, self.history, 1)
             if m.n_cartesian_position
             else None
         )
         if m.n_cartesian_velocity:
-            # Side by side, (n, 3, 6): [dtwist, twist, ddtwist] -- the norms' check order.
+            # Side by side, (n, 3, 6): [twist, dtwist, ddtwist], as the pose's derivatives.
             twist_stack = np.empty((c.n, 3, 6))
-            dtwist, ddtwist = twist_stack[:, 0], twist_stack[:, 2]
+            dtwist, ddtwist = twist_stack[:, 1], twist_stack[:, 2]
+            twist_stack[:, 0] = twist
             np.subtract(twist, self.twist, out=dtwist)
             dtwist /= _DT
-            twist_stack[:, 1] = twist
             np.subtract(dtwist, self.dtwist, out=ddtwist)
             ddtwist /= _DT
         if elbow_in_use:
@@ -304,7 +302,7 @@ class CartesianGenerators:
         judged_twist = active & twist_rows
         if count_nonzero(judged_twist):
             check = rules.check_cartesian_velocity(
-                twist, dtwist, ddtwist, first, elbow_stream, joint, table, scale, twist_stack
+                twist_stack, first, elbow_stream, joint, table, scale
             )
 
             def twist_quantities() -> dict:  # built only for a log line

@@ -44,8 +44,8 @@ class MotionLimitEngine:
         # The safety controller's check of measured dq: [dq | -dq] against the envelope's
         # halves, whose measured rows are widened by the margin (the shift per row).
         self._signed_dq = np.zeros((n, 14))
-        self._envelope_shift = np.zeros((2, 1))  # measured row, reference row
-        self._envelope_margin: float | None = None
+        tol, margin = JOINT_VELOCITY_LIMIT_TOLERANCE, controller.config.measured_velocity_margin
+        self._envelope_shift = np.array([[tol - margin], [tol]])  # measured row, reference row
         #: late datagrams applied (not recorded) this cycle: the servo's target
         self.late = np.zeros(n, dtype=bool)
         self.late_q = np.zeros((n, 7))
@@ -370,15 +370,10 @@ class MotionLimitEngine:
         physics, w, table = self.c.physics, self.c.writer, self.c.table
         margin = self.c.config.measured_velocity_margin
         dq = physics.dq
-        # One envelope call for two uses: measured q (for 3, now) and the reference
-        # just recorded (the q_prev the next cycle's commands are judged at).
-        # The measured rows widened by the margin: [upper + margin | -(lower - margin)].
+        # One envelope call for two uses, (n, 2, 14) rows [q | q] per robot: measured q
+        # (for 3, now; widened by the margin: [upper + margin | -(lower - margin)]) and
+        # the reference just recorded (the q_prev the next cycle's commands are judged at).
         n = self.c.n
-        if margin != self._envelope_margin:
-            self._envelope_shift[0] = JOINT_VELOCITY_LIMIT_TOLERANCE - margin
-            self._envelope_shift[1] = JOINT_VELOCITY_LIMIT_TOLERANCE
-            self._envelope_margin = margin
-        # (n, 2, 14): per robot [q | q] measured, then [q | q] of the reference.
         q, q_ref = physics.q, self.c.reference.q
         both = table.velocity_envelope_halves(
             np.concatenate((q, q, q_ref, q_ref), axis=1).reshape(n, 2, 14), self._envelope_shift

@@ -53,14 +53,8 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     """
     flat = R.reshape(*R.shape[:-2], 9)
     # (R21 - R12, R02 - R20, R10 - R01): one gather each side instead of three stacks.
-    vee = flat[..., _VEE_PLUS] - flat[..., _VEE_MINUS]
-    two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
-    two_cos = flat[..., 0] + flat[..., 4] + flat[..., 8] - 1.0
-    angle = np.arctan2(two_sin, two_cos)
-    # angle / (2 sin angle) -> 1/2 + angle^2 / 12 as the angle -> 0.
-    turning = two_sin > 1e-12
-    scale = np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)
-    out = vee * scale[..., None]
+    out = flat[..., _VEE_PLUS] - flat[..., _VEE_MINUS]
+    angle = _scale_to_angle(out, flat[..., 0] + flat[..., 4] + flat[..., 8] - 1.0)
     near_pi = np.pi - angle < 1e-6
     if count_nonzero(near_pi):
         sym = (R[near_pi] + np.eye(3)) * 0.5
@@ -75,19 +69,34 @@ def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
     """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs, without forming the product
     away from pi: its skew part and trace are contractions of R_a with R_b."""
     vee = np.einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
-    two_sin = np.sqrt(np.einsum("ni,ni->n", vee, vee))
     two_cos = np.einsum("nka,nka->n", R_a, R_b)
     two_cos -= 1.0
-    angle = np.arctan2(two_sin, two_cos)
-    turning = two_sin > 1e-12
-    if count_nonzero(turning) == len(turning):
-        vee *= (angle / two_sin)[:, None]
-    else:  # angle / (2 sin angle) -> 1/2 as the angle -> 0
-        vee *= np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)[:, None]
+    angle = _scale_to_angle(vee, two_cos)
     if count_nonzero(np.pi - angle < 1e-6):  # the skew part vanishes: rotation_log's branch
         near_pi = np.pi - angle < 1e-6
         vee[near_pi] = rotation_log(R_a[near_pi].transpose(0, 2, 1) @ R_b[near_pi])
     return vee
+
+
+def _scale_to_angle(vee: np.ndarray, two_cos: np.ndarray) -> np.ndarray:
+    """Scale the skew part ``vee`` (2 sin(angle) axis) to angle * axis in place; return
+    the angle, atan2(|vee|, 2 cos(angle)), exact over [0, pi]."""
+    two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
+    angle = np.arctan2(two_sin, two_cos)
+    turning = two_sin > 1e-12
+    if count_nonzero(turning) == turning.size:
+        vee *= (angle / two_sin)[..., None]
+    else:  # angle / (2 sin angle) -> 1/2 as the angle -> 0
+        vee *= np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)[..., None]
+    return angle
+
+
+def skew(u: np.ndarray) -> np.ndarray:
+    """(..., 3) vectors to (..., 3, 3) cross-product matrices: skew(u) @ v = u x v."""
+    lead = u.shape[:-1]
+    K = np.zeros((*lead, 9), dtype=u.dtype)
+    K[..., _SKEW_SLOTS] = u[..., _SKEW_SOURCE] * _SKEW_SIGN
+    return K.reshape(*lead, 3, 3)
 
 
 def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
@@ -96,10 +105,7 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     angle = np.sqrt(np.add.reduce(rotvec * rotvec, axis=-1))
     small = angle < 1e-8
     safe = np.where(small, 1.0, angle)
-    lead = rotvec.shape[:-1]
-    K = np.zeros((*lead, 9), dtype=rotvec.dtype)
-    K[..., _SKEW_SLOTS] = rotvec[..., _SKEW_SOURCE] * _SKEW_SIGN
-    K = K.reshape(*lead, 3, 3)
+    K = skew(rotvec)
     if count_nonzero(small):
         a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
         b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
@@ -109,22 +115,10 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
 
 
-def _rotation_error(R_target: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """(n, 3) sin(angle) * axis of R_target R^T: zero exactly where the rotations agree.
-
-    Cheaper than the logarithm and with the same zero, so Gauss-Newton converges
-    to the same solution; its magnitude is the angle to within 0.2 % below 0.1 rad.
-    """
-    E = R_target @ R.transpose(0, 2, 1)
-    return 0.5 * (E[:, _VEE_A, _VEE_B] - E[:, _VEE_B, _VEE_A])
-
-
-_VEE_A = np.array([2, 0, 1])
-_VEE_B = np.array([1, 2, 0])
 #: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
 _VEE_PLUS = np.array([7, 2, 3])
 _VEE_MINUS = np.array([5, 6, 1])
-#: rotation_exp's cross-product matrix K of k, flat: entries (0, 1), (0, 2), (1, 0),
+#: skew(k) flat: entries (0, 1), (0, 2), (1, 0),
 #: (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
 _SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
 _SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
@@ -139,11 +133,11 @@ _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 #: vee(M - M^T) of M = R_a^T R_b is -eps_iab R_a[k, a] R_b[k, b].
 _NEG_LEVI_CIVITA = -_LEVI_CIVITA
 
-#: vee((E - E^T) / 2) of E = R_t R^T as -eps / 2 contracted with R_t and R: what
-#: _rotation_error computes, in one einsum call; cheaper up to this many arms
-#: (measured: 2.8 vs 4.7 us at n = 1, 4.3 vs 5.4 at 8, 9.1 vs 7.4 at 32).
+#: The IK's rotation error: vee((E - E^T) / 2) of E = R_t R^T, i.e. sin(angle) * axis,
+#: as -eps / 2 contracted with R_t and R in one call. Zero exactly where the rotations
+#: agree, like the logarithm but cheaper, so Gauss-Newton converges to the same
+#: solution; its magnitude is the angle to within 0.2 % below 0.1 rad.
 _HALF_VEE = -0.5 * _LEVI_CIVITA
-_EINSUM_ROTATION_ERROR_MAX_N = 8
 
 #: The largest joint change [rad] of one Gauss-Newton update. A tracked pose moves the
 #: solution by milliradians a cycle; only a jump to an unreachable pose hits this.
@@ -281,11 +275,7 @@ class ArmKinematics:
         for iteration in range(self.max_iterations + 1):
             p, R, J = self._evaluate(q, F_T_EE)
             np.subtract(p_t, p, out=e[:, :3])
-            if self.n <= _EINSUM_ROTATION_ERROR_MAX_N:
-                # The same sin(angle) * axis as one contraction (fewer calls for a few arms).
-                np.einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
-            else:
-                e[:, 3:] = _rotation_error(R_t, R)
+            np.einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
             # Squared position and rotation errors side by side, (n, 2).
             err2 = np.einsum("nkj,nkj->nk", halves, halves)
             converged = np.maximum.reduce(err2, axis=1) <= tol2  # NaN: not converged

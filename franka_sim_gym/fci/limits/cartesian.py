@@ -114,7 +114,7 @@ class PoseDerivatives(NamedTuple):
     jerk: np.ndarray
     zeta: np.ndarray  # rotational jerk
     #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the fields above are its views
-    stacked: np.ndarray | None = None
+    stacked: np.ndarray
 
 
 class ElbowDerivatives(NamedTuple):
@@ -168,32 +168,19 @@ def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 
 def pose_derivatives(
-    T_c: np.ndarray,
-    T_prev: np.ndarray,
-    v_prev: np.ndarray,
-    omega_prev: np.ndarray,
-    a_prev: np.ndarray,
-    alpha_prev: np.ndarray,
-    steps,
-    history: np.ndarray | None = None,
+    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps
 ) -> PoseDerivatives:
     """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
     rotation as the body-frame rotation vector of R_prev^T R_c per interval.
 
-    ``history`` is the caller's (n, 2, 6) [[v | omega], [a | alpha]] when it keeps the
-    four previous values side by side (then they are its views): one difference per
-    order instead of two.
+    ``history`` is the previous (n, 2, 6) [[v | omega], [a | alpha]], side by side so
+    that each order takes one difference.
     """
     h = interval(steps)
-    n = len(T_c)
-    D = np.empty((n, 3, 6))
+    D = np.empty((len(T_c), 3, 6))
     np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=D[:, 0, :3])
     D[:, 0, 3:] = relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3])
     D[:, 0] /= h
-    if history is None:
-        history = np.empty((n, 2, 6))
-        history[:, 0, :3], history[:, 0, 3:] = v_prev, omega_prev
-        history[:, 1, :3], history[:, 1, 3:] = a_prev, alpha_prev
     np.subtract(D[:, 0], history[:, 0], out=D[:, 1])
     D[:, 1] /= h
     np.subtract(D[:, 1], history[:, 1], out=D[:, 2])
@@ -243,13 +230,10 @@ def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     checked = joint.checked
     if not count_nonzero(checked):
         return checked, checked
-    both = np.abs(np.concatenate((joint.ddq, joint.dddq), axis=1))
-    if not count_nonzero(both > _ik_limits(table, scale)):  # nothing over: the common case
+    over = np.abs(np.concatenate((joint.ddq, joint.dddq), axis=1)) > _ik_limits(table, scale)
+    if not count_nonzero(over):  # nothing over: the common case
         return np.zeros_like(checked), np.zeros_like(checked)
-    return (
-        checked & _any_row(np.abs(joint.ddq) > table.ik_ddq_max * scale),
-        checked & _any_row(np.abs(joint.dddq) > table.ik_dddq_max * scale),
-    )
+    return checked & over[:, :7].any(axis=1), checked & over[:, 7:].any(axis=1)
 
 
 def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -264,29 +248,22 @@ def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
 _IK_LIMITS: dict[tuple[str, float], np.ndarray] = {}
 
 
-def _any_row(x: np.ndarray) -> np.ndarray:
-    """(n,) ``x.any(axis=1)`` of a bool (n, k), without the reduction when none is set."""
-    return x.any(axis=1) if count_nonzero(x) else np.zeros(len(x), dtype=bool)
-
-
-def _over(halves: list, limits2: np.ndarray) -> np.ndarray:
-    """(n, k) each (n, 3) vector's norm over its limit, in one pass ("not inside": NaN
-    trips). ``limits2`` are the squared limits, (k,)."""
-    x = np.empty((len(halves[0]), len(halves), 3))
-    for k, half in enumerate(halves):  # np.stack's copy, without its checks
-        x[:, k] = half
-    return ~(np.einsum("nkj,nkj->nk", x, x) <= limits2)
+def _over(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
+    """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] over the
+    table's limits, in one pass ("not inside": NaN trips)."""
+    x = stacked.reshape(len(stacked), 6, 3)
+    return ~(np.einsum("nkj,nkj->nk", x, x) <= _limits2(table))
 
 
 def _limits2(table: RobotTable) -> np.ndarray:
-    """Squared Cartesian limits [a, alpha, v, omega, jerk, zeta] of ``table``."""
+    """Squared Cartesian limits [v, omega, a, alpha, jerk, zeta] of ``table``."""
     cached = _LIMITS2.get(table.name)
     if cached is None:
         limits = (
-            table.a_trans_max,
-            table.a_rot_max,
             table.v_trans_max,
             table.v_rot_max,
+            table.a_trans_max,
+            table.a_rot_max,
             table.j_trans_max,
             table.j_rot_max,
         )
@@ -295,10 +272,6 @@ def _limits2(table: RobotTable) -> np.ndarray:
 
 
 _LIMITS2: dict[str, np.ndarray] = {}
-#: PoseDerivatives.stacked's norm order [v, omega, a, alpha, jerk, zeta] from
-#: _limits2's [a, alpha, v, omega, jerk, zeta], and back.
-_STACKED_ORDER = np.array([2, 3, 0, 1, 4, 5])
-_FROM_STACKED = np.array([2, 3, 0, 1, 4, 5])
 
 
 def check_cartesian_pose(
@@ -347,20 +320,15 @@ def check_cartesian_pose(
         )
     else:
         start_pose = start_elbow = first
-    if d.stacked is not None:  # the six norms in one pass, rows [v, omega, a, alpha, j, zeta]
-        D = d.stacked.reshape(len(first), 6, 3)
-        over = ~(np.einsum("nkj,nkj->nk", D, D) <= _limits2(table)[_STACKED_ORDER])
-        over = over[:, _FROM_STACKED]
-    else:
-        over = _over([d.a, d.alpha, d.v, d.omega, d.jerk, d.zeta], _limits2(table))
+    over = _over(d.stacked, table)
     over &= later[:, None]
     ik29, ik30 = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, later, table)
     if not (starting or _any(elbow.has, over, ik29, ik30)):
         # Mid-motion, no elbow, nothing over: the common case, without the selection.
         return _no_error(len(first))
-    acc = over[:, 0] | over[:, 1]
-    vel = over[:, 2] | over[:, 3]
+    vel = over[:, 0] | over[:, 1]
+    acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
     rows = [start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow_limit]
     tripped = np.stack(rows, axis=1)
@@ -368,37 +336,27 @@ def check_cartesian_pose(
 
 
 def check_cartesian_velocity(
-    twist: np.ndarray,
-    dtwist: np.ndarray,
-    ddtwist: np.ndarray,
+    stacked: np.ndarray,
     first: np.ndarray,
     elbow: ElbowStream,
     joint: JointSide,
     table: RobotTable,
     scale: float,
-    stacked: np.ndarray | None = None,
 ) -> CartesianCheck:
     """Judge n O_dP_EE_c commands; one latched error per robot.
 
-    ``twist`` (n, 6) is [v, omega] in the base frame; ``dtwist`` / ``ddtwist`` its
-    backward differences against the published O_dP_EE_c history (zero at rest, so
-    the opening twist is an acceleration from standstill, as on the robot).
-    ``stacked``: the caller's (n, 3, 6) [dtwist, twist, ddtwist] when it has them side
-    by side (the norms then take one pass, no copies).
+    ``stacked`` (n, 3, 6) is the twist [v | omega] in the base frame, then its first
+    and second backward differences against the published O_dP_EE_c history (zero at
+    rest, so the opening twist is an acceleration from standstill, as on the robot).
     """
     first = np.asarray(first, dtype=bool)
-    if stacked is not None:
-        x = stacked.reshape(len(first), 6, 3)
-        over = ~(np.einsum("nkj,nkj->nk", x, x) <= _limits2(table))
-    else:
-        halves = [dtwist[:, :3], dtwist[:, 3:], twist[:, :3], twist[:, 3:]]
-        over = _over(halves + [ddtwist[:, :3], ddtwist[:, 3:]], _limits2(table))
+    over = _over(stacked, table)
     ik_acc, ik_jerk = _joint_side_rows(joint, table, scale)
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
     if not _any(over, ik_acc, ik_jerk, sign, elbow_limit):
         return _no_error(len(first))  # nothing over: the common case, without the selection
-    acc = over[:, 0] | over[:, 1]
-    vel = over[:, 2] | over[:, 3]
+    vel = over[:, 0] | over[:, 1]
+    acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
     tripped = np.stack([acc, jerk, vel, ik_acc | ik_jerk, sign, elbow_limit], axis=1)
     return CartesianCheck(select(tripped, TWIST_CODES), tripped)
