@@ -459,9 +459,9 @@ def limit_rate_cartesian_velocity(
             libfranka's message).
     """
     twist_c = _finite("twist_c", twist_c, _MSG_TWIST)
-    twist_last = _finite("twist_last", twist_last)
-    dtwist_last = _finite("dtwist_last", dtwist_last)
-    limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
+    twist_last, dtwist_last, limits = _twist_history(
+        twist_last, dtwist_last, (v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
+    )
     return _limit_twist(twist_c, twist_last, dtwist_last, *limits)
 
 
@@ -516,11 +516,10 @@ def limit_rate_cartesian_pose(
     if count_nonzero(is_homogeneous(T_c.reshape(-1, 4, 4))) != T_c.size // 16:
         raise ValueError(f"T_c: {_MSG_POSE_INVALID} (libfranka throws std::invalid_argument)")
     T_last = _finite("T_last", T_last)
-    twist_last = _finite("twist_last", twist_last)
-    dtwist_last = _finite("dtwist_last", dtwist_last)
-    v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max = _finite_limits(
-        v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max
+    twist_last, dtwist_last, limits = _twist_history(
+        twist_last, dtwist_last, (v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
     )
+    v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max = limits
     dt = DELTA_T
     t_last = T_last[..., :3, 3]
     R_last = T_last[..., :3, :3]
@@ -546,6 +545,16 @@ def limit_rate_cartesian_pose(
     out[..., :3, 3] = t_last + twist[..., :3] * dt
     out[..., :3, :3] = np.where(rotating[..., None, None], step @ R_last, R_last)
     return out
+
+
+def _twist_history(twist_last, dtwist_last, limits) -> tuple:
+    """The last commanded twist and its rate, and the six limits, as validated float64
+    (both Cartesian limiters take them alike)."""
+    return (
+        _finite("twist_last", twist_last),
+        _finite("dtwist_last", dtwist_last),
+        _finite_limits(*limits),
+    )
 
 
 def _finite_limits(*limits: ArrayLike) -> list[np.ndarray]:
