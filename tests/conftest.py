@@ -124,21 +124,26 @@ def unstarved(
 ) -> tuple[ServerProcess, dict]:
     """Serve FLAGS and run one client against it; repeat when the machine starved the client.
 
-    With aborting off (the default) a client that a loaded machine stalls for 20
-    cycles or more is not stopped: the robot holds its reference, and the client
-    then resumes with a jump as long as the stall, which a tracking or arrival
-    assertion would misread as a controller fault. The server's own cycle count
-    decides: an attempt with a lost run of 20 proves nothing about tracking and is
-    repeated; any other is returned (the server stopped) for the test to judge.
+    With aborting off (the default) a client that a loaded machine stalls is not
+    stopped: the robot extrapolates (holds, from 20 cycles on), and the client then
+    resumes from its own trajectory with a jump, which a tracking or arrival
+    assertion would misread as a controller fault. The server's own account decides:
+    an attempt with a lost run of 20, or with lost cycles and a motion-limit
+    violation logged (the resumed stream's discontinuity: CI saw a 1.6 cm tracking
+    error after a run of 16), proves nothing about tracking and is repeated; any
+    other is returned (the server stopped) for the test to judge.
     """
     for _attempt in range(attempts):
         server = serve(*flags)
         result = run(server)
         server.stop()
-        runs = [longest for *_, longest in motion_summaries(server.log())]
-        if not runs or max(runs) < MAX_LOST_CYCLES:
+        log = server.log()
+        summaries = motion_summaries(log)
+        starved = any(longest >= MAX_LOST_CYCLES for *_, longest in summaries)
+        jumped = any(lost for _, lost, _ in summaries) and "motion limit violated" in log
+        if not (starved or jumped):
             return server, result
-    pytest.fail(f"{attempts} attempts starved the client for {MAX_LOST_CYCLES} cycles: too loaded")
+    pytest.fail(f"{attempts} attempts starved the client (see unstarved): too loaded")
 
 
 def run_client(
