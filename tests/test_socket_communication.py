@@ -23,7 +23,7 @@ def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serv
     assert (status, longest, next_status) == ("kReflexAborted", 20, "kSuccess")
 
 
-def test_a_client_silent_for_a_few_ms_is_not_aborted(serve, client):
+def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
     """Fewer than 20 consecutive lost cycles are extrapolated, never aborted.
 
     Wall-clock silence only bounds the lost run from below: a loaded machine can
@@ -33,7 +33,7 @@ def test_a_client_silent_for_a_few_ms_is_not_aborted(serve, client):
     """
     for _attempt in range(3):
         server = serve("--enforce-comm-constraints")
-        r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "5"}, timeout=60)
+        r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "10"}, timeout=60)
         assert "exception" not in r, r
         server.stop()
         summaries = motion_summaries(server.log())
@@ -42,7 +42,7 @@ def test_a_client_silent_for_a_few_ms_is_not_aborted(serve, client):
         if longest >= 20:  # the machine stalled the client past the bound: inconclusive
             assert status == "kReflexAborted" and r["error"] is not None
             continue
-        assert longest >= 5, summaries  # the silence really went unanswered
+        assert longest >= 9, summaries  # the silence really went unanswered (~10 states)
         assert status == "kSuccess", summaries
         assert r["error"] is None
         assert r["mode_after"] == "Idle"
