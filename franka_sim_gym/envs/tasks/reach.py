@@ -7,9 +7,12 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Goals are drawn uniformly from this box in the robot's base frame [m]: in
-#: front of the arm, inside its workspace, clear of the base and the floor.
+#: front of the arm, inside its workspace, clear of the base and the floor, and
+#: short of the stretched-arm singularity (joint 4 straight): with the far corner at
+#: 0.65 m the default policy reached a goal at (0.64, 0.18, 0.64) with an IK joint-4
+#: acceleration of 10.04 rad/s^2 and tripped 30 in 1 of 100 evaluation episodes.
 GOAL_LOW = np.array([0.30, -0.30, 0.20])
-GOAL_HIGH = np.array([0.65, 0.30, 0.65])
+GOAL_HIGH = np.array([0.60, 0.30, 0.60])
 
 
 @dataclass
