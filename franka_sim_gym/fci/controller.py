@@ -295,6 +295,8 @@ class FciController:
         w.publish(self.accounting.success_rate())
         if m.n_tracking:
             self.reference.remember(int(w.message_id[0]))
+        if m.n_cartesian:
+            self.engine.cartesian.remember(int(w.message_id[0]))
 
     # -- requests (between cycles) --------------------------------------------------------------
 
