@@ -19,6 +19,12 @@ Per cycle, for every robot running a Cartesian generator whose accounting is ope
    aborting under enforcement; what survives is recorded and its IK solution
    is the joint servo's reference (the arm follows the commanded pose).
 
+Late datagrams are handled on arrival (``late_datagrams``, seed "A datagram that
+turns up late replaces the guess it stood in for"), as for joint motions: the one an
+extrapolated run is missing rewinds the history to the last real sample and runs
+steps 2-4 against it; any other is judged by steps 2-4 against the history published
+in the state it answers and drives the servo for its cycle, never recorded.
+
 The history lives in ``cartesian_reference.CartesianReference`` (not in
 JointReference): q_d keeps reporting the measured q during a Cartesian motion, as
 the seed says.
@@ -115,6 +121,11 @@ class CartesianGenerators:
         self._cycle_candidates = Candidates(
             self.T_cmd, self.twist_cmd, self.elbow_cmd, self.elbow_valid
         )
+        #: late datagrams judged (not recorded) this cycle: the servo's target, unless a
+        #: fresh command supersedes it (seed: a late datagram "is still applied")
+        self.late = np.zeros(n, dtype=bool)
+        self.late_q = np.zeros((n, 7))
+        self.late_dq = np.zeros((n, 7))
         self._none = np.zeros(n, dtype=bool)
         self._none.setflags(write=False)
 
@@ -138,6 +149,7 @@ class CartesianGenerators:
         # A datagram echoing the state the Move was accepted in answers this history.
         h.remember_robot(i, echo)
         self._ik_failed_logged[i] = False
+        self.late[i] = False
 
     def take(self, commands: np.ndarray, accepted: np.ndarray) -> None:
         """Keep the Cartesian fields of the accepted commands as the cycle's candidates."""
@@ -511,6 +523,81 @@ class CartesianGenerators:
         warm_after = np.where(first, _WARM_JERK, np.where(rebase, 0, h.ik_warm + 1))
         np.copyto(h.ik_warm, warm_after, where=apply)
 
+    # -- late datagrams ------------------------------------------------------------------------
+
+    def late_datagrams(self, commands: np.ndarray, late: np.ndarray, ids: np.ndarray) -> None:
+        """Seed "A datagram that turns up late replaces the guess it stood in for".
+
+        Inside an extrapolated run, the datagram echoing the run's oldest unanswered
+        id throws the run's guesses away (pose, twist, elbow and the IK joint history
+        return to the last real sample), is judged against that sample over one cycle
+        — every Cartesian row, the joint side (29 / 30) included — and becomes the new
+        real sample; the cycles up to the last published state are then guessed again
+        from it, so a backlog draining in order rewinds datagram by datagram. Any other
+        late datagram — a replay, a duplicate, a reordered packet — gets no rewind and
+        never touches the history: it is judged against the history published in the
+        state it answers, and its IK solution drives the servo this cycle unless a
+        fresh command supersedes it.
+        """
+        h = self.reference
+        ids = ids.astype(np.uint64)
+        # The run's oldest unanswered id is the one after the last real command's:
+        # after each rewind the next datagram of an in-order backlog is again that.
+        rewind = late & (ids == h.real_echo + np.uint64(1))
+        if count_nonzero(rewind):
+            self._rewind(commands, rewind, ids)
+        judged = late & ~rewind & self.c.modes.cartesian
+        if count_nonzero(judged):
+            self._judge_late(commands, judged, ids)
+
+    def _late_candidates(self, commands: np.ndarray, rows: np.ndarray) -> Candidates:
+        """The Cartesian fields of late datagrams as candidates (the cycle's own untouched)."""
+        m = self.c.modes
+        T = self.T_cmd.copy()
+        pose = rows & m.cartesian_position
+        if count_nonzero(pose):
+            np.copyto(T, from_wire(commands["O_T_EE_c"]), where=pose[:, None, None])
+        r = rows[:, None]
+        twist = np.where(r, commands["O_dP_EE_c"], self.twist_cmd)
+        elbow = np.where(r, commands["elbow_c"], self.elbow_cmd)
+        return Candidates(T, twist, elbow, rows & commands["valid_elbow"].astype(bool))
+
+    def _rewind(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
+        """The datagram a run is missing replaces the guess it stood in for (see above)."""
+        c = self.c
+        self.reference.rewind(rows)
+        self._cycle(rows, self._none, self._late_candidates(commands, rows), ids)
+        # The sample stands for state id + 1; the history must stand for the last
+        # published state: guess the cycles in between again, from the real sample
+        # (a later datagram of the backlog rewinds them in turn).
+        behind = c.writer.message_id.astype(np.int64) - ids.astype(np.int64) - 1
+        behind = np.where(rows, behind, 0)
+        for j in range(int(behind.max())):
+            again = rows & (behind > j) & c.modes.cartesian
+            if not count_nonzero(again):
+                break
+            self._cycle(self._none, again, self._cycle_candidates, ids)
+
+    def _judge_late(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
+        """Judge late datagrams of ``rows`` without recording them: each against the history
+        published in the state it answers (older than the ring: the history as it stands),
+        over one cycle; applied to the servo this cycle (seed: "within a cycle a late
+        command is the freshest intent there is")."""
+        current = self.c.writer.message_id
+        h = self.reference.published(np.where(rows, ids, current), int(current[0]))
+        step = self._evaluate(
+            h, self._late_candidates(commands, rows), rows, self._none, self._none, rows
+        )
+        self._check(step, self._none, rows)
+        ik = step.ik
+        apply = rows & self.c.modes.cartesian & _usable(ik)
+        if not count_nonzero(apply):
+            return
+        a = apply[:, None]
+        np.copyto(self.late_q, ik.q, where=a)
+        np.copyto(self.late_dq, np.where(ik.converged[:, None], step.dq, 0.0), where=a)
+        self.late |= apply
+
     def _judge(self, check, rows, names, quantities, ik_row) -> None:
         """Name each violation's row for the log; 29 brings 30 when one command breaks both."""
         error = check.error
@@ -546,11 +633,18 @@ class CartesianGenerators:
     # -- what the state reports ----------------------------------------------------------------
 
     def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None):
-        """The joint servo's target: the IK solution for robots in a Cartesian motion."""
-        h = self.reference
-        rows = self.c.modes.cartesian[:, None]
+        """The joint servo's target: the IK solution for robots in a Cartesian motion, or
+        a late datagram's where no fresh command arrived this cycle (seed: a late datagram
+        "is still applied", but "never becomes a sample of your trajectory")."""
+        c, h = self.c, self.reference
+        rows = c.modes.cartesian[:, None]
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
-        return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
+        q, dq = np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
+        if count_nonzero(self.late):
+            late = (self.late & ~c._have & c.modes.cartesian)[:, None]
+            self.late[...] = False
+            q, dq = np.where(late, self.late_q, q), np.where(late, self.late_dq, dq)
+        return q, dq
 
     def publish(self) -> None:
         """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
@@ -589,6 +683,7 @@ class CartesianGenerators:
         h.reported[i] = h.dreported[i] = 0.0
         h.has_elbow[i] = False
         h.elbow_flag[i] = 0.0
+        self.late[i] = False
 
 
 def _usable(ik: IkResult) -> np.ndarray:
