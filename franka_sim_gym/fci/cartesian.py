@@ -19,14 +19,21 @@ Per cycle, for every robot running a Cartesian generator whose accounting is ope
    aborting under enforcement; what survives is recorded and its IK solution
    is the joint servo's reference (the arm follows the commanded pose).
 
-The history lives here (not in JointReference): q_d keeps reporting the
-measured q during a Cartesian motion, as the seed says.
+Late datagrams are handled on arrival (``late_datagrams``, seed "A datagram that
+turns up late replaces the guess it stood in for"), as for joint motions: the one an
+extrapolated run is missing rewinds the history to the last real sample and runs
+steps 2-4 against it; any other is judged by steps 2-4 against the history published
+in the state it answers and drives the servo for its cycle, never recorded.
+
+The history lives in ``cartesian_reference.CartesianReference`` (not in
+JointReference): q_d keeps reporting the measured q during a Cartesian motion, as
+the seed says.
 """
 
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -34,10 +41,12 @@ from ..sim.kinematics import (
     USABLE_POSITION_ERROR,
     USABLE_ROTATION_ERROR,
     ArmKinematics,
+    IkResult,
     rotation_exp,
 )
 from . import extrapolation
 from ._fast import count_nonzero
+from .cartesian_reference import CartesianHistory, CartesianReference
 from .errors import Error
 from .frames import from_wire, to_wire
 from .limits import cartesian as rules
@@ -54,6 +63,39 @@ _WARM_ACCELERATION = 1
 _WARM_JERK = 2
 
 
+class Candidates(NamedTuple):
+    """One command per robot, as a cycle's candidate: O_T_EE_c (row-major), O_dP_EE_c,
+    elbow_c and valid_elbow (each generator reads its own field only)."""
+
+    T: np.ndarray
+    twist: np.ndarray
+    elbow: np.ndarray
+    elbow_valid: np.ndarray
+
+
+class _Step(NamedTuple):
+    """The candidates of one cycle differenced against a history and solved to joint space."""
+
+    #: (n, 4, 4) the IK target: the commanded or extrapolated pose, or the twist's integral
+    T: np.ndarray
+    #: (n, 6) the commanded or extrapolated twist (the history's twist where neither)
+    twist: np.ndarray
+    #: (n, 3, 6) [twist, dtwist, ddtwist] while a twist motion runs, else None
+    twist_stack: np.ndarray | None
+    #: the pose's derivatives while a pose motion runs, else None
+    d: rules.PoseDerivatives | None
+    #: the extrapolated pose velocities (v, omega) of the lost cycles, else None
+    pose_ex: tuple[np.ndarray, np.ndarray] | None
+    #: the elbow stream (the commanded or extrapolated elbow and its derivatives)
+    elbow: rules.ElbowStream
+    #: elbow[0]'s extrapolated velocity (the history's where not extrapolated)
+    de_ex: np.ndarray
+    #: the IK solution and its backward differences; the joint side as judged
+    ik: IkResult
+    dq: np.ndarray
+    joint: rules.JointSide
+
+
 class CartesianGenerators:
     """History, checks and IK of the Cartesian generators of n robots."""
 
@@ -64,31 +106,11 @@ class CartesianGenerators:
         n = c.n
         physics = c.physics
         self.kinematics = ArmKinematics(physics.model, physics.layout)
-        #: the commanded (pose motion) or twist-integrated (twist motion) EE pose
-        self.T = np.tile(np.eye(4), (n, 1, 1))
-        #: the pose's history side by side, (n, 2, 6): [[v | omega], [a | alpha]];
-        #: v, omega, a and alpha are its views (one difference per order a cycle)
-        self.history = np.zeros((n, 2, 6))
-        self.v, self.omega = self.history[:, 0, :3], self.history[:, 0, 3:]
-        self.a, self.alpha = self.history[:, 1, :3], self.history[:, 1, 3:]
-        #: the acceleration frozen for extrapolation, [a | alpha]; a_frozen, alpha_frozen views
-        self.acceleration_frozen = np.zeros((n, 6))
-        self.a_frozen = self.acceleration_frozen[:, :3]
-        self.alpha_frozen = self.acceleration_frozen[:, 3:]
-        #: the commanded twist, its acceleration and the frozen acceleration
-        self.twist, self.dtwist, self.dtwist_frozen = (np.zeros((n, 6)) for _ in range(3))
-        #: the twist the state reports (O_dP_EE_d / O_dP_EE_c) and its rate (O_ddP_EE_c)
-        self.reported, self.dreported = np.zeros((n, 6)), np.zeros((n, 6))
-        #: the commanded elbow while one is streamed (has_elbow), its derivatives
-        self.elbow = np.zeros((n, 2))
-        self.de, self.dde, self.dde_frozen = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.has_elbow = np.zeros(n, dtype=bool)
+        #: the history (pose, twist, elbow, reported twist, IK joint history), its last
+        #: real sample and the ring of published ones (cartesian_reference.py)
+        self.reference = CartesianReference(n)
         #: the pose a twist motion started from (O_T_EE_d / O_T_EE_c while it runs)
         self.start_T = np.tile(np.eye(4), (n, 1, 1))
-        #: the IK solution history: the joint servo's reference
-        self.q_ik, self.dq_ik, self.ddq_ik = np.zeros((n, 7)), np.zeros((n, 7)), np.zeros((n, 7))
-        #: converged IK samples since the joint history was last rebased
-        self.ik_warm = np.zeros(n, dtype=np.int64)
         #: the IK did not converge (logged once per motion)
         self._ik_failed_logged = np.zeros(n, dtype=bool)
         # The cycle's command candidates (the last datagram applied wins).
@@ -96,26 +118,38 @@ class CartesianGenerators:
         self.twist_cmd = np.zeros((n, 6))
         self.elbow_cmd = np.zeros((n, 2))
         self.elbow_valid = np.zeros(n, dtype=bool)
+        self._cycle_candidates = Candidates(
+            self.T_cmd, self.twist_cmd, self.elbow_cmd, self.elbow_valid
+        )
+        #: late datagrams judged (not recorded) this cycle: the servo's target, unless a
+        #: fresh command supersedes it (seed: a late datagram "is still applied")
+        self.late = np.zeros(n, dtype=bool)
+        self.late_q = np.zeros((n, 7))
+        self.late_dq = np.zeros((n, 7))
+        self._none = np.zeros(n, dtype=bool)
+        self._none.setflags(write=False)
+
+    @property
+    def q_ik(self) -> np.ndarray:
+        """(n, 7) the IK solution history's last sample: the joint servo's reference."""
+        return self.reference.q_ik
 
     # -- motion lifecycle -------------------------------------------------------------------
 
     def start(self, i: int) -> None:
         """A Cartesian Move started: the history sits at rest at the measured pose."""
-        w = self.c.writer
+        w, h = self.c.writer, self.reference
+        echo = int(w.message_id[i])
+        h.start(i, echo)
         T = from_wire(w.O_T_EE[i])
-        self.T[i] = T
+        h.T[i] = T
         self.start_T[i] = T
-        for x in (self.v, self.omega, self.a, self.alpha, self.a_frozen, self.alpha_frozen):
-            x[i] = 0.0
-        for x in (self.twist, self.dtwist, self.dtwist_frozen, self.reported, self.dreported):
-            x[i] = 0.0
-        self.elbow[i] = w.elbow[i]
-        self.de[i] = self.dde[i] = self.dde_frozen[i] = 0.0
-        self.has_elbow[i] = False
-        self.q_ik[i] = self.c.physics.q[i]
-        self.dq_ik[i] = self.ddq_ik[i] = 0.0
-        self.ik_warm[i] = 0
+        h.elbow[i] = w.elbow[i]
+        h.q_ik[i] = self.c.physics.q[i]
+        # A datagram echoing the state the Move was accepted in answers this history.
+        h.remember_robot(i, echo)
         self._ik_failed_logged[i] = False
+        self.late[i] = False
 
     def take(self, commands: np.ndarray, accepted: np.ndarray) -> None:
         """Keep the Cartesian fields of the accepted commands as the cycle's candidates."""
@@ -138,46 +172,78 @@ class CartesianGenerators:
 
     def advance(self, started: np.ndarray) -> None:
         """Judge, extrapolate and solve this cycle's Cartesian references."""
-        c, m = self.c, self.c.modes
-        rows = started & m.cartesian
+        c = self.c
+        rows = started & c.modes.cartesian
         if not count_nonzero(rows):
             return
         have = c._have & rows
-        lost = rows & ~have
-        extrapolate = lost & (c.accounting.lost_run < MAX_LOST_CYCLES)
-        held = lost & ~extrapolate
-        active = have | extrapolate
+        self._cycle(have, rows & ~have, self._cycle_candidates, c.writer.message_id)
+
+    def _cycle(
+        self, have: np.ndarray, lost: np.ndarray, candidates: Candidates, echo: np.ndarray
+    ) -> None:
+        """One cycle of the history: ``have`` robots record their candidate (a command that
+        arrived, echoing ``echo``), ``lost`` ones are extrapolated (up to 20) or held."""
+        c, m, h = self.c, self.c.modes, self.reference
+        extrapolate = held = self._none
+        if count_nonzero(lost):
+            h.begin_guesses(lost)
+            extrapolate = lost & (c.accounting.lost_run < MAX_LOST_CYCLES)
+            held = lost & ~extrapolate
         if count_nonzero(held):
             # Seed "Extrapolation stops at 20": the last extrapolated value holds, at rest.
-            self.twist[held] = 0.0
-            self.reported[held] = self.dreported[held] = 0.0
-            self.dq_ik[held] = 0.0
+            h.twist[held] = 0.0
+            h.reported[held] = h.dreported[held] = 0.0
+            h.dq_ik[held] = 0.0
+        active = have | extrapolate
         if not count_nonzero(active):
             return
         first = c._first & have
+        step = self._evaluate(h, candidates, have, extrapolate, first, active)
+        self._check(step, first, active)
+        apply = active & m.cartesian  # robots aborted above are no longer in a Cartesian motion
+        if not count_nonzero(apply):
+            return
+        self._record(step, have & apply, apply, extrapolate, first)
+        h.record_real(have & apply, echo)
+        c._first &= ~have
+
+    def _evaluate(
+        self,
+        h: CartesianHistory,
+        candidates: Candidates,
+        have: np.ndarray,
+        extrapolate: np.ndarray,
+        first: np.ndarray,
+        active: np.ndarray,
+    ) -> _Step:
+        """Difference ``have``'s candidates (and the extrapolation of ``extrapolate``)
+        against the history ``h`` and solve them from its IK solution (seed "The
+        difference formulas": over one cycle)."""
+        c, m = self.c, self.c.modes
         pose = m.cartesian_position
-        twist_rows = m.cartesian_velocity
-        h = have[:, None]
+        hv = have[:, None]
         x = extrapolate[:, None]
         # -- candidates: the command, or the seed's lost-cycle law ---------------------------
-        any_lost = bool(count_nonzero(extrapolate))
-        if any_lost:
+        pose_ex = None
+        if count_nonzero(extrapolate):
             T_ex, v_ex, w_ex = extrapolation.pose_step(
-                self.T, self.v, self.a_frozen, self.omega, self.alpha_frozen, _DT
+                h.T, h.v, h.a_frozen, h.omega, h.alpha_frozen, _DT
             )
-            tw_ex = extrapolation.velocity_step(self.twist, self.dtwist_frozen, _DT)
-            twist = np.where(h, self.twist_cmd, np.where(x, tw_ex, self.twist))
-            T_pose = np.where(h[:, :, None], self.T_cmd, T_ex)
+            pose_ex = (v_ex, w_ex)
+            tw_ex = extrapolation.velocity_step(h.twist, h.dtwist_frozen, _DT)
+            twist = np.where(hv, candidates.twist, np.where(x, tw_ex, h.twist))
+            T_pose = np.where(hv[:, :, None], candidates.T, T_ex)
         else:
-            twist = self.twist_cmd if m.n_cartesian_velocity else self.twist
-            T_pose = self.T_cmd
+            twist = candidates.twist if m.n_cartesian_velocity else h.twist
+            T_pose = candidates.T
         if m.n_cartesian_velocity:
             # A twist motion's IK target: the previous target moved by the twist over 1 ms
             # (translation in the base frame, rotation composed on the left: base-frame omega).
-            T_tw = self.T.copy()
+            T_tw = h.T.copy()
             T_tw[:, :3, 3] += twist[:, :3] * _DT
             if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
-                T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ self.T[:, :3, :3]
+                T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ h.T[:, :3, :3]
             T_cand = (
                 T_tw
                 if m.n_cartesian_velocity == c.n
@@ -185,127 +251,79 @@ class CartesianGenerators:
             )
         else:
             T_cand = T_pose
-        # Elbow: the commanded one where valid; extrapolated while one is streamed.
-        e_new = have & self.elbow_valid
-        e_keep = extrapolate & self.has_elbow
-        if count_nonzero(e_keep):
-            e_ex, de_ex = extrapolation.elbow_step(self.elbow, self.de, self.dde_frozen, _DT)
-        else:
-            e_ex, de_ex = self.elbow, self.de
-        if count_nonzero(e_new) or count_nonzero(e_keep):
-            elbow = np.where(
-                e_new[:, None], self.elbow_cmd, np.where(e_keep[:, None], e_ex, self.elbow)
-            )
-        else:
-            elbow = self.elbow
-        has_elbow = e_new | e_keep
-        # The elbow's history matters only while some robot streams (or streamed) one.
-        elbow_in_use = bool(count_nonzero(has_elbow) or count_nonzero(self.has_elbow))
+        elbow, de_ex = self._elbow(h, candidates, have, extrapolate)
         # -- derivatives ----------------------------------------------------------------------
         # The pose's derivatives judge pose motions (and feed their extrapolation and
         # reported twist); the twist's judge twist motions. Each only when one runs.
-        d = (
-            rules.pose_derivatives(T_cand, self.T, self.history, 1)
-            if m.n_cartesian_position
-            else None
-        )
+        d = rules.pose_derivatives(T_cand, h.T, h.history, 1) if m.n_cartesian_position else None
+        twist_stack = None
         if m.n_cartesian_velocity:
             # Side by side, (n, 3, 6): [twist, dtwist, ddtwist], as the pose's derivatives.
             twist_stack = np.empty((c.n, 3, 6))
             dtwist, ddtwist = twist_stack[:, 1], twist_stack[:, 2]
             twist_stack[:, 0] = twist
-            np.subtract(twist, self.twist, out=dtwist)
+            np.subtract(twist, h.twist, out=dtwist)
             dtwist /= _DT
-            np.subtract(dtwist, self.dtwist, out=ddtwist)
+            np.subtract(dtwist, h.dtwist, out=ddtwist)
             ddtwist /= _DT
-        if elbow_in_use:
-            de = rules.elbow_derivatives(elbow[:, 0], self.elbow[:, 0], self.de, self.dde, 1)
-        else:  # unread: row 17 needs an elbow, the history is kept only while one streams
-            de = rules.ElbowDerivatives(*(np.zeros(c.n),) * 3)
         # -- the joint side: IK from the previous solution -----------------------------------
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
-        e_fixed = np.where(has_elbow, elbow[:, 0], np.nan) if elbow_in_use else None
-        ik = self.kinematics.solve(T_cand, self.q_ik, F_T_EE, e_fixed, rows=active)
-        dq, ddq, dddq = rules.joint_side(ik.q, self.q_ik, self.dq_ik, self.ddq_ik, 1)
+        in_use = bool(count_nonzero(elbow.has) or count_nonzero(elbow.had))
+        e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if in_use else None
+        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active)
+        dq, ddq, dddq = rules.joint_side(ik.q, h.q_ik, h.dq_ik, h.ddq_ik, 1)
         warm = ik.converged & ~first
         failed = active & ~ik.converged
         if count_nonzero(failed):
             self._log_ik_failure(failed, ik)
-        table, scale = c.table, c.config.joint_discontinuity_scale
-        ik_acc = warm & (self.ik_warm >= _WARM_ACCELERATION)
-        ik_jerk = warm & (self.ik_warm >= _WARM_JERK)
-        dddq_checked = np.where(ik_jerk[:, None], dddq, 0.0)
-        w = c.writer
-        cfg = c.config
-        elbow_stream = rules.ElbowStream(elbow, has_elbow, self.has_elbow, self.elbow[:, 1], de)
-        joint = rules.JointSide(ddq, dddq_checked, ik_acc)
-        judged_pose = active & pose
-        if count_nonzero(judged_pose):
-            check = rules.check_cartesian_pose(
-                d,
-                first,
-                T_cand,
-                w.O_T_EE,
-                elbow_stream,
-                w.elbow,
-                joint,
-                table,
-                scale,
-                cfg.cartesian_start_translation_tolerance,
-                cfg.cartesian_start_rotation_tolerance,
-                cfg.start_elbow_tolerance,
+        ik_acc = warm & (h.ik_warm >= _WARM_ACCELERATION)
+        ik_jerk = warm & (h.ik_warm >= _WARM_JERK)
+        joint = rules.JointSide(ddq, np.where(ik_jerk[:, None], dddq, 0.0), ik_acc)
+        return _Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint)
+
+    def _elbow(
+        self, h: CartesianHistory, candidates: Candidates, have: np.ndarray, extrapolate
+    ) -> tuple[rules.ElbowStream, np.ndarray]:
+        """The elbow stream: the commanded one where valid, extrapolated while one is
+        streamed; and elbow[0]'s extrapolated velocity."""
+        n = self.c.n
+        e_new = have & candidates.elbow_valid
+        e_keep = extrapolate & h.has_elbow
+        if count_nonzero(e_keep):
+            e_ex, de_ex = extrapolation.elbow_step(h.elbow, h.de, h.dde_frozen, _DT)
+        else:
+            e_ex, de_ex = h.elbow, h.de
+        if count_nonzero(e_new) or count_nonzero(e_keep):
+            elbow = np.where(
+                e_new[:, None], candidates.elbow, np.where(e_keep[:, None], e_ex, h.elbow)
             )
+        else:
+            elbow = h.elbow
+        has_elbow = e_new | e_keep
+        # The elbow's history matters only while some robot streams (or streamed) one.
+        if count_nonzero(has_elbow) or count_nonzero(h.has_elbow):
+            de = rules.elbow_derivatives(elbow[:, 0], h.elbow[:, 0], h.de, h.dde, 1)
+        else:  # unread: row 17 needs an elbow, the history is kept only while one streams
+            de = rules.ElbowDerivatives(*(np.zeros(n),) * 3)
+        stream = rules.ElbowStream(elbow, has_elbow, h.has_elbow, h.elbow[:, 1], de)
+        return stream, de_ex
 
-            def pose_quantities() -> dict:  # built only for a log line
-                return {
-                    "start pose": (
-                        "O_T_EE_c - O_T_EE (translation)",
-                        _norm_rows(T_cand, w),
-                        cfg.cartesian_start_translation_tolerance,
-                        "m",
-                    ),
-                    "start elbow": (
-                        "elbow_c[0] - q[2]",
-                        elbow[:, 0] - w.elbow[:, 0],
-                        cfg.start_elbow_tolerance,
-                        "rad",
-                    ),
-                    "elbow sign": ("elbow_c[1]", elbow[:, 1], self.elbow[:, 1], ""),
-                    "acceleration": [
-                        ("O_T_EE_c", _norm3(d.a), table.a_trans_max, "m/s^2"),
-                        ("O_T_EE_c rotation", _norm3(d.alpha), table.a_rot_max, "rad/s^2"),
-                    ],
-                    "velocity": [
-                        ("O_T_EE_c", _norm3(d.v), table.v_trans_max, "m/s"),
-                        ("O_T_EE_c rotation", _norm3(d.omega), table.v_rot_max, "rad/s"),
-                    ],
-                    "jerk": [
-                        ("O_T_EE_c", _norm3(d.jerk), table.j_trans_max, "m/s^3"),
-                        ("O_T_EE_c rotation", _norm3(d.zeta), table.j_rot_max, "rad/s^3"),
-                    ],
-                    "IK joint acceleration": (
-                        "IK(O_T_EE_c)",
-                        ddq,
-                        table.ik_ddq_max * scale,
-                        "rad/s^2",
-                    ),
-                    "IK joint jerk": (
-                        "IK(O_T_EE_c)",
-                        dddq_checked,
-                        table.ik_dddq_max * scale,
-                        "rad/s^3",
-                    ),
-                    "elbow": _elbow_quantities(elbow, de, table),
-                }
-
-            self._judge(check, judged_pose, rules.POSE_ROWS, pose_quantities, rules.POSE_IK_ROW)
-        judged_twist = active & twist_rows
+    def _check(self, step: _Step, first: np.ndarray, active: np.ndarray) -> None:
+        """Judge ``active``'s step by its generator's precedence table: logged, enforced."""
+        c, m = self.c, self.c.modes
+        judged_pose = active & m.cartesian_position
+        if count_nonzero(judged_pose):
+            self._check_pose(step, first, judged_pose)
+        judged_twist = active & m.cartesian_velocity
         if count_nonzero(judged_twist):
+            table, scale = c.table, c.config.joint_discontinuity_scale
             check = rules.check_cartesian_velocity(
-                twist_stack, first, elbow_stream, joint, table, scale
+                step.twist_stack, first, step.elbow, step.joint, table, scale
             )
 
             def twist_quantities() -> dict:  # built only for a log line
+                twist, dtwist, ddtwist = (step.twist_stack[:, k] for k in range(3))
+                joint, elbow = step.joint, step.elbow
                 return {
                     "acceleration": [
                         ("O_dP_EE_c", _norm3(dtwist[:, :3]), table.a_trans_max, "m/s^2"),
@@ -320,96 +338,265 @@ class CartesianGenerators:
                         ("O_dP_EE_c rotation", _norm3(twist[:, 3:]), table.v_rot_max, "rad/s"),
                     ],
                     "IK joint acceleration": [
-                        ("IK(O_dP_EE_c)", ddq, table.ik_ddq_max * scale, "rad/s^2"),
-                        ("IK(O_dP_EE_c)", dddq_checked, table.ik_dddq_max * scale, "rad/s^3"),
+                        ("IK(O_dP_EE_c)", joint.ddq, table.ik_ddq_max * scale, "rad/s^2"),
+                        ("IK(O_dP_EE_c)", joint.dddq, table.ik_dddq_max * scale, "rad/s^3"),
                     ],
-                    "elbow sign": ("elbow_c[1]", elbow[:, 1], self.elbow[:, 1], ""),
-                    "elbow": _elbow_quantities(elbow, de, table),
+                    "elbow sign": ("elbow_c[1]", elbow.command[:, 1], elbow.prev_flag, ""),
+                    "elbow": _elbow_quantities(elbow.command, elbow.derivatives, table),
                 }
 
             self._judge(check, judged_twist, rules.TWIST_ROWS, twist_quantities, None)
-        # -- record what survived ----------------------------------------------------------
-        apply = active & m.cartesian  # robots aborted above are no longer in a Cartesian motion
-        if not count_nonzero(apply):
-            return
-        real = have & apply
+
+    def _check_pose(self, step: _Step, first: np.ndarray, rows: np.ndarray) -> None:
+        """The O_T_EE_c table (16, 22, 21, 19, 18, 20, 29, 30, 17) over ``rows``."""
+        c, w, cfg = self.c, self.c.writer, self.c.config
+        table, scale = c.table, cfg.joint_discontinuity_scale
+        d, T_cand, elbow, joint = step.d, step.T, step.elbow, step.joint
+        check = rules.check_cartesian_pose(
+            d,
+            first,
+            T_cand,
+            w.O_T_EE,
+            elbow,
+            w.elbow,
+            joint,
+            table,
+            scale,
+            cfg.cartesian_start_translation_tolerance,
+            cfg.cartesian_start_rotation_tolerance,
+            cfg.start_elbow_tolerance,
+        )
+
+        def pose_quantities() -> dict:  # built only for a log line
+            return {
+                "start pose": (
+                    "O_T_EE_c - O_T_EE (translation)",
+                    _norm_rows(T_cand, w),
+                    cfg.cartesian_start_translation_tolerance,
+                    "m",
+                ),
+                "start elbow": (
+                    "elbow_c[0] - q[2]",
+                    elbow.command[:, 0] - w.elbow[:, 0],
+                    cfg.start_elbow_tolerance,
+                    "rad",
+                ),
+                "elbow sign": ("elbow_c[1]", elbow.command[:, 1], elbow.prev_flag, ""),
+                "acceleration": [
+                    ("O_T_EE_c", _norm3(d.a), table.a_trans_max, "m/s^2"),
+                    ("O_T_EE_c rotation", _norm3(d.alpha), table.a_rot_max, "rad/s^2"),
+                ],
+                "velocity": [
+                    ("O_T_EE_c", _norm3(d.v), table.v_trans_max, "m/s"),
+                    ("O_T_EE_c rotation", _norm3(d.omega), table.v_rot_max, "rad/s"),
+                ],
+                "jerk": [
+                    ("O_T_EE_c", _norm3(d.jerk), table.j_trans_max, "m/s^3"),
+                    ("O_T_EE_c rotation", _norm3(d.zeta), table.j_rot_max, "rad/s^3"),
+                ],
+                "IK joint acceleration": (
+                    "IK(O_T_EE_c)",
+                    joint.ddq,
+                    table.ik_ddq_max * scale,
+                    "rad/s^2",
+                ),
+                "IK joint jerk": (
+                    "IK(O_T_EE_c)",
+                    joint.dddq,
+                    table.ik_dddq_max * scale,
+                    "rad/s^3",
+                ),
+                "elbow": _elbow_quantities(elbow.command, elbow.derivatives, table),
+            }
+
+        self._judge(check, rows, rules.POSE_ROWS, pose_quantities, rules.POSE_IK_ROW)
+
+    def _record(
+        self,
+        step: _Step,
+        real: np.ndarray,
+        apply: np.ndarray,
+        extrapolate: np.ndarray,
+        first: np.ndarray,
+    ) -> None:
+        """Record what survived the checks (``apply``; ``real``: the commands that arrived)."""
+        c, m, h = self.c, self.c.modes, self.reference
+        n = c.n
+        d = step.d
         a = apply[:, None]
+        x = extrapolate[:, None]
+        any_lost = step.pose_ex is not None
         at_rest = (first & apply)[:, None]
-        np.copyto(self.T, T_cand, where=a[:, :, None])
+        np.copyto(h.T, step.T, where=a[:, :, None])
         r3 = real[:, None]
         if d is not None:
             if any_lost or count_nonzero(first):
                 v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
                 if any_lost:
+                    v_ex, w_ex = step.pose_ex
                     v, omega = np.where(x, v_ex, v), np.where(x, w_ex, omega)
-                    acc = np.where(x, self.a_frozen, acc)
-                    alpha = np.where(x, self.alpha_frozen, alpha)
+                    acc = np.where(x, h.a_frozen, acc)
+                    alpha = np.where(x, h.alpha_frozen, alpha)
                 if count_nonzero(first):
-                    zero3 = np.zeros((c.n, 3))
+                    zero3 = np.zeros((n, 3))
                     v, omega = np.where(at_rest, zero3, v), np.where(at_rest, zero3, omega)
                     acc, alpha = np.where(at_rest, zero3, acc), np.where(at_rest, zero3, alpha)
-                np.copyto(self.v, v, where=a)
-                np.copyto(self.omega, omega, where=a)
-                np.copyto(self.a, acc, where=a)
-                np.copyto(self.alpha, alpha, where=a)
+                np.copyto(h.v, v, where=a)
+                np.copyto(h.omega, omega, where=a)
+                np.copyto(h.a, acc, where=a)
+                np.copyto(h.alpha, alpha, where=a)
             else:  # every value a real difference: the history's two orders in one copy
-                np.copyto(self.history, d.stacked[:, :2], where=a[:, :, None])
-            np.copyto(self.acceleration_frozen, self.history[:, 1], where=r3)
+                np.copyto(h.history, d.stacked[:, :2], where=a[:, :, None])
+            np.copyto(h.acceleration_frozen, h.history[:, 1], where=r3)
         if m.n_cartesian_velocity:
-            np.copyto(self.twist, twist, where=a)
+            np.copyto(h.twist, step.twist, where=a)
+            dtwist = step.twist_stack[:, 1]
             if any_lost:
-                dtwist = np.where(x, self.dtwist_frozen, dtwist)
-            np.copyto(self.dtwist, dtwist, where=a)
-            np.copyto(self.dtwist_frozen, self.dtwist, where=r3)
-        # What the state reports as the commanded twist and its rate. A twist motion: its own
-        # twist. A pose motion: the commanded pose's twist in the base frame, rotation as
-        # log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
-        # then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
-        # acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion).
+                dtwist = np.where(x, h.dtwist_frozen, dtwist)
+            np.copyto(h.dtwist, dtwist, where=a)
+            np.copyto(h.dtwist_frozen, h.dtwist, where=r3)
+        self._record_reported(apply, at_rest, first)
+        self._record_elbow(step, real, apply, extrapolate)
+        self._record_joint_side(step, apply, first)
+
+    def _record_reported(self, apply: np.ndarray, at_rest: np.ndarray, first: np.ndarray) -> None:
+        """What the state reports as the commanded twist and its rate. A twist motion: its
+        own twist. A pose motion: the commanded pose's twist in the base frame, rotation as
+        log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
+        then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
+        acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion)."""
+        c, m, h = self.c, self.c.modes, self.reference
+        a = apply[:, None]
         if m.n_cartesian_position:
             spatial = np.empty((c.n, 6))
-            spatial[:, :3] = self.v
-            np.einsum("nij,nj->ni", self.T[:, :3, :3], self.omega, out=spatial[:, 3:])
+            spatial[:, :3] = h.v
+            np.einsum("nij,nj->ni", h.T[:, :3, :3], h.omega, out=spatial[:, 3:])
             reported = (
                 spatial
                 if m.n_cartesian_position == c.n
-                else (np.where(pose[:, None], spatial, self.twist))
+                else (np.where(m.cartesian_position[:, None], spatial, h.twist))
             )
         else:
-            reported = self.twist
-        dreported = (reported - self.reported) / _DT
+            reported = h.twist
+        dreported = (reported - h.reported) / _DT
         if count_nonzero(first):
             dreported = np.where(at_rest, 0.0, dreported)
-        np.copyto(self.dreported, dreported, where=a)
-        np.copyto(self.reported, reported, where=a)
-        # The elbow's history (the 1-D law's derivatives), kept only while one is streamed.
-        streamed = apply & has_elbow
-        if count_nonzero(streamed) or count_nonzero(self.has_elbow):
-            np.copyto(self.de, np.where(extrapolate, de_ex, de.v), where=streamed)
-            np.copyto(self.dde, np.where(extrapolate, self.dde_frozen, de.a), where=streamed)
-            fresh_elbow = streamed & ~self.has_elbow
-            self.de[fresh_elbow] = self.dde[fresh_elbow] = 0.0
-            np.copyto(self.dde_frozen, self.dde, where=real)
-            np.copyto(self.elbow, elbow, where=streamed[:, None])
-            self.has_elbow = np.where(apply, has_elbow, self.has_elbow)
-        # The joint history: rebased at rest on the opening command and after a failure.
+        np.copyto(h.dreported, dreported, where=a)
+        np.copyto(h.reported, reported, where=a)
+
+    def _record_elbow(
+        self, step: _Step, real: np.ndarray, apply: np.ndarray, extrapolate: np.ndarray
+    ) -> None:
+        """The elbow's history (the 1-D law's derivatives), kept only while one is streamed."""
+        h, elbow = self.reference, step.elbow
+        streamed = apply & elbow.has
+        if not (count_nonzero(streamed) or count_nonzero(h.has_elbow)):
+            return
+        de = elbow.derivatives
+        np.copyto(h.de, np.where(extrapolate, step.de_ex, de.v), where=streamed)
+        np.copyto(h.dde, np.where(extrapolate, h.dde_frozen, de.a), where=streamed)
+        fresh_elbow = streamed & ~h.has_elbow
+        h.de[fresh_elbow] = h.dde[fresh_elbow] = 0.0
+        np.copyto(h.dde_frozen, h.dde, where=real)
+        np.copyto(h.elbow, elbow.command, where=streamed[:, None])
+        h.set_has_elbow(np.where(apply, elbow.has, h.has_elbow))
+
+    def _record_joint_side(self, step: _Step, apply: np.ndarray, first: np.ndarray) -> None:
+        """The joint history: rebased at rest on the opening command and after a failure."""
+        h, ik = self.reference, step.ik
+        a = apply[:, None]
+        if count_nonzero(ik.converged) == self.c.n and not count_nonzero(first):
+            # Every solve converged and none opens its motion (the common case): nothing
+            # is rebased, every applied solution is usable.
+            np.copyto(h.q_ik, ik.q, where=a)
+            np.copyto(h.dq_ik, step.dq, where=a)
+            np.copyto(h.ddq_ik, step.joint.ddq, where=a)
+            np.add(h.ik_warm, 1.0, out=h.ik_warm, where=apply)
+            return
         rebase = apply & (first | ~ik.converged)
-        # The servo's reference: the solution, unless the solve ended far from the target
-        # (an unreachable pose): then it holds the last usable one instead of following a
-        # diverging iterate into the stops (the arm would flail at full torque).
-        usable = ik.converged | (
-            (ik.position_error <= USABLE_POSITION_ERROR)
-            & (ik.rotation_error <= USABLE_ROTATION_ERROR)
-        )
-        np.copyto(self.q_ik, ik.q, where=(apply & usable)[:, None])
-        np.copyto(self.dq_ik, np.where(rebase[:, None], 0.0, dq), where=a)
-        np.copyto(self.ddq_ik, np.where(rebase[:, None], 0.0, ddq), where=a)
+        np.copyto(h.q_ik, ik.q, where=(apply & _usable(ik))[:, None])
+        np.copyto(h.dq_ik, np.where(rebase[:, None], 0.0, step.dq), where=a)
+        np.copyto(h.ddq_ik, np.where(rebase[:, None], 0.0, step.joint.ddq), where=a)
         # The opening command starts the history at rest, which is true: the joint side is
         # judged from the next command on. A failed solve leaves no valid history: the
         # acceleration needs two more solutions, the jerk three.
-        warm_after = np.where(first, _WARM_JERK, np.where(rebase, 0, self.ik_warm + 1))
-        self.ik_warm = np.where(apply, warm_after, self.ik_warm)
-        c._first &= ~have
+        warm_after = np.where(first, _WARM_JERK, np.where(rebase, 0, h.ik_warm + 1))
+        np.copyto(h.ik_warm, warm_after, where=apply)
+
+    # -- late datagrams ------------------------------------------------------------------------
+
+    def late_datagrams(self, commands: np.ndarray, late: np.ndarray, ids: np.ndarray) -> None:
+        """Seed "A datagram that turns up late replaces the guess it stood in for".
+
+        Inside an extrapolated run, the datagram echoing the run's oldest unanswered
+        id throws the run's guesses away (pose, twist, elbow and the IK joint history
+        return to the last real sample), is judged against that sample over one cycle
+        — every Cartesian row, the joint side (29 / 30) included — and becomes the new
+        real sample; the cycles up to the last published state are then guessed again
+        from it, so a backlog draining in order rewinds datagram by datagram. Any other
+        late datagram — a replay, a duplicate, a reordered packet — gets no rewind and
+        never touches the history: it is judged against the history published in the
+        state it answers, and its IK solution drives the servo this cycle unless a
+        fresh command supersedes it.
+        """
+        h = self.reference
+        ids = ids.astype(np.uint64)
+        # The run's oldest unanswered id is the one after the last real command's:
+        # after each rewind the next datagram of an in-order backlog is again that.
+        rewind = late & (ids == h.real_echo + np.uint64(1))
+        if count_nonzero(rewind):
+            self._rewind(commands, rewind, ids)
+        judged = late & ~rewind & self.c.modes.cartesian
+        if count_nonzero(judged):
+            self._judge_late(commands, judged, ids)
+
+    def _late_candidates(self, commands: np.ndarray, rows: np.ndarray) -> Candidates:
+        """The Cartesian fields of late datagrams as candidates (the cycle's own untouched)."""
+        m = self.c.modes
+        T = self.T_cmd.copy()
+        pose = rows & m.cartesian_position
+        if count_nonzero(pose):
+            np.copyto(T, from_wire(commands["O_T_EE_c"]), where=pose[:, None, None])
+        r = rows[:, None]
+        twist = np.where(r, commands["O_dP_EE_c"], self.twist_cmd)
+        elbow = np.where(r, commands["elbow_c"], self.elbow_cmd)
+        return Candidates(T, twist, elbow, rows & commands["valid_elbow"].astype(bool))
+
+    def _rewind(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
+        """The datagram a run is missing replaces the guess it stood in for (see above)."""
+        c = self.c
+        self.reference.rewind(rows)
+        self._cycle(rows, self._none, self._late_candidates(commands, rows), ids)
+        # The sample stands for state id + 1; the history must stand for the last
+        # published state: guess the cycles in between again, from the real sample
+        # (a later datagram of the backlog rewinds them in turn).
+        behind = c.writer.message_id.astype(np.int64) - ids.astype(np.int64) - 1
+        behind = np.where(rows, behind, 0)
+        for j in range(int(behind.max())):
+            again = rows & (behind > j) & c.modes.cartesian
+            if not count_nonzero(again):
+                break
+            self._cycle(self._none, again, self._cycle_candidates, ids)
+
+    def _judge_late(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
+        """Judge late datagrams of ``rows`` without recording them: each against the history
+        published in the state it answers (older than the ring: the history as it stands),
+        over one cycle; applied to the servo this cycle (seed: "within a cycle a late
+        command is the freshest intent there is")."""
+        current = self.c.writer.message_id
+        h = self.reference.published(np.where(rows, ids, current), int(current[0]))
+        step = self._evaluate(
+            h, self._late_candidates(commands, rows), rows, self._none, self._none, rows
+        )
+        self._check(step, self._none, rows)
+        ik = step.ik
+        apply = rows & self.c.modes.cartesian & _usable(ik)
+        if not count_nonzero(apply):
+            return
+        a = apply[:, None]
+        np.copyto(self.late_q, ik.q, where=a)
+        np.copyto(self.late_dq, np.where(ik.converged[:, None], step.dq, 0.0), where=a)
+        self.late |= apply
 
     def _judge(self, check, rows, names, quantities, ik_row) -> None:
         """Name each violation's row for the log; 29 brings 30 when one command breaks both."""
@@ -446,42 +633,69 @@ class CartesianGenerators:
     # -- what the state reports ----------------------------------------------------------------
 
     def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None):
-        """The joint servo's target: the IK solution for robots in a Cartesian motion."""
-        rows = self.c.modes.cartesian[:, None]
+        """The joint servo's target: the IK solution for robots in a Cartesian motion, or
+        a late datagram's where no fresh command arrived this cycle (seed: a late datagram
+        "is still applied", but "never becomes a sample of your trajectory")."""
+        c, h = self.c, self.reference
+        rows = c.modes.cartesian[:, None]
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
-        return np.where(rows, self.q_ik, q_ref), np.where(rows, self.dq_ik, dq)
+        q, dq = np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
+        if count_nonzero(self.late):
+            late = (self.late & ~c._have & c.modes.cartesian)[:, None]
+            self.late[...] = False
+            q, dq = np.where(late, self.late_q, q), np.where(late, self.late_dq, dq)
+        return q, dq
 
     def publish(self) -> None:
         """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
         robots in a Cartesian motion (seed "RobotState fields", the three regimes)."""
-        c, m, w = self.c, self.c.modes, self.c.writer
+        c, m, w, h = self.c, self.c.modes, self.c.writer, self.reference
         pose = m.cartesian_position[:, None]
         twist = m.cartesian_velocity[:, None]
         if m.n_cartesian_position:
-            np.copyto(w.O_T_EE_d, to_wire(self.T), where=pose)
-            np.copyto(w.O_T_EE_c, to_wire(self.T), where=pose)
+            np.copyto(w.O_T_EE_d, to_wire(h.T), where=pose)
+            np.copyto(w.O_T_EE_c, to_wire(h.T), where=pose)
         if m.n_cartesian_velocity:
             np.copyto(w.O_T_EE_d, to_wire(self.start_T), where=twist)
             np.copyto(w.O_T_EE_c, to_wire(self.start_T), where=twist)
         cartesian = m.cartesian[:, None]
-        np.copyto(w.field["O_dP_EE_d"], self.reported, where=cartesian)
-        np.copyto(w.field["O_dP_EE_c"], self.reported, where=cartesian)
-        np.copyto(w.field["O_ddP_EE_c"], self.dreported, where=cartesian)
-        streamed = (m.cartesian & self.has_elbow)[:, None]
-        np.copyto(w.elbow_d, self.elbow, where=streamed)
-        np.copyto(w.elbow_c, self.elbow, where=streamed)
+        np.copyto(w.field["O_dP_EE_d"], h.reported, where=cartesian)
+        np.copyto(w.field["O_dP_EE_c"], h.reported, where=cartesian)
+        np.copyto(w.field["O_ddP_EE_c"], h.dreported, where=cartesian)
+        streamed = (m.cartesian & h.has_elbow)[:, None]
+        np.copyto(w.elbow_d, h.elbow, where=streamed)
+        np.copyto(w.elbow_c, h.elbow, where=streamed)
         # Seed: "the sim still publishes the measured q there during a Cartesian motion".
         np.copyto(w.q_d, c.physics.q, where=m.cartesian[:, None])
 
+    def remember(self, message_id: int) -> None:
+        """The history as published in state ``message_id`` (what a late datagram
+        answering it is judged against)."""
+        self.reference.remember(message_id)
+
     def end(self, i: int) -> None:
         """The motion ended: the twist echo returns to zero."""
-        w = self.c.writer
+        w, h = self.c.writer, self.reference
         w.field["O_dP_EE_d"][i] = 0.0
         w.field["O_dP_EE_c"][i] = 0.0
         w.field["O_ddP_EE_c"][i] = 0.0
-        self.twist[i] = 0.0
-        self.reported[i] = self.dreported[i] = 0.0
-        self.has_elbow[i] = False
+        h.twist[i] = 0.0
+        h.reported[i] = h.dreported[i] = 0.0
+        h.has_elbow[i] = False
+        h.elbow_flag[i] = 0.0
+        self.late[i] = False
+
+
+def _usable(ik: IkResult) -> np.ndarray:
+    """(n,) the IK solutions the servo may follow: converged, or ended near the target.
+
+    A solve that ended far from the target (an unreachable pose) is not followed: the
+    servo holds the last usable solution instead of a diverging iterate into the stops
+    (the arm would flail at full torque).
+    """
+    return ik.converged | (
+        (ik.position_error <= USABLE_POSITION_ERROR) & (ik.rotation_error <= USABLE_ROTATION_ERROR)
+    )
 
 
 def _norm3(x: np.ndarray) -> np.ndarray:

@@ -158,10 +158,13 @@ class FciController:
             accepted = accepted & finite
         self.accounting.answered |= fresh
         if late is not None and m.n_cartesian:
-            # A late Cartesian datagram is not applied: the cycle it answered was
-            # extrapolated and the next fresh command is judged against that (the
-            # rewind of joint motions is not implemented for poses; docs/robot-state.md).
-            accepted = accepted & ~(late & m.cartesian)
+            late_cartesian = late & m.cartesian & accepted
+            if count_nonzero(late_cartesian):
+                # Seed "A datagram that turns up late replaces the guess it stood in for",
+                # as for joint motions: the one the extrapolated run is missing rewinds
+                # the Cartesian history, the others are judged and drive the servo only.
+                self.engine.cartesian.late_datagrams(commands, late_cartesian, ids)
+                accepted = accepted & ~late_cartesian
         if late is not None and m.n_tracking:
             late_joint = late & m.tracking & accepted
             if count_nonzero(late_joint):
@@ -295,6 +298,8 @@ class FciController:
         w.publish(self.accounting.success_rate())
         if m.n_tracking:
             self.reference.remember(int(w.message_id[0]))
+        if m.n_cartesian:
+            self.engine.cartesian.remember(int(w.message_id[0]))
 
     # -- requests (between cycles) --------------------------------------------------------------
 
