@@ -5,7 +5,7 @@
     python examples/train_sb3.py --algo ppo --num-envs 1 --steps 50000 --out runs/ppo
 
 The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientation held,
-10 Hz policy, 2 s episodes) in 8 arms of one MuJoCo world (the native batched env), one
+10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env), one
 gradient step per sample, 12,000 samples. Every cycle runs the full FCI at 1 kHz: the
 libfranka client's filters, every motion-limit check including the IK joint side, the
 safety controller. Reflexes terminate episodes, as on the robot.
@@ -113,12 +113,16 @@ def main() -> None:
     parser.add_argument(
         "--num-envs",
         type=int,
-        default=8,
-        help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world)",
+        default=16,
+        help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world); "
+        "16 learns as 8 does (1.00 at 12,000 samples) in 93 s instead of 122 s here, 32 does not",
     )
     parser.add_argument("--env-id", default="FrankaFCICartesianVelocity-v0")
     parser.add_argument(
-        "--gradient-steps", type=int, default=8, help="per vector step (8 arms: one per sample)"
+        "--gradient-steps",
+        type=int,
+        default=None,
+        help="per vector step (default: --num-envs, one per sample)",
     )
     parser.add_argument("--net", default="128,128", help="hidden layer sizes")
     parser.add_argument("--batch-size", type=int, default=256)
@@ -150,7 +154,7 @@ def main() -> None:
         env,
         args.seed,
         args.out,
-        args.gradient_steps,
+        args.num_envs if args.gradient_steps is None else args.gradient_steps,
         learning_starts,
         tuple(int(x) for x in args.net.split(",")),
         args.batch_size,
