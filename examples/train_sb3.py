@@ -11,8 +11,9 @@ libfranka client's filters, every motion-limit check including the IK joint side
 safety controller. Reflexes terminate episodes, as on the robot.
 
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
-examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger),
-eval.csv and success_reflex.png (when matplotlib is installed). Ends with one line
+examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv and TensorBoard
+events (SB3's logger; ``tensorboard --logdir DIR``), eval.csv and success_reflex.png (when
+matplotlib is installed). A progress bar on stderr (``--no-progress``). Ends with one line
 ``eval: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
 """
 
@@ -78,8 +79,43 @@ def make_model(
         model = PPO(**common, n_steps=512, batch_size=128, gamma=0.95)
     else:
         raise ValueError(f"unknown --algo {algo!r}: expected sac, td3 or ppo")
-    model.set_logger(configure(str(log_dir), ["csv"]))
+    model.set_logger(configure(str(log_dir), log_formats()))
     return model
+
+
+def log_formats() -> list[str]:
+    """SB3's logger outputs: progress.csv always, TensorBoard events when the package is
+    installed (the train extra brings it: ``tensorboard --logdir runs/reach``)."""
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:
+        print("tensorboard not installed: CSV logs only")
+        return ["csv"]
+    return ["csv", "tensorboard"]
+
+
+def progress_bar(total: int, enabled: bool = True):
+    """One tqdm bar over the whole run (the evaluations split it into several
+    ``learn`` calls), as an SB3 callback; None when disabled or tqdm is missing."""
+    if not enabled:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # the train extra brings it
+        print("tqdm not installed: no progress bar")
+        return None
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class _Progress(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.bar = tqdm(total=total, unit="sample", desc="training", smoothing=0.1)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            return True
+
+    return _Progress()
 
 
 def plot(out: Path, rows: list[dict]) -> None:
@@ -133,6 +169,7 @@ def main() -> None:
         help=f"JSON, merged over the defaults {json.dumps(DEFAULT_ENV_KWARGS)}",
     )
     parser.add_argument("--out", type=Path, default=Path("runs/reach"))
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
@@ -160,13 +197,14 @@ def main() -> None:
         args.batch_size,
         args.sde,
     )
+    bar = progress_bar(args.steps, enabled=not args.no_progress)
     start = time.perf_counter()
     rows = []
     chunk = max(1, args.steps // args.evals)
     done = 0
     while done < args.steps:
         n = min(chunk, args.steps - done)
-        model.learn(total_timesteps=n, reset_num_timesteps=False)
+        model.learn(total_timesteps=n, reset_num_timesteps=False, callback=bar)
         done += n
         result = evaluate(model, args.env_id, kwargs, args.eval_episodes, seed=10_000)
         rows.append(
@@ -177,6 +215,8 @@ def main() -> None:
             f"reflexes {result['reflex_rate']:.2f} {result['reflexes_by_error']}"
         )
     wall = time.perf_counter() - start
+    if bar is not None:
+        bar.bar.close()
     model.save(args.out / "model.zip")
     with open(args.out / "eval.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))

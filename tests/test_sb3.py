@@ -46,6 +46,8 @@ def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, ar
     assert last.startswith("eval: success_rate=") and "reflex_rate=" in last
     assert (out / "model.zip").is_file() and (out / "eval.csv").is_file()
     assert (out / "progress.csv").is_file()
+    assert list(out.glob("events.out.tfevents.*")), "no TensorBoard events were written"
+    assert "training: 100%" in proc.stderr and "400/400" in proc.stderr  # the progress bar
     config = json.loads((out / "train_config.json").read_text())
     assert config["env_id"] == "FrankaFCICartesianVelocity-v0"
     assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
