@@ -37,8 +37,13 @@ from ..sim.gripper import MAX_WIDTH, FrankaHand
 from ..sim.world import HOME_Q
 from .channel import Channel, make_channel
 from .commands import CommandGenerator
+from .fci_reset import reset_through_fci
 from .observation import build_observation, observation_space
 from .tasks.reach import Reach
+
+#: How an episode starts: "teleport" (the arm is placed at the start pose, errors and
+#: frames cleared) or "fci" (as on a robot: recovery, then a joint motion there).
+RESET_MODES = ("teleport", "fci")
 
 MOVE = {
     "joint_position": (MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode.kJointPosition),
@@ -100,9 +105,20 @@ class FciBatch:
         gripper_speed: float = 0.1,
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
+        reset_mode: str = "teleport",
     ) -> None:
         if int(n) < 1:
             raise ValueError(f"the number of arms must be >= 1, got {n}")
+        if reset_mode not in RESET_MODES:
+            raise ValueError(f"unknown reset_mode {reset_mode!r}: expected one of {RESET_MODES}")
+        if reset_mode == "fci" and int(n) != 1:
+            # The move home takes hundreds of cycles of the whole world, which the other
+            # arms' episodes would have to sit through: one arm per world (SyncVectorEnv).
+            raise ValueError(
+                f"reset_mode='fci' needs one arm per world, got {n}: use single envs "
+                "(gym.make, or a SyncVectorEnv of them)"
+            )
+        self.reset_mode = reset_mode
         cycles = 1000.0 / policy_hz if policy_hz > 0 else 0.5
         if abs(cycles - round(cycles)) > 1e-9:
             raise ValueError(f"policy_hz={policy_hz}: 1000 / policy_hz must be a whole number")
@@ -157,22 +173,27 @@ class FciBatch:
 
     def reset_arms(self, arms, rngs: list[np.random.Generator]) -> None:
         """Start new episodes on ``arms``, each drawing from its own ``rngs[i]`` (indexed by
-        arm): teleport to the home pose plus seeded noise, Move, draw a goal."""
+        arm): teleport to the home pose plus seeded noise (or go there through the FCI:
+        ``reset_mode="fci"``), Move, draw a goal."""
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         ctrl = self.controller
         drawn = [draw_episode(rngs[i], self.reset_noise, self.task) for i in arms.tolist()]
         q = np.stack([start for start, _ in drawn])
-        ids = ctrl.writer.message_id.copy()
-        ctrl.reset(arms, q)
-        # The reset publishes the teleported state under a new message id, for every arm.
-        # The other arms' datagrams still in flight (a delayed channel) would then look one
-        # cycle older than they are: keep the ids, so a reset of arm i never touches arm j.
-        ctrl.writer.message_id[...] = ids
-        ctrl.states["message_id"] = ids
+        if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
+            reset_through_fci(ctrl, q[0])
+        else:
+            ids = ctrl.writer.message_id.copy()
+            ctrl.reset(arms, q)
+            # The reset publishes the teleported state under a new message id, for every
+            # arm. The other arms' datagrams still in flight (a delayed channel) would then
+            # look one cycle older than they are: keep the ids, so a reset of arm i never
+            # touches arm j.
+            ctrl.writer.message_id[...] = ids
+            ctrl.states["message_id"] = ids
         controller_mode, generator = MOVE[self.action_interface]
         for i in arms.tolist():
             self.channels[i].reset(rngs[i])
-            if self.gripper:
+            if self.gripper and self.reset_mode == "teleport":
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller_mode), int(generator))
         self.goals[arms] = [goal for _, goal in drawn]

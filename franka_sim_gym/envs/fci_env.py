@@ -55,6 +55,11 @@ class FrankaFCIEnv(gym.Env):
             "conservative" (default: what the robot's joint-side checks accept) or
             "libfranka" (libfranka's own constants, which trip errors 29 / 30 as on
             the robot), or six numbers (m/s, m/s^2, m/s^3, rad/s, rad/s^2, rad/s^3).
+        reset_mode: "teleport" (default: the arm is placed at the start pose; errors,
+            reflex_reason and the configured frames are cleared) or "fci" (a reset a
+            real robot could do: StopMove, AutomaticErrorRecovery after a reflex, then
+            a joint-position motion to the start pose, judged by the robot's checks;
+            frames are kept). Single envs only (the vector env teleports).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}
@@ -112,7 +117,8 @@ class FrankaFCIEnv(gym.Env):
         return self.core.hands[0] if self.gripper else None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Teleport to the home pose plus seeded noise, start the motion, draw a goal."""
+        """Go to the home pose plus seeded noise (teleported, or through the FCI with
+        ``reset_mode="fci"``), start the motion, draw a goal."""
         super().reset(seed=seed)
         self.core.reset_arms([0], [self.np_random])
         obs, info = self.core.observe()
