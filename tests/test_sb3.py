@@ -40,6 +40,7 @@ def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, ar
         str(out),
         "--env-kwargs",
         '{"max_episode_steps": 10}',
+        "--tensorboard",
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     last = proc.stdout.strip().splitlines()[-1]
