@@ -206,10 +206,13 @@ def main() -> None:
         args.sde,
         args.tensorboard,
     )
-    bar = progress_bar(args.steps, enabled=not args.no_progress)
     start = time.perf_counter()
     rows = []
     chunk = max(1, args.steps // args.evals)
+    # SB3 collects whole vector steps: each learn call's samples round up to the arms.
+    chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
+    arms = max(1, args.num_envs)
+    bar = progress_bar(sum(-(-n // arms) * arms for n in chunks), enabled=not args.no_progress)
     done = 0
     while done < args.steps:
         n = min(chunk, args.steps - done)
