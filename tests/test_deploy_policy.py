@@ -11,6 +11,7 @@ from franka_sim_gym.envs.core import draw_episode
 from franka_sim_gym.envs.tasks.reach import Reach
 
 from .conftest import load_example
+from .scripted_policies import Still, TowardTheGoal
 
 pytest.importorskip("pylibfranka")
 pytest.importorskip("stable_baselines3")
@@ -49,30 +50,26 @@ def test_a_policy_without_a_deterministic_actor_is_kept():
     assert deploy.NumpyActor.of(model) is model
 
 
-class _TowardTheGoal:
-    """Scripted: the twist points at the goal; records each episode's goal."""
+class _Recording(TowardTheGoal):
+    """TowardTheGoal that records each episode's goal."""
 
     def __init__(self) -> None:
+        super().__init__()
         self.goals: list[np.ndarray] = []
 
     def predict(self, obs, deterministic=True):
         goal = obs["desired_goal"]
         if not self.goals or not np.array_equal(goal, self.goals[-1]):
             self.goals.append(goal.copy())
-        return np.clip((goal - obs["achieved_goal"]) / 0.1, -1, 1).astype(np.float32), None
-
-
-class _Still:
-    def predict(self, obs, deterministic=True):
-        return np.zeros(3, np.float32), None
+        return super().predict(obs, deterministic)
 
 
 def test_the_in_process_reference_runs_the_deployed_reaches():
     """The same goals as deploy() draws (start noise, then goal, reach after reach), and
     a success rate that tells a reaching policy from a still one."""
-    policy = _TowardTheGoal()
+    policy = _Recording()
     assert deploy.in_process(policy, ENV_ID, KWARGS, episodes=4, seed=7) == 1.0
     rng = np.random.default_rng(7)
     expected = [draw_episode(rng, 0.05, Reach())[1] for _ in range(4)]
     np.testing.assert_allclose(np.array(policy.goals), np.array(expected), atol=1e-6)
-    assert deploy.in_process(_Still(), ENV_ID, KWARGS, episodes=4, seed=7) == 0.0
+    assert deploy.in_process(Still(), ENV_ID, KWARGS, episodes=4, seed=7) == 0.0

@@ -5,23 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from .conftest import load_example
+from .scripted_policies import Still, TowardTheGoal
 
 evaluate = load_example("evaluate").evaluate
 
 KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
-
-
-class TowardTheGoal:
-    """A scripted policy with SB3's predict(): the twist points at the goal."""
-
-    def predict(self, obs, deterministic=True):
-        d = obs["desired_goal"] - obs["achieved_goal"]
-        return np.clip(d / 0.1, -1, 1).astype(np.float32), None
-
-
-class Still:
-    def predict(self, obs, deterministic=True):
-        return np.zeros((len(obs["desired_goal"]), 3), np.float32), None
 
 
 def test_a_policy_that_reaches_scores_one_and_no_reflex():

@@ -8,7 +8,8 @@ chosen by the env arguments' ``action_interface`` (``POLICIES``):
   to joints by the damped least-squares inverse of the flange Jacobian (MuJoCo's, of
   the simulator's own FR3 model; O_T_EE is the flange with libfranka's default end
   effector);
-* Cartesian velocity: the Cartesian error over 0.1 m, clipped to [-1, 1] (a 3-dof
+* Cartesian velocity (tests/scripted_policies.py, TowardTheGoal): the Cartesian
+  error over 0.1 m, clipped to [-1, 1] (a 3-dof
   translational twist, 0.3 m/s per unit action).
 
 Prints the deploy result as its last line (JSON). Run in a child process: libfranka
@@ -24,12 +25,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "examples"))
+sys.path.insert(0, str(ROOT))
 
 from deploy_pylibfranka import deploy  # noqa: E402
 
 from franka_sim_gym.envs.commands import ActionScale  # noqa: E402
 from franka_sim_gym.sim.arm import ArmPhysics  # noqa: E402
+from tests.scripted_policies import TowardTheGoal  # noqa: E402
 
 
 class ProportionalReach:
@@ -61,20 +65,8 @@ class ProportionalReach:
         return action.astype(np.float32), None
 
 
-class CartesianVelocityReach:
-    """``predict(obs) -> (action, None)``: a translational twist towards the goal, full
-    speed beyond ``reach`` [m] of it and proportional within (3 dof)."""
-
-    def __init__(self, reach: float = 0.1) -> None:
-        self.reach = reach
-
-    def predict(self, obs: dict, deterministic: bool = True):
-        error = obs["desired_goal"].astype(np.float64) - obs["achieved_goal"]
-        return np.clip(error / self.reach, -1.0, 1.0).astype(np.float32), None
-
-
 #: The scripted policy of each action interface.
-POLICIES = {"joint_position": ProportionalReach, "cartesian_velocity": CartesianVelocityReach}
+POLICIES = {"joint_position": ProportionalReach, "cartesian_velocity": TowardTheGoal}
 
 
 def main() -> None:
