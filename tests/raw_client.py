@@ -68,6 +68,18 @@ class RawClient:
         command_id = self.request(p.Command.kSetNEToEE, p.SetNEToEERequest(wire).payload())
         return wire, self.reply(command_id).payload[0]
 
+    def shift_ee_along_z(self, z: float) -> tuple[np.ndarray, tuple[float, ...], np.ndarray]:
+        """SetNEToEE to a pure offset ``z`` [m] along the nominal EE's z axis; asserts the
+        robot accepted it and reflects it in NE_T_EE. Returns (NE_T_EE row-major, the
+        column-major values sent, the state after)."""
+        NE_T_EE = np.eye(4)
+        NE_T_EE[2, 3] = z
+        wire, status = self.set_ne_to_ee(NE_T_EE)
+        assert status == p.SetterStatus.kSuccess
+        state = self.latest_state()
+        np.testing.assert_allclose(state["NE_T_EE"], wire, atol=1e-7)
+        return NE_T_EE, wire, state
+
     def state(self) -> np.ndarray:
         """The next state datagram (remembering where commands must go)."""
         data, addr = self.udp.recvfrom(4096)

@@ -141,8 +141,9 @@ def test_a_pose_motion_reports_its_commanded_twist_and_acceleration():
             np.testing.assert_array_equal(c.state["O_dP_EE_d"], c.state["O_dP_EE_c"])
             np.testing.assert_allclose(c.state["O_ddP_EE_c"][:3], [0.2, 0, 0], atol=2e-3)
             np.testing.assert_allclose(c.state["O_ddP_EE_c"][3:], 0.5 * axis, atol=2e-3)
-    # Stops at 0.04 m/s: how it ends is moot, but the Move is answered.
-    assert c.finish(O_T_EE_c=frames.to_wire(T[None])[0]) is not None
+    # Repeating the last pose stops it dead from 0.04 m/s: a 40 m/s^2 step (19), aborted.
+    assert c.finish(O_T_EE_c=frames.to_wire(T[None])[0]) == MoveStatus.kReflexAborted
+    assert errors(c) == ("cartesian_motion_generator_velocity_discontinuity",)
     c.idle(5)
     assert c.state["robot_mode"] != RobotMode.kMove
     assert not c.state["O_dP_EE_c"].any() and not c.state["O_ddP_EE_c"].any()

@@ -70,12 +70,7 @@ def test_set_ne_to_ee_is_reflected_and_moves_o_t_ee(serve):
     client = RawClient(server.host)
     client.connect()
     before = client.state()
-    T = np.eye(4)
-    T[2, 3] = 0.1
-    wire, status = client.set_ne_to_ee(T)
-    assert status == p.SetterStatus.kSuccess
-    after = client.latest_state()
-    np.testing.assert_allclose(after["NE_T_EE"], wire, atol=1e-7)
+    _, wire, after = client.shift_ee_along_z(0.1)
     np.testing.assert_allclose(after["F_T_EE"], wire, atol=1e-7)
     # the flange z axis points down at home: the EE frame is 0.1 m lower
     assert after["O_T_EE"][14] == pytest.approx(before["O_T_EE"][14] - 0.1, abs=1e-4)

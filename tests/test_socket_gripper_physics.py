@@ -22,7 +22,6 @@ import time
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.frames import IDENTITY16
 
 from .conftest import CLIENTS, ROOT, fresh_address, unstarved
@@ -167,12 +166,7 @@ def test_a_new_connection_finds_ne_t_ee_reset_and_the_hand_tcp_kept(serve):
     server = serve(PHYSICS)
     first = RawClient(server.host)
     first.connect()
-    NE_T_EE = np.eye(4)
-    NE_T_EE[2, 3] = 0.05
-    wire, status = first.set_ne_to_ee(NE_T_EE)
-    assert status == p.SetterStatus.kSuccess
-    state = first.latest_state()
-    np.testing.assert_allclose(state["NE_T_EE"], wire, atol=1e-7)
+    NE_T_EE, _, state = first.shift_ee_along_z(0.05)
     hand = column_major(DESK_HAND_F_T_NE)
     np.testing.assert_allclose(column_major(state["F_T_EE"]), hand @ NE_T_EE, atol=1e-4)
     first.close()

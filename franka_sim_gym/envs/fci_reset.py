@@ -42,12 +42,6 @@ _PEAK_VELOCITY = 1.875
 _PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)
 _PEAK_JERK = 60.0
 
-#: Standstill, as AutomaticErrorRecovery judges it: |dq| below this for
-#: ``_SETTLED_CYCLES`` consecutive cycles, waiting at most ``_SETTLE_LIMIT`` cycles.
-_STANDSTILL = 0.005
-_SETTLED_CYCLES = 50
-_SETTLE_LIMIT = 700
-
 
 class FciResetError(RuntimeError):
     """The robot refused or aborted the reset (the message names what and why)."""
@@ -83,7 +77,7 @@ def reset_through_fci(ctrl: FciController, q_start: np.ndarray) -> int:
     if int(ctrl.robot_mode[0]) == int(RobotMode.kReflex):
         if ctrl.automatic_error_recovery(0) is not None:
             raise FciResetError("AutomaticErrorRecovery was refused")
-        cycles += _until(ctrl, EventKind.RECOVERY_FINISHED, _SETTLE_LIMIT + 10)
+        cycles += _until(ctrl, EventKind.RECOVERY_FINISHED, ctrl.config.recovery_max_cycles + 1)
     cycles += _settle(ctrl)
     status = ctrl.move(
         0, int(MoveControllerMode.kJointImpedance), int(MoveMotionGeneratorMode.kJointPosition)
@@ -123,14 +117,16 @@ def _until(ctrl: FciController, kind: EventKind, limit: int) -> int:
 
 
 def _settle(ctrl: FciController) -> int:
-    """Idle cycles until the arm stands still (as recovery judges it) or 0.7 s."""
+    """Idle cycles until the arm stands still as AutomaticErrorRecovery judges it (the
+    controller's recovery thresholds), or its 0.7 s cap."""
+    cfg = ctrl.config
     settled = 0
-    for k in range(1, _SETTLE_LIMIT + 1):
-        if float(np.abs(ctrl.physics.dq[0]).max()) < _STANDSTILL:
+    for k in range(1, cfg.recovery_max_cycles + 1):
+        if float(np.abs(ctrl.physics.dq[0]).max()) < cfg.recovery_velocity_threshold:
             settled += 1
-            if settled >= _SETTLED_CYCLES:
+            if settled >= cfg.recovery_settle_cycles:
                 return k
         else:
             settled = 0
         ctrl.step()
-    return _SETTLE_LIMIT
+    return cfg.recovery_max_cycles

@@ -121,11 +121,6 @@ class CartesianGenerators:
         self._cycle_candidates = Candidates(
             self.T_cmd, self.twist_cmd, self.elbow_cmd, self.elbow_valid
         )
-        #: late datagrams judged (not recorded) this cycle: the servo's target, unless a
-        #: fresh command supersedes it (seed: a late datagram "is still applied")
-        self.late = np.zeros(n, dtype=bool)
-        self.late_q = np.zeros((n, 7))
-        self.late_dq = np.zeros((n, 7))
         self._none = np.zeros(n, dtype=bool)
         self._none.setflags(write=False)
 
@@ -149,7 +144,6 @@ class CartesianGenerators:
         # A datagram echoing the state the Move was accepted in answers this history.
         h.remember_robot(i, echo)
         self._ik_failed_logged[i] = False
-        self.late[i] = False
 
     def take(self, commands: np.ndarray, accepted: np.ndarray) -> None:
         """Keep the Cartesian fields of the accepted commands as the cycle's candidates."""
@@ -591,12 +585,9 @@ class CartesianGenerators:
         self._check(step, self._none, rows)
         ik = step.ik
         apply = rows & self.c.modes.cartesian & _usable(ik)
-        if not count_nonzero(apply):
-            return
-        a = apply[:, None]
-        np.copyto(self.late_q, ik.q, where=a)
-        np.copyto(self.late_dq, np.where(ik.converged[:, None], step.dq, 0.0), where=a)
-        self.late |= apply
+        if count_nonzero(apply):
+            dq = np.where(ik.converged[:, None], step.dq, 0.0)
+            self.engine.apply_late(apply, ik.q, dq)
 
     def _judge(self, check, rows, names, quantities, ik_row) -> None:
         """Name each violation's row for the log; 29 brings 30 when one command breaks both."""
@@ -633,18 +624,12 @@ class CartesianGenerators:
     # -- what the state reports ----------------------------------------------------------------
 
     def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None):
-        """The joint servo's target: the IK solution for robots in a Cartesian motion, or
-        a late datagram's where no fresh command arrived this cycle (seed: a late datagram
-        "is still applied", but "never becomes a sample of your trajectory")."""
-        c, h = self.c, self.reference
-        rows = c.modes.cartesian[:, None]
+        """The joint servo's target: the IK solution for robots in a Cartesian motion (a
+        late datagram's intent overrides it afterwards: engine.servo_reference)."""
+        h = self.reference
+        rows = self.c.modes.cartesian[:, None]
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
-        q, dq = np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
-        if count_nonzero(self.late):
-            late = (self.late & ~c._have & c.modes.cartesian)[:, None]
-            self.late[...] = False
-            q, dq = np.where(late, self.late_q, q), np.where(late, self.late_dq, dq)
-        return q, dq
+        return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
 
     def publish(self) -> None:
         """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
@@ -683,7 +668,6 @@ class CartesianGenerators:
         h.reported[i] = h.dreported[i] = 0.0
         h.has_elbow[i] = False
         h.elbow_flag[i] = 0.0
-        self.late[i] = False
 
 
 def _usable(ik: IkResult) -> np.ndarray:

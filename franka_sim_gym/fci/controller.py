@@ -220,10 +220,11 @@ class FciController:
             track = m.tracking[:, None]
             q_ref = np.where(track, w.q_d, self.q_hold)
             dq_ref = np.where(track, w.dq_d, 0.0)
-        if m.n_tracking:
-            q_ref, dq_ref = self.engine.servo_reference(q_ref, dq_ref)
         if m.n_cartesian:
             q_ref, dq_ref = self.engine.cartesian.servo(q_ref, dq_ref)
+        # A late datagram's intent, where no fresh command superseded it (called every
+        # cycle, so an intent never outlives the cycle it arrived in).
+        q_ref, dq_ref = self.engine.servo_reference(q_ref, dq_ref)
         #: what the joint servo was given this cycle (for tests and viewers)
         self.servo_q = q_ref
         moving = m.n_motion > 0

@@ -225,30 +225,37 @@ class MotionLimitEngine:
             self._apply_late(commands, judged & self.c.modes.tracking)
 
     def _apply_late(self, commands: np.ndarray, rows: np.ndarray) -> None:
-        """Seed: a late datagram "is still applied — within a cycle a late command is the
-        freshest intent there is" — but "never becomes a sample of your trajectory". It
-        is dispatched to the servo this cycle (unless a fresh command supersedes it) and
-        not recorded: the published q_d stays the history the next command is judged at."""
+        """The joint intents of late datagrams of ``rows``: q_c itself, or one cycle of dq_c
+        from the reference (see :meth:`apply_late`)."""
         if not count_nonzero(rows):
             return
         m, ref = self.c.modes, self.c.reference
-        position = (rows & m.joint_position)[:, None]
-        velocity = (rows & m.joint_velocity)[:, None]
-        np.copyto(self.late_q, commands["q_c"], where=position)
-        np.copyto(self.late_dq, 0.0, where=position)
-        np.copyto(self.late_q, ref.q + commands["dq_c"] * DELTA_T, where=velocity)
-        np.copyto(self.late_dq, commands["dq_c"], where=velocity)
+        position = rows & m.joint_position
+        velocity = rows & m.joint_velocity
+        self.apply_late(position, commands["q_c"], 0.0)
+        self.apply_late(velocity, ref.q + commands["dq_c"] * DELTA_T, commands["dq_c"])
+
+    def apply_late(self, rows: np.ndarray, q, dq) -> None:
+        """Seed: a late datagram "is still applied — within a cycle a late command is the
+        freshest intent there is" — but "never becomes a sample of your trajectory". Its
+        joint intent (``q``, ``dq``; the IK's for a Cartesian datagram) drives the servo
+        this cycle unless a fresh command supersedes it (:meth:`servo_reference`); the
+        history the next command is judged against is untouched."""
+        r = rows[:, None]
+        np.copyto(self.late_q, q, where=r)
+        np.copyto(self.late_dq, dq, where=r)
         self.late |= rows
 
     def servo_reference(
         self, q_ref: np.ndarray, dq_ref: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray | None]:
-        """The servo's target this cycle: late intents where no fresh command arrived."""
-        late = self.late & ~self.c._have
-        self.late[...] = False
-        if not count_nonzero(late):
+        """The servo's target this cycle: late intents where no fresh command arrived and
+        the motion still runs (every generator's; the Cartesian ones after their IK)."""
+        if not count_nonzero(self.late):
             return q_ref, dq_ref
-        rows = late[:, None]
+        c = self.c
+        rows = (self.late & ~c._have & c.modes.in_motion)[:, None]
+        self.late[...] = False
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
         return np.where(rows, self.late_q, q_ref), np.where(rows, self.late_dq, dq)
 

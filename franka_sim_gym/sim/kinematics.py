@@ -72,8 +72,8 @@ def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
     two_cos = np.einsum("nka,nka->n", R_a, R_b)
     two_cos -= 1.0
     angle = _scale_to_angle(vee, two_cos)
-    if count_nonzero(np.pi - angle < 1e-6):  # the skew part vanishes: rotation_log's branch
-        near_pi = np.pi - angle < 1e-6
+    near_pi = np.pi - angle < 1e-6
+    if count_nonzero(near_pi):  # the skew part vanishes: rotation_log's branch
         vee[near_pi] = rotation_log(R_a[near_pi].transpose(0, 2, 1) @ R_b[near_pi])
     return vee
 
