@@ -38,15 +38,11 @@ from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
 from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog
+from .pacing import next_tick
 from .request_queue import apply_pending
 from .session import ClientSession
 
 log = logging.getLogger("franka_sim_gym.server")
-
-CYCLE_S = 0.001
-#: A tick later than this is not caught up with a burst of states: the clock
-#: restarts from now (a slow tick delays the next state; it never skips physics).
-_MAX_LAG_S = 0.005
 
 
 @dataclass
@@ -239,16 +235,13 @@ class RobotServer:
     # -- the tick -----------------------------------------------------------------------------
 
     def _tick_loop(self) -> None:
-        next_t = time.perf_counter()
+        slot = time.perf_counter()
         while self._running.is_set():
-            next_t += CYCLE_S
             self._tick()
             now = time.perf_counter()
-            delay = next_t - now
-            if delay > 0:
-                time.sleep(delay)
-            elif -delay > _MAX_LAG_S:
-                next_t = now
+            wake, slot = next_tick(slot, now)
+            if wake > now:
+                time.sleep(wake - now)
 
     def _tick(self) -> None:
         apply_pending(self._requests, log, "request")
