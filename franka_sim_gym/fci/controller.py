@@ -345,7 +345,6 @@ class FciController:
         q = self.physics.q[i].copy()
         self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
         self.reference.seed(i, q, int(self.writer.message_id[i]))
-        self.engine.invalidate_envelope()
         self.q_hold[i] = q
         self.tau_J_d[i] = 0.0
         # A new motion starts with last_motion_errors clear: it describes the
@@ -440,7 +439,6 @@ class FciController:
         """
         robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
         q = np.asarray(q, dtype=float).reshape(len(robots), 7)
-        self.engine.invalidate_envelope()
         self.physics.reset_arms(robots, q)
         for k, i in enumerate(robots.tolist()):
             self.modes.end(i)

@@ -27,6 +27,13 @@ from .violations import ViolationLog, latched_bits
 if TYPE_CHECKING:
     from .controller import FciController
 
+#: The joint speed [rad/s] up to which the per-cycle envelope checks pass on the interior
+#: shortcut (tables.interior_bounds) instead of the envelope's square roots. Any value is
+#: exact (faster motions, or motions near a stop, take the envelope itself); 1.5 rad/s
+#: covers the motions the env's policies and the examples make, with interiors that
+#: still contain the usual workspace (joint 2 within +-1.23 rad, joint 4 in [-2.64, -0.55]).
+INTERIOR_SPEED = 1.5
+
 
 class MotionLimitEngine:
     """Judges what the controller is about to apply, and what the arm did."""
@@ -38,14 +45,15 @@ class MotionLimitEngine:
         self.violations = ViolationLog(n)
         #: the measured EE position of the previous cycle (for the EE speed)
         self.ee_prev = np.zeros((n, 3))
-        # The velocity envelope at the reference's q, valid until the reference
-        # changes outside a cycle (a Move, a reset, a rewind).
-        self._envelope_cache: tuple[np.ndarray, np.ndarray] | None = None
         # The safety controller's check of measured dq: [dq | -dq] against the envelope's
-        # halves, whose measured rows are widened by the margin (the shift per row).
-        self._signed_dq = np.zeros((n, 14))
+        # halves, widened by the margin; first against the interior shortcut's bounds,
+        # on [dq | q | -dq | -q] (tables.interior_bounds).
+        t = controller.table
         tol, margin = JOINT_VELOCITY_LIMIT_TOLERANCE, controller.config.measured_velocity_margin
-        self._envelope_shift = np.array([[tol - margin], [tol]])  # measured row, reference row
+        self._measured_shift = tol - margin
+        self._measured = np.zeros((n, 28))
+        self._measured_interior = t.interior_bounds(INTERIOR_SPEED, self._measured_shift)
+        self._signed_dq = np.zeros((n, 14))
         #: late datagrams applied (not recorded) this cycle: the servo's target
         self.late = np.zeros(n, dtype=bool)
         self.late_q = np.zeros((n, 7))
@@ -53,21 +61,23 @@ class MotionLimitEngine:
         # The fused mid-motion q_c check: [q_c | dq | ddq | dddq] against stacked bounds
         # (the joint range, the envelope — filled per cycle —, the acceleration and
         # jerk limits of the robot's table).
-        t = controller.table
-        self._stacked = np.zeros((n, 28))
-        self._derivatives = [self._stacked[:, 7 * k : 7 * k + 7] for k in range(4)]
-        self._upper = np.tile(
-            np.concatenate([t.q_upper, np.zeros(7), t.ddq_max, t.dddq_max]), (n, 1)
+        # A fifth block, the reference's q, is compared against the interior of the
+        # joint ranges, where a constant bound stands in for the envelope
+        # (tables.interior_bounds); outside it, the exact envelope is filled in.
+        self._stacked = np.zeros((n, 35))
+        self._derivatives = [self._stacked[:, 7 * k : 7 * k + 7] for k in range(5)]
+        inside = t.interior_bounds(INTERIOR_SPEED, tol)
+        self._upper_interior = np.tile(
+            np.concatenate([t.q_upper, inside[:7], t.ddq_max, t.dddq_max, inside[7:14]]), (n, 1)
         )
-        self._lower = np.tile(
-            np.concatenate([t.q_lower, np.zeros(7), -t.ddq_max, -t.dddq_max]), (n, 1)
+        self._lower_interior = np.tile(
+            np.concatenate([t.q_lower, -inside[14:21], -t.ddq_max, -t.dddq_max, -inside[21:]]),
+            (n, 1),
         )
+        self._upper = self._upper_interior[:, :28].copy()
+        self._lower = self._lower_interior[:, :28].copy()
         #: the Cartesian generators (their history, checks and IK)
         self.cartesian = CartesianGenerators(self)
-
-    def invalidate_envelope(self) -> None:
-        """The reference changed outside a cycle: recompute the envelope when needed."""
-        self._envelope_cache = None
 
     def advance_commands(self) -> None:
         """Judge and apply the cycle's commands, or extrapolate the lost cycles.
@@ -111,7 +121,7 @@ class MotionLimitEngine:
         commands never get here (refused on arrival).
         """
         ref, x = self.c.reference, self._stacked
-        dq, ddq, dddq = self._derivatives[1:]
+        dq, ddq, dddq, q_ref = self._derivatives[1:]
         x[:, :7] = q_c
         np.subtract(q_c, ref.q, out=dq)
         dq /= DELTA_T  # divided, as the rule functions do: bit-identical to the general path
@@ -119,15 +129,15 @@ class MotionLimitEngine:
         ddq /= DELTA_T
         np.subtract(ddq, ref.ddq, out=dddq)
         dddq /= DELTA_T
-        upper, lower = self._reference_envelope()
+        q_ref[...] = ref.q
+        if not (count_nonzero(x > self._upper_interior) or count_nonzero(x < self._lower_interior)):
+            return True
+        # Undecided (near a stop, or fast): the exact envelope at the reference's q.
+        upper, lower = self.c.table.velocity_envelope(ref.q)
         self._upper[:, 7:14] = upper
         self._lower[:, 7:14] = lower
+        x = x[:, :28]
         return not (count_nonzero(x > self._upper) or count_nonzero(x < self._lower))
-
-    def _reference_envelope(self) -> tuple[np.ndarray, np.ndarray]:
-        """The velocity envelope at the reference's q (computed last cycle when valid)."""
-        cache = self._envelope_cache
-        return cache if cache is not None else self.c.table.velocity_envelope(self.c.reference.q)
 
     def _advance_joints(
         self,
@@ -198,7 +208,6 @@ class MotionLimitEngine:
         # after each rewind the next datagram of an in-order backlog is again that.
         rewind = late & (ids == ref.real_echo + np.uint64(1))
         if count_nonzero(rewind):
-            self.invalidate_envelope()
             ref.rewind(rewind)
             never = np.zeros(self.c.n, dtype=bool)
             self._advance_joints(
@@ -377,35 +386,32 @@ class MotionLimitEngine:
         physics, w, table = self.c.physics, self.c.writer, self.c.table
         margin = self.c.config.measured_velocity_margin
         dq = physics.dq
-        # One envelope call for two uses, (n, 2, 14) rows [q | q] per robot: measured q
-        # (for 3, now; widened by the margin: [upper + margin | -(lower - margin)]) and
-        # the reference just recorded (the q_prev the next cycle's commands are judged at).
-        n = self.c.n
-        q, q_ref = physics.q, self.c.reference.q
-        both = table.velocity_envelope_halves(
-            np.concatenate((q, q, q_ref, q_ref), axis=1).reshape(n, 2, 14), self._envelope_shift
-        )
-        reference = both[:, 1]
-        self._envelope_cache = (reference[:, :7], -reference[:, 7:])
+        q = physics.q
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
         v_ee = w.O_T_EE[:, 12:15] - self.ee_prev
         v_ee *= 1.0 / DELTA_T
         # Cheap booleans first; the rule functions name the error only on a trip.
         # Written as "not inside" so that a NaN physics state trips too.
-        signed = self._signed_dq
-        signed[:, :7] = dq
-        np.negative(dq, out=signed[:, 7:])
-        fast = ~(signed <= both[:, 0])
+        # Measured dq against the envelope at measured q, widened by the margin
+        # ([upper + margin | -(lower - margin)]): the interior shortcut first.
+        x = self._measured
+        x[:, :7] = dq
+        x[:, 7:14] = q
+        np.negative(x[:, :14], out=x[:, 14:])
+        fast = 0
+        if count_nonzero(x <= self._measured_interior) != x.size:  # undecided: exactly
+            signed = self._signed_dq
+            signed[:, :7] = dq
+            np.negative(dq, out=signed[:, 7:])
+            fast = count_nonzero(
+                ~(signed <= table.velocity_envelope_halves(q, self._measured_shift))
+            )
         speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
         close = close_link_pairs(
             physics.model, physics.data, physics.layout, self.c.config.self_collision_distance
         )
-        if not (
-            count_nonzero(fast)
-            or count_nonzero(~(speed2 <= table.v_trans_max**2))
-            or count_nonzero(close)
-        ):
+        if not (fast or count_nonzero(~(speed2 <= table.v_trans_max**2)) or count_nonzero(close)):
             return
         e_joint = limits.check_measured_joint_velocity(dq, physics.q, table, margin)
         e_cart = limits.check_measured_cartesian_speed(v_ee, table)

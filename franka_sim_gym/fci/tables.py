@@ -119,6 +119,33 @@ class RobotTable:
         r -= shift
         return r
 
+    def interior_bounds(self, speed: float, shift: float) -> np.ndarray:
+        """(28,) bounds on [dq | q | -dq | -q] that imply dq is inside the envelope at q.
+
+        A conservative shortcut for the checks run every cycle: the envelope only grows
+        with the distance to the stop, and every float operation of
+        :meth:`velocity_envelope_halves` is monotone, so for any q in the interior
+        [q_lower + D, q_upper - D] each half is at least its value at the interior's
+        edge. D is the distance at which the envelope reaches ``speed``
+        ((speed + v_off)^2 / (2 a_dec), the envelope's law solved for the distance):
+        joint speeds up to about ``speed`` away from the stops pass on four comparisons
+        instead of the envelope's square roots. ``shift`` as in
+        :meth:`velocity_envelope_halves`. A joint whose range is narrower than 2 D
+        has an empty interior: the shortcut never applies to it, nothing else changes.
+        Rows of [dq | q | -dq | -q] at most these bounds are inside the envelope; rows
+        above them are undecided (the exact envelope decides).
+        """
+        if self.dq_offset is None:  # a constant envelope: no band in q
+            edge = np.concatenate([self.q_upper, self.q_lower])
+            band = np.full(7, np.inf)
+            halves = self.velocity_envelope_halves(edge, shift)
+            return np.concatenate([halves[:7], band, halves[7:], band])
+        distance = (speed + self.dq_offset) ** 2 / (2.0 * self.ddq_decel)
+        upper_edge = self.q_upper - distance
+        lower_edge = self.q_lower + distance
+        halves = self.velocity_envelope_halves(np.concatenate([upper_edge, lower_edge]), shift)
+        return np.concatenate([halves[:7], upper_edge, halves[7:], -lower_edge])
+
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
 _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))
