@@ -116,3 +116,16 @@ def test_interior_shortcut_covers_the_home_pose_at_a_joint_speed_of_1_4_rad_per_
     for shift in (JOINT_VELOCITY_LIMIT_TOLERANCE, JOINT_VELOCITY_LIMIT_TOLERANCE - 0.1):
         bounds = FR3.interior_bounds(INTERIOR_SPEED, shift)
         assert (np.concatenate([velocity, home, -velocity, -home]) <= bounds).all()
+
+
+def test_ee_speed_shortcut_never_passes_a_speed_over_the_limit():
+    # The safety controller's per-axis bound on the measured EE velocity (for 4): the
+    # largest vector it lets through, (c, +-c, +-c), is within kMaxTranslationalVelocity.
+    bounds = ENGINE._measured_bounds
+    axis = bounds[14:17]
+    assert (bounds[31:34] == axis).all()
+    for signs in np.array(np.meshgrid([1, -1], [1, -1], [1, -1])).T.reshape(-1, 3):
+        v = signs * axis
+        assert np.einsum("i,i->", v, v) <= TABLE.v_trans_max**2
+    # ... and it is not vacuous: it passes 1.7 m/s along every axis at once.
+    assert (axis >= 1.7).all()

@@ -51,8 +51,12 @@ class MotionLimitEngine:
         t = controller.table
         tol, margin = JOINT_VELOCITY_LIMIT_TOLERANCE, controller.config.measured_velocity_margin
         self._measured_shift = tol - margin
-        self._measured = np.zeros((n, 28))
-        self._measured_interior = t.interior_bounds(INTERIOR_SPEED, self._measured_shift)
+        self._measured = np.zeros((n, 34))
+        inside = t.interior_bounds(INTERIOR_SPEED, self._measured_shift)
+        # sqrt(3) |v_i| <= v_max on every axis implies |v| <= v_max; the factor keeps the
+        # rounding of the squares' sum on the safe side.
+        axis = np.full(3, t.v_trans_max / np.sqrt(3.0) * (1.0 - 1e-9))
+        self._measured_bounds = np.concatenate([inside[:14], axis, inside[14:], axis])
         self._signed_dq = np.zeros((n, 14))
         #: late datagrams applied (not recorded) this cycle: the servo's target
         self.late = np.zeros(n, dtype=bool)
@@ -387,32 +391,39 @@ class MotionLimitEngine:
         margin = self.c.config.measured_velocity_margin
         dq = physics.dq
         q = physics.q
+        # Cheap booleans first; the rule functions name the error only on a trip.
+        # One row [dq | q | v_ee | -dq | -q | -v_ee] against the shortcuts' bounds:
+        # measured dq against the envelope at measured q, widened by the margin
+        # ([upper + margin | -(lower - margin)]), on the interior shortcut; and the EE
+        # speed per axis, where |v_i| <= v_max / sqrt(3) for every axis implies
+        # |v| <= v_max. Written as "not inside", so that a NaN state is undecided.
+        x = self._measured
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
-        v_ee = w.O_T_EE[:, 12:15] - self.ee_prev
+        v_ee = x[:, 14:17]
+        np.subtract(w.O_T_EE[:, 12:15], self.ee_prev, out=v_ee)
         v_ee *= 1.0 / DELTA_T
-        # Cheap booleans first; the rule functions name the error only on a trip.
-        # Written as "not inside" so that a NaN physics state trips too.
-        # Measured dq against the envelope at measured q, widened by the margin
-        # ([upper + margin | -(lower - margin)]): the interior shortcut first.
-        x = self._measured
         x[:, :7] = dq
         x[:, 7:14] = q
-        np.negative(x[:, :14], out=x[:, 14:])
-        fast = 0
-        if count_nonzero(x <= self._measured_interior) != x.size:  # undecided: exactly
-            signed = self._signed_dq
-            signed[:, :7] = dq
-            np.negative(dq, out=signed[:, 7:])
-            fast = count_nonzero(
-                ~(signed <= table.velocity_envelope_halves(q, self._measured_shift))
-            )
-        speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
+        np.negative(x[:, :17], out=x[:, 17:])
         close = close_link_pairs(
             physics.model, physics.data, physics.layout, self.c.config.self_collision_distance
         )
-        if not (fast or count_nonzero(~(speed2 <= table.v_trans_max**2)) or count_nonzero(close)):
+        if count_nonzero(x <= self._measured_bounds) == x.size and not count_nonzero(close):
             return
+        # Undecided: exactly.
+        signed = self._signed_dq
+        signed[:, :7] = dq
+        np.negative(dq, out=signed[:, 7:])
+        fast = ~(signed <= table.velocity_envelope_halves(q, self._measured_shift))
+        speed2 = np.einsum("ij,ij->i", v_ee, v_ee)
+        if not (
+            count_nonzero(fast)
+            or count_nonzero(~(speed2 <= table.v_trans_max**2))
+            or count_nonzero(close)
+        ):
+            return
+        v_ee = v_ee.copy()
         e_joint = limits.check_measured_joint_velocity(dq, physics.q, table, margin)
         e_cart = limits.check_measured_cartesian_speed(v_ee, table)
         error = limits.safety_error(e_joint, e_cart)
