@@ -400,3 +400,71 @@ def test_interpolate_rejects_unknown_kind_and_alpha_out_of_range():
     for alpha in (-0.1, 1.5, math.nan):
         with pytest.raises(ValueError, match=r"alpha must be finite and in \[0, 1\]"):
             cf.interpolate(z, z, alpha)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    joint=st.integers(0, 6),
+    where=st.floats(0.0, 1.0),
+    v_last=st.floats(-2.7, 2.7),
+    a_last=st.floats(-10.0, 10.0),
+    v_c=st.floats(-3.0, 3.0),
+)
+def test_the_far_limiter_is_the_limiter_wherever_the_band_cannot_bind(
+    joint, where, v_last, a_last, v_c
+):
+    # The env's shortcut (FarFromTheBand + limit_velocities_far_core) must give the very
+    # bits of the general limiter against the envelope at q, whenever it claims the cycle.
+    from franka_sim_gym.envs.commands import LIMITER_MARGIN
+
+    a_max, j_max = FR3.ddq_max - LIMITER_MARGIN["ddq"], FR3.dddq_max - LIMITER_MARGIN["dddq"]
+    far = cf.FarFromTheBand(FR3, a_max, j_max, LIMITER_MARGIN["dq"])
+    q = HOME.copy()[None]
+    q[0, joint] = FR3.q_lower[joint] + where * (FR3.q_upper[joint] - FR3.q_lower[joint])
+    last = np.zeros((1, 7))
+    last[0, joint] = v_last
+    acc = np.full((1, 7), a_last)
+    command = np.full((1, 7), v_c)
+    if not far(q, last):
+        return
+    both = FR3.velocity_envelope_halves(q) - LIMITER_MARGIN["dq"]
+    exact = cf.limit_velocities_core(command, last, acc, both[:, :7], -both[:, 7:], a_max, j_max)
+    assert (cf.limit_velocities_far_core(command, last, acc, a_max, j_max) == exact).all()
+
+
+def test_the_far_limiter_claims_the_usual_cycle_and_not_the_edge_of_the_band():
+    from franka_sim_gym.envs.commands import LIMITER_MARGIN
+
+    a_max, j_max = FR3.ddq_max - LIMITER_MARGIN["ddq"], FR3.dddq_max - LIMITER_MARGIN["dddq"]
+    far = cf.FarFromTheBand(FR3, a_max, j_max, LIMITER_MARGIN["dq"])
+    assert far(HOME[None], np.full((1, 7), 1.0))  # home, 1 rad/s on every joint
+    near_stop = HOME.copy()[None]
+    near_stop[0, 1] = FR3.q_upper[1] - 0.01
+    assert not far(near_stop, np.zeros((1, 7)))
+    assert not far(HOME[None], np.full((1, 7), 2.0))  # past the interior's design speed
+
+
+def test_the_far_limiter_is_exact_at_the_largest_speed_it_claims():
+    # The worst case, joint by joint: q on the interior's edge and v_last at the largest
+    # value the shortcut accepts there, with a command asking for full acceleration.
+    from franka_sim_gym.envs.commands import LIMITER_MARGIN
+    from franka_sim_gym.fci.tables import INTERIOR_SPEED
+
+    a_max, j_max = FR3.ddq_max - LIMITER_MARGIN["ddq"], FR3.dddq_max - LIMITER_MARGIN["dddq"]
+    far = cf.FarFromTheBand(FR3, a_max, j_max, LIMITER_MARGIN["dq"])
+    distance = (INTERIOR_SPEED + FR3.dq_offset) ** 2 / (2.0 * FR3.ddq_decel)
+    for joint in range(7):
+        for sign in (1.0, -1.0):
+            q = HOME.copy()[None]
+            edge = FR3.q_upper - distance if sign > 0 else FR3.q_lower + distance
+            q[0, joint] = edge[joint]
+            last = np.zeros((1, 7))
+            last[0, joint] = sign * far.bounds[7 + joint if sign > 0 else 21 + joint]
+            assert far(q, last)
+            acc = np.full((1, 7), sign * a_max)
+            command = last + sign * 1.0
+            both = FR3.velocity_envelope_halves(q) - LIMITER_MARGIN["dq"]
+            exact = cf.limit_velocities_core(
+                command, last, acc, both[:, :7], -both[:, 7:], a_max, j_max
+            )
+            assert (cf.limit_velocities_far_core(command, last, acc, a_max, j_max) == exact).all()

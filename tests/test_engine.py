@@ -8,8 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from franka_sim_gym.fci import limits
-from franka_sim_gym.fci.engine import INTERIOR_SPEED
-from franka_sim_gym.fci.tables import FER, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
+from franka_sim_gym.fci.tables import FER, FR3, INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE
 
 from .fci_helpers import IMP, JP, LoopClient, make_controller
 

@@ -83,7 +83,7 @@ from numpy.typing import ArrayLike
 
 from ..fci._fast import count_nonzero
 from ..fci.frames import is_homogeneous
-from ..fci.tables import DELTA_T
+from ..fci.tables import DELTA_T, INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..sim.kinematics import skew
 
 __all__ = [
@@ -294,6 +294,53 @@ def limit_velocities_core(v_c, v_last, a_last, upper, lower, a_max, j_max) -> np
     safe_min = np.maximum(ratio * (lower - v_last), -a_max)
     # Limit acceleration and integrate to get the velocity.
     return v_last + np.maximum(np.minimum(acc, safe_max), safe_min) * dt
+
+
+def limit_velocities_far_core(v_c, v_last, a_last, a_max, j_max) -> np.ndarray:
+    """:func:`limit_velocities_core` where the velocity band is far from ``v_last``: both
+    acceleration bounds are at +-A (``J / A * (upper - v_last) >= A`` and the mirror), so
+    ``min(., A)`` and ``max(., -A)`` return A and -A exactly; the caller proves that
+    (:class:`FarFromTheBand`). Bit-identical to the general core in that case."""
+    dt = DELTA_T
+    jerk = (((v_c - v_last) / dt) - a_last) / dt
+    acc = a_last + np.maximum(np.minimum(jerk, j_max), -j_max) * dt
+    return v_last + np.maximum(np.minimum(acc, a_max), -a_max) * dt
+
+
+class FarFromTheBand:
+    """Decides, on one comparison, that libfranka's velocity limiter cannot meet its
+    position-based velocity band this cycle, so that its envelope need not be computed.
+
+    The limiter's acceleration bounds are ``min(J / A * (upper(q) - v_last), A)`` and the
+    mirror; they are exactly +-A whenever ``v_last`` is at least A^2 / J inside the band.
+    Inside the joint ranges' interior (:meth:`RobotTable.interior_bounds`) the band is
+    at least its value at the interior's edge; twice A^2 / J inside that (for the
+    rounding) proves both bounds saturated, on [q | v_last | -q | -v_last].
+
+    Args:
+        table: the robot's limits.
+        a_max, j_max: the limiter's A and J per joint.
+        margin: subtracted from the band (libfranka's kLimitEps-style margin).
+    """
+
+    def __init__(
+        self, table: RobotTable, a_max: np.ndarray, j_max: np.ndarray, margin: float
+    ) -> None:
+        inside = table.interior_bounds(INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE)
+        reach = 2.0 * np.asarray(a_max) ** 2 / np.asarray(j_max)
+        upper, lower = inside[:7] - margin, inside[14:21] - margin  # as the limiter's order
+        self.bounds = np.concatenate([inside[7:14], upper - reach, inside[21:], lower - reach])
+        self._x = np.zeros((0, 28))
+
+    def __call__(self, q: np.ndarray, v_last: np.ndarray) -> bool:
+        """True when every robot's limiter is saturated at +-A this cycle ((n, 7) each)."""
+        x = self._x
+        if x.shape[0] != len(q):
+            x = self._x = np.zeros((len(q), 28))
+        x[:, :7] = q
+        x[:, 7:14] = v_last
+        np.negative(x[:, :14], out=x[:, 14:])
+        return count_nonzero(x <= self.bounds) == x.size
 
 
 def limit_rate_joint_positions(

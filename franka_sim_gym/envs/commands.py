@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import FR3, RobotTable
+from ..fci.tables import DELTA_T, FR3, RobotTable
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
 
@@ -155,6 +155,7 @@ class CommandGenerator:
         m = LIMITER_MARGIN
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
+        self._far = cf.FarFromTheBand(table, self._ddq_max, self._dddq_max, m["dq"])
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
@@ -272,11 +273,16 @@ class CommandGenerator:
         q_d = ref if interface == "joint_position" else state["q_d"].astype(np.float64)
         dq_d = ref if interface == "joint_velocity" else state["dq_d"].astype(np.float64)
         ddq_d = state["ddq_d"].astype(np.float64)
+        a_max, j_max = self._ddq_max, self._dddq_max
+        if self._far(q_d, dq_d):  # the band cannot bind: no envelope needed
+            if interface == "joint_position":
+                v = cf.limit_velocities_far_core((out - q_d) / DELTA_T, dq_d, ddq_d, a_max, j_max)
+                return q_d + v * DELTA_T
+            return cf.limit_velocities_far_core(out, dq_d, ddq_d, a_max, j_max)
         both = self.table.velocity_envelope_halves(q_d)  # [upper | -lower]
         # upper - margin and -(lower + margin), in libfranka's order of operations
         both -= LIMITER_MARGIN["dq"]
         upper, lower = both[:, :7], -both[:, 7:]
-        a_max, j_max = self._ddq_max, self._dddq_max
         if interface == "joint_position":
             return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
         return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)

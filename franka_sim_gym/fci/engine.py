@@ -21,18 +21,11 @@ from . import extrapolation, limits
 from ._fast import count_nonzero
 from .cartesian import CartesianGenerators
 from .errors import ERROR_NAMES, Error
-from .tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
+from .tables import DELTA_T, INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
 from .violations import ViolationLog, latched_bits
 
 if TYPE_CHECKING:
     from .controller import FciController
-
-#: The joint speed [rad/s] up to which the per-cycle envelope checks pass on the interior
-#: shortcut (tables.interior_bounds) instead of the envelope's square roots. Any value is
-#: exact (faster motions, or motions near a stop, take the envelope itself); 1.5 rad/s
-#: covers the motions the env's policies and the examples make, with interiors that
-#: still contain the usual workspace (joint 2 within +-1.23 rad, joint 4 in [-2.64, -0.55]).
-INTERIOR_SPEED = 1.5
 
 
 class MotionLimitEngine:
