@@ -163,6 +163,10 @@ class ArmKinematics:
             A Gauss-Newton residual is smooth along a smooth trajectory (it scales
             with the square of the per-cycle step), so the joint-side checks, which
             difference solutions three times over 1 ms, do not see it.
+
+    The solve runs every cycle at 1 kHz on small arrays, where each numpy call costs
+    about as much as its arithmetic: the scratch arrays are allocated once, and the
+    arms' rows of MjData are read and written through views where the layout allows.
     """
 
     def __init__(
@@ -176,7 +180,7 @@ class ArmKinematics:
         self.model = model
         self.data = mujoco.MjData(model)
         self.layout = layout
-        self.n = layout.n
+        n = self.n = layout.n
         self.damping = damping
         self.max_iterations = max_iterations
         self.tolerance = tolerance
@@ -188,39 +192,80 @@ class ArmKinematics:
         self._base = np.asarray(layout.base_pos, dtype=np.float64)
         self._qpos = layout.qpos_adr
         self._eye6 = np.eye(6) * damping**2
-        # The last evaluation, reused when the next solve starts where it ended.
-        self._cached_q = np.full((self.n, 7), np.nan)
-        self._cached: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        d = self.data
+        # The arms' rows of MjData, as views where the indices are evenly spaced (every
+        # world built by world.py), else None (gathered and scattered every evaluation).
+        self._qpos_rows = _strided_rows(d.qpos, self._qpos)
+        self._site_pos = _strided_rows(d.site_xpos, self._sites)
+        self._site_mat = _strided_rows(d.site_xmat, self._sites)
+        self._axes = _strided_rows(d.xaxis, self._joints)
+        self._anchors = _strided_rows(d.xanchor, self._joints)
+        # The last evaluation, reused when the next solve starts where it ended; written
+        # in place by every evaluation (callers get copies).
+        self._cached_q = np.full((n, 7), np.nan)
+        self._cached = False
         self._cached_F: np.ndarray | None = None  # the EE frame it was evaluated at
+        self._p = np.empty((n, 3))
+        self._R = np.empty((n, 3, 3))
+        self._J = np.empty((n, 6, 7))
+        self._Jt = self._J.transpose(0, 2, 1)
+        # Scratch of one evaluation and one Gauss-Newton update.
+        self._p_world = np.empty((n, 3))
+        self._offset = np.empty((n, 3, 1))
+        self._lever = np.empty((n, 7, 3))
+        self._same_q = np.empty((n, 7), dtype=bool)
+        self._JJt = np.empty((n, 6, 6))
+        self._step = np.empty((n, 7, 1))
+        self._abs_step = np.empty((n, 7))
+        self._big = np.empty((n, 7), dtype=bool)
+        self._e = np.empty((n, 6))
+        self._err2 = np.empty((n, 2))
+        self._ok = np.empty((n, 2), dtype=bool)
+        self._all = np.ones(n, dtype=bool)
+        self._all.setflags(write=False)
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
-        """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q."""
+        """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q.
+
+        The arrays are the evaluation's own buffers: valid until the next evaluation.
+        """
         if (
-            self._cached is not None
-            and count_nonzero(q == self._cached_q) == q.size
+            self._cached
+            and count_nonzero(np.equal(q, self._cached_q, out=self._same_q)) == q.size
             and self._same_frame(F_T_EE)
         ):
-            return self._cached
+            return self._p, self._R, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
-        d.qpos[self._qpos] = q
+        if self._qpos_rows is not None:
+            self._qpos_rows[...] = q
+        else:
+            d.qpos[self._qpos] = q
         mujoco.mj_kinematics(self.model, d)
-        p_world = d.site_xpos[self._sites]
-        R = d.site_xmat[self._sites].reshape(self.n, 3, 3)
+        site_pos = d.site_xpos[self._sites] if self._site_pos is None else self._site_pos
+        site_mat = d.site_xmat[self._sites] if self._site_mat is None else self._site_mat
+        R_site = site_mat.reshape(self.n, 3, 3)
+        R, p_world = self._R, self._p_world
         if F_T_EE is not None:
-            p_world = p_world + (R @ F_T_EE[:, :3, 3:])[..., 0]
-            R = R @ F_T_EE[:, :3, :3]
-        p = p_world - self._base
-        axes = d.xaxis[self._joints]  # (n, 7, 3), base frame = world frame (bases unrotated)
-        lever = p_world[:, None, :] - d.xanchor[self._joints]
-        J = np.empty((self.n, 6, 7))
+            np.matmul(R_site, F_T_EE[:, :3, 3:], out=self._offset)
+            np.add(site_pos, self._offset[..., 0], out=p_world)
+            np.matmul(R_site, F_T_EE[:, :3, :3], out=R)
+        else:
+            p_world[...] = site_pos
+            R[...] = R_site
+        np.subtract(p_world, self._base, out=self._p)
+        # base frame = world frame (bases unrotated)
+        axes = d.xaxis[self._joints] if self._axes is None else self._axes  # (n, 7, 3)
+        anchors = d.xanchor[self._joints] if self._anchors is None else self._anchors
+        np.subtract(p_world[:, None, :], anchors, out=self._lever)
+        J = self._J
         # Linear part: axis x (EE point - joint anchor), as one contraction with the
         # Levi-Civita symbol (np.cross, or the products written out, cost 3x more here).
-        np.einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, lever, out=J[:, :3, :])
+        np.einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=J[:, :3, :])
         J[:, 3:, :] = axes.transpose(0, 2, 1)
         self._cached_q[...] = q
-        self._cached = (p, R, J)
-        return self._cached
+        self._cached = True
+        return self._p, R, J
 
     def _same_frame(self, F_T_EE: np.ndarray | None) -> bool:
         cached = self._cached_F
@@ -259,8 +304,10 @@ class ArmKinematics:
                 ``valid_elbow`` false), or None for every elbow free.
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
         """
+        n = self.n
         q = np.array(q_init, dtype=np.float64, copy=True)
-        active = np.ones(self.n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        active = self._all if rows is None else np.asarray(rows, dtype=bool)
+        all_active = rows is None or count_nonzero(active) == n
         fixed = None
         if elbow is not None:
             fixed = active & np.isfinite(elbow)
@@ -269,33 +316,77 @@ class ArmKinematics:
             else:
                 fixed = None
         p_t, R_t = target[:, :3, 3], target[:, :3, :3]
-        e = np.empty((self.n, 6))
-        halves = e.reshape(self.n, 2, 3)
+        e, err2, ok = self._e, self._err2, self._ok
+        halves = e.reshape(n, 2, 3)
         tol2 = self.tolerance**2
+        converged = self._all
         for iteration in range(self.max_iterations + 1):
             p, R, J = self._evaluate(q, F_T_EE)
             np.subtract(p_t, p, out=e[:, :3])
             np.einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
-            # Squared position and rotation errors side by side, (n, 2).
-            err2 = np.einsum("nkj,nkj->nk", halves, halves)
-            converged = np.maximum.reduce(err2, axis=1) <= tol2  # NaN: not converged
-            todo = active & ~converged
+            # Squared position and rotation errors side by side, (n, 2); converged where
+            # both are within tolerance (NaN: not converged).
+            np.einsum("nkj,nkj->nk", halves, halves, out=err2)
+            np.less_equal(err2, tol2, out=ok)
+            if count_nonzero(ok) == 2 * n:  # every arm converged (the usual last pass)
+                converged = self._all
+                break
+            converged = ok[:, 0] & ok[:, 1]
+            todo = ~converged if all_active else active & ~converged
             n_todo = count_nonzero(todo)
             if iteration == self.max_iterations or not n_todo:
                 break
-            if fixed is not None:
-                J = J.copy()
-                J[fixed, :, ELBOW_JOINT] = 0.0
-            JJt = J @ J.transpose(0, 2, 1)
-            JJt += self._eye6
-            step = (J.transpose(0, 2, 1) @ _solve(JJt, e[..., None]))[..., 0]
-            if n_todo != self.n:
-                step[~todo] = 0.0
-            # An unreachable target makes the damped step grow without bound near a
-            # singularity; cap it, so a solve that cannot converge cannot run away.
-            if count_nonzero(np.abs(step) > MAX_STEP):
-                biggest = np.abs(step).max(axis=1)
-                step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
-            q += step
+            q += self._update(J, e, fixed, None if n_todo == n else todo)
         e_pos, e_rot = np.sqrt(err2).T
-        return IkResult(q, converged | ~active, e_pos, e_rot)
+        return IkResult(q, converged if all_active else converged | ~active, e_pos, e_rot)
+
+    def _update(
+        self, J: np.ndarray, e: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
+    ) -> np.ndarray:
+        """(n, 7) one damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e, zero where
+        the elbow is held (``fixed``'s joint 3) and outside ``todo`` (None: every arm)."""
+        Jt = self._Jt
+        if fixed is not None:
+            J = J.copy()
+            J[fixed, :, ELBOW_JOINT] = 0.0
+            Jt = J.transpose(0, 2, 1)
+        JJt = np.matmul(J, Jt, out=self._JJt)
+        JJt += self._eye6
+        step = np.matmul(Jt, _solve(JJt, e[..., None]), out=self._step)[..., 0]
+        if todo is not None:
+            step[~todo] = 0.0
+        # An unreachable target makes the damped step grow without bound near a
+        # singularity; cap it, so a solve that cannot converge cannot run away.
+        size = np.abs(step, out=self._abs_step)
+        if count_nonzero(np.greater(size, MAX_STEP, out=self._big)):
+            biggest = size.max(axis=1)
+            step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
+        return step
+
+
+def _strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """``array[index]`` as a view when ``index`` (integer, any shape) steps evenly along
+    each of its axes, else None. Rows of a MuJoCo data array stay put for its lifetime."""
+    index = np.asarray(index, dtype=np.intp)
+    if index.size == 0 or index.min() < 0 or index.max() >= len(array):
+        return None
+    # the step along each axis of the index: the difference to the next entry, if constant
+    steps = []
+    for axis in range(index.ndim):
+        if index.shape[axis] < 2:
+            steps.append(0)
+            continue
+        diff = np.diff(index, axis=axis)
+        if not (diff == diff.flat[0]).all() or diff.flat[0] < 0:
+            return None
+        steps.append(int(diff.flat[0]))
+    row = array.strides[0]
+    view = np.lib.stride_tricks.as_strided(
+        array[int(index.flat[0]) :],
+        shape=index.shape + array.shape[1:],
+        strides=tuple(s * row for s in steps) + array.strides[1:],
+        writeable=True,
+    )
+    if not np.array_equal(view, array[index]):  # pragma: no cover - a layout error
+        raise AssertionError("a strided view disagrees with its gather")
+    return view
