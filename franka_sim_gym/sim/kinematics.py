@@ -28,6 +28,13 @@ try:  # numpy's batched LAPACK solve, without np.linalg.solve's Python checks (~
 except ImportError:  # pragma: no cover - other numpy layouts
     _solve = np.linalg.solve
 
+try:  # np.einsum's C core, without its Python wrapper (~0.6 us a call): the same arithmetic
+    # (np.einsum without ``optimize`` hands its operands to it unchanged); ``out`` must
+    # be an array when given
+    from numpy._core.multiarray import c_einsum as einsum
+except ImportError:  # pragma: no cover - other numpy layouts
+    einsum = np.einsum
+
 #: Joint 3 is the FR3's redundancy angle (seed "RobotState fields": elbow[0] = q[2]).
 ELBOW_JOINT = 2
 
@@ -65,11 +72,17 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     return out
 
 
-def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
+def relative_rotation_log(
+    R_a: np.ndarray, R_b: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs, without forming the product
-    away from pi: its skew part and trace are contractions of R_a with R_b."""
-    vee = np.einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
-    two_cos = np.einsum("nka,nka->n", R_a, R_b)
+    away from pi: its skew part and trace are contractions of R_a with R_b. ``out``: an
+    (n, 3) array to write the result into (and return)."""
+    if out is None:
+        vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
+    else:
+        vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b, out=out)
+    two_cos = einsum("nka,nka->n", R_a, R_b)
     two_cos -= 1.0
     angle = _scale_to_angle(vee, two_cos)
     near_pi = np.pi - angle < 1e-6
@@ -81,7 +94,7 @@ def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
 def _scale_to_angle(vee: np.ndarray, two_cos: np.ndarray) -> np.ndarray:
     """Scale the skew part ``vee`` (2 sin(angle) axis) to angle * axis in place; return
     the angle, atan2(|vee|, 2 cos(angle)), exact over [0, pi]."""
-    two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
+    two_sin = np.sqrt(einsum("...i,...i->...", vee, vee))
     angle = np.arctan2(two_sin, two_cos)
     turning = two_sin > 1e-12
     if count_nonzero(turning) == turning.size:
@@ -104,16 +117,19 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     # np.linalg.norm's own arithmetic, without its dispatch.
     angle = np.sqrt(np.add.reduce(rotvec * rotvec, axis=-1))
     small = angle < 1e-8
-    safe = np.where(small, 1.0, angle)
     K = skew(rotvec)
     if count_nonzero(small):
+        safe = np.where(small, 1.0, angle)
         a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
         b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
     else:  # the same arithmetic, without the series' branch
         a = np.sin(angle) / angle
         b = (1.0 - np.cos(angle)) / angle**2
-    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return _EYE3 + a[..., None, None] * K + b[..., None, None] * (K @ K)
 
+
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
 
 #: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
 _VEE_PLUS = np.array([7, 2, 3])
@@ -207,6 +223,7 @@ class ArmKinematics:
         self._cached_F: np.ndarray | None = None  # the EE frame it was evaluated at
         self._p = np.empty((n, 3))
         self._R = np.empty((n, 3, 3))
+        self._R_out = self._R  # the rotations of the last evaluation (_R or MjData's rows)
         self._J = np.empty((n, 6, 7))
         self._Jt = self._J.transpose(0, 2, 1)
         # Scratch of one evaluation and one Gauss-Newton update.
@@ -221,8 +238,11 @@ class ArmKinematics:
         self._e = np.empty((n, 6))
         self._err2 = np.empty((n, 2))
         self._ok = np.empty((n, 2), dtype=bool)
+        # Read-only verdicts every arm shares (returned as IkResult.converged).
         self._all = np.ones(n, dtype=bool)
         self._all.setflags(write=False)
+        self._none = np.zeros(n, dtype=bool)
+        self._none.setflags(write=False)
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
         """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q.
@@ -234,7 +254,7 @@ class ArmKinematics:
             and count_nonzero(np.equal(q, self._cached_q, out=self._same_q)) == q.size
             and self._same_frame(F_T_EE)
         ):
-            return self._p, self._R, self._J
+            return self._p, self._R_out, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
         if self._qpos_rows is not None:
@@ -245,14 +265,14 @@ class ArmKinematics:
         site_pos = d.site_xpos[self._sites] if self._site_pos is None else self._site_pos
         site_mat = d.site_xmat[self._sites] if self._site_mat is None else self._site_mat
         R_site = site_mat.reshape(self.n, 3, 3)
-        R, p_world = self._R, self._p_world
         if F_T_EE is not None:
+            p_world, R = self._p_world, self._R
             np.matmul(R_site, F_T_EE[:, :3, 3:], out=self._offset)
             np.add(site_pos, self._offset[..., 0], out=p_world)
             np.matmul(R_site, F_T_EE[:, :3, :3], out=R)
-        else:
-            p_world[...] = site_pos
-            R[...] = R_site
+        else:  # the flange itself: MjData's rows as they are (they change only here)
+            p_world, R = site_pos, R_site
+        self._R_out = R
         np.subtract(p_world, self._base, out=self._p)
         # base frame = world frame (bases unrotated)
         axes = d.xaxis[self._joints] if self._axes is None else self._axes  # (n, 7, 3)
@@ -261,7 +281,7 @@ class ArmKinematics:
         J = self._J
         # Linear part: axis x (EE point - joint anchor), as one contraction with the
         # Levi-Civita symbol (np.cross, or the products written out, cost 3x more here).
-        np.einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=J[:, :3, :])
+        einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=J[:, :3, :])
         J[:, 3:, :] = axes.transpose(0, 2, 1)
         self._cached_q[...] = q
         self._cached = True
@@ -293,6 +313,7 @@ class ArmKinematics:
         F_T_EE: np.ndarray | None = None,
         elbow: np.ndarray | None = None,
         rows: np.ndarray | None = None,
+        out: np.ndarray | None = None,
     ) -> IkResult:
         """Damped Gauss-Newton from ``q_init`` to the (n, 4, 4) ``target`` poses.
 
@@ -303,11 +324,17 @@ class ArmKinematics:
             elbow: (n,) joint-3 angles to hold fixed (NaN where the elbow is free:
                 ``valid_elbow`` false), or None for every elbow free.
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
+            out: an (n, 7) array to iterate in and return as the solution (default: new).
         """
         n = self.n
-        q = np.array(q_init, dtype=np.float64, copy=True)
+        if out is None:
+            q = np.array(q_init, dtype=np.float64, copy=True)
+        else:
+            q = out
+            q[...] = q_init
         active = self._all if rows is None else np.asarray(rows, dtype=bool)
-        all_active = rows is None or count_nonzero(active) == n
+        n_active = n if rows is None else count_nonzero(active)
+        all_active = n_active == n
         fixed = None
         if elbow is not None:
             fixed = active & np.isfinite(elbow)
@@ -323,17 +350,21 @@ class ArmKinematics:
         for iteration in range(self.max_iterations + 1):
             p, R, J = self._evaluate(q, F_T_EE)
             np.subtract(p_t, p, out=e[:, :3])
-            np.einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
+            einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
             # Squared position and rotation errors side by side, (n, 2); converged where
             # both are within tolerance (NaN: not converged).
-            np.einsum("nkj,nkj->nk", halves, halves, out=err2)
+            einsum("nkj,nkj->nk", halves, halves, out=err2)
             np.less_equal(err2, tol2, out=ok)
-            if count_nonzero(ok) == 2 * n:  # every arm converged (the usual last pass)
+            n_ok = count_nonzero(ok)
+            if n_ok == 2 * n:  # every arm converged (the usual last pass)
                 converged = self._all
                 break
-            converged = ok[:, 0] & ok[:, 1]
-            todo = ~converged if all_active else active & ~converged
-            n_todo = count_nonzero(todo)
+            if not n_ok:  # no arm converged (the usual first pass)
+                converged, todo, n_todo = self._none, active, n_active
+            else:
+                converged = ok[:, 0] & ok[:, 1]
+                todo = ~converged if all_active else active & ~converged
+                n_todo = count_nonzero(todo)
             if iteration == self.max_iterations or not n_todo:
                 break
             q += self._update(J, e, fixed, None if n_todo == n else todo)
@@ -368,25 +399,29 @@ def _strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
     """``array[index]`` as a view when ``index`` (integer, any shape) steps evenly along
     each of its axes, else None. Rows of a MuJoCo data array stay put for its lifetime."""
     index = np.asarray(index, dtype=np.intp)
-    if index.size == 0 or index.min() < 0 or index.max() >= len(array):
+    if not array.flags.c_contiguous or index.size == 0:
         return None
-    # the step along each axis of the index: the difference to the next entry, if constant
-    steps = []
+    if index.min() < 0 or index.max() >= len(array):
+        return None
+    steps = []  # the step along each axis of the index, if constant
     for axis in range(index.ndim):
         if index.shape[axis] < 2:
             steps.append(0)
             continue
         diff = np.diff(index, axis=axis)
-        if not (diff == diff.flat[0]).all() or diff.flat[0] < 0:
+        if diff.flat[0] < 0 or not (diff == diff.flat[0]).all():
             return None
         steps.append(int(diff.flat[0]))
-    row = array.strides[0]
-    view = np.lib.stride_tricks.as_strided(
-        array[int(index.flat[0]) :],
-        shape=index.shape + array.shape[1:],
-        strides=tuple(s * row for s in steps) + array.strides[1:],
-        writeable=True,
-    )
-    if not np.array_equal(view, array[index]):  # pragma: no cover - a layout error
+
+    def rows_of(a: np.ndarray) -> np.ndarray:
+        return np.lib.stride_tricks.as_strided(
+            a[int(index.flat[0]) :],
+            shape=index.shape + a.shape[1:],
+            strides=tuple(s * a.strides[0] for s in steps) + a.strides[1:],
+        )
+
+    # the same view of a probe of the same layout must select the rows the index names
+    probe = np.arange(array.size, dtype=array.dtype).reshape(array.shape)
+    if not np.array_equal(rows_of(probe), probe[index]):  # pragma: no cover - a layout error
         raise AssertionError("a strided view disagrees with its gather")
-    return view
+    return rows_of(array)
