@@ -488,14 +488,14 @@ class CartesianGenerators:
         d = step.d
         every = count_nonzero(apply) == n  # (the common case: plain copies)
         every_real = every and count_nonzero(real) == n
-        a = apply[:, None]
-        x = extrapolate[:, None]
         any_lost = step.pose_ex is not None
         any_first = count_nonzero(first) > 0
-        at_rest = (first & apply)[:, None]
+        x = extrapolate[:, None] if any_lost else None
         _put(h.T, step.T, apply, every)
         if d is not None:
             if any_lost or any_first:
+                a = apply[:, None]
+                at_rest = (first & apply)[:, None]
                 v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
                 if any_lost:
                     v_ex, w_ex = step.pose_ex
@@ -520,13 +520,11 @@ class CartesianGenerators:
                 dtwist = np.where(x, h.dtwist_frozen, dtwist)
             _put(h.dtwist, dtwist, apply, every)
             _put(h.dtwist_frozen, h.dtwist, real, every_real)
-        self._record_reported(apply, at_rest, first, every and not any_first)
+        self._record_reported(apply, first, every and not any_first)
         self._record_elbow(step, real, apply, extrapolate)
         self._record_joint_side(step, apply, first, every and not any_first)
 
-    def _record_reported(
-        self, apply: np.ndarray, at_rest: np.ndarray, first: np.ndarray, plain: bool
-    ) -> None:
+    def _record_reported(self, apply: np.ndarray, first: np.ndarray, plain: bool) -> None:
         """What the state reports as the commanded twist and its rate. A twist motion: its
         own twist. A pose motion: the commanded pose's twist in the base frame, rotation as
         log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
@@ -552,7 +550,7 @@ class CartesianGenerators:
         a = apply[:, None]
         dreported = (reported - h.reported) / _DT
         if count_nonzero(first):
-            dreported = np.where(at_rest, 0.0, dreported)
+            dreported = np.where((first & apply)[:, None], 0.0, dreported)
         np.copyto(h.dreported, dreported, where=a)
         np.copyto(h.reported, reported, where=a)
 

@@ -78,13 +78,23 @@ def relative_rotation_log(
     """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs, without forming the product
     away from pi: its skew part and trace are contractions of R_a with R_b. ``out``: an
     (n, 3) array to write the result into (and return)."""
+    n = len(R_a)
     if out is None:
         vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
     else:
         vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b, out=out)
-    two_cos = einsum("nka,nka->n", R_a, R_b)
+    # 2 sin(angle) and 2 cos(angle) side by side, so that one comparison screens both
+    sin_cos = np.empty((n, 2))
+    two_sin, two_cos = sin_cos[:, 0], sin_cos[:, 1]
+    einsum("nka,nka->n", R_a, R_b, out=two_cos)
     two_cos -= 1.0
-    angle = _scale_to_angle(vee, two_cos)
+    np.sqrt(einsum("ni,ni->n", vee, vee), out=two_sin)
+    angle = np.arctan2(two_sin, two_cos)
+    if count_nonzero(sin_cos > _TURNING_ACUTE) == 2 * n:
+        # Every angle turning and below pi / 2 (so far from pi): the common case.
+        vee *= (angle / two_sin)[:, None]
+        return vee
+    _scale_vee(vee, two_sin, angle)
     near_pi = np.pi - angle < 1e-6
     if count_nonzero(near_pi):  # the skew part vanishes: rotation_log's branch
         vee[near_pi] = rotation_log(R_a[near_pi].transpose(0, 2, 1) @ R_b[near_pi])
@@ -96,12 +106,17 @@ def _scale_to_angle(vee: np.ndarray, two_cos: np.ndarray) -> np.ndarray:
     the angle, atan2(|vee|, 2 cos(angle)), exact over [0, pi]."""
     two_sin = np.sqrt(einsum("...i,...i->...", vee, vee))
     angle = np.arctan2(two_sin, two_cos)
+    _scale_vee(vee, two_sin, angle)
+    return angle
+
+
+def _scale_vee(vee: np.ndarray, two_sin: np.ndarray, angle: np.ndarray) -> None:
+    """vee (2 sin(angle) axis) *= angle / (2 sin(angle)), in place."""
     turning = two_sin > 1e-12
     if count_nonzero(turning) == turning.size:
         vee *= (angle / two_sin)[..., None]
     else:  # angle / (2 sin angle) -> 1/2 as the angle -> 0
         vee *= np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)[..., None]
-    return angle
 
 
 def skew(u: np.ndarray) -> np.ndarray:
@@ -130,6 +145,10 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
 
 _EYE3 = np.eye(3)
 _EYE3.setflags(write=False)
+
+#: [2 sin, 2 cos] strictly above these: the angle turns (the ratio angle / (2 sin) is
+#: computed as is) and is below pi / 2 (atan2 of a positive cosine), far from pi.
+_TURNING_ACUTE = np.array([1e-12, 0.0])
 
 #: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
 _VEE_PLUS = np.array([7, 2, 3])
@@ -359,7 +378,7 @@ class ArmKinematics:
             if n_ok == 2 * n:  # every arm converged (the usual last pass)
                 converged = self._all
                 break
-            if not n_ok:  # no arm converged (the usual first pass)
+            if n_ok < 2:  # no arm has both halves in (the usual first pass)
                 converged, todo, n_todo = self._none, active, n_active
             else:
                 converged = ok[:, 0] & ok[:, 1]
