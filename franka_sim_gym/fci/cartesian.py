@@ -133,7 +133,9 @@ class CartesianGenerators:
         self._T_twist = np.empty((n, 4, 4))  # a twist motion's IK target
         self._twist_stack = np.empty((n, 3, 6))  # [twist, dtwist, ddtwist]
         self._pose_stack = np.empty((n, 3, 6))  # the pose's derivatives
-        self._joint = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
+        self._joint = S = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
+        # its views: q; [dq, ddq, dddq]; [ddq, dddq] (judged); [q, dq, ddq] (recorded); dq
+        self._joint_views = (S[:, 0], S[:, 1:], S[:, 2:], S[:, :3], S[:, 1])
         self._spatial = np.empty((n, 6))  # a pose motion's reported twist
         # The elbow's derivatives while no elbow is streamed (read, never written).
         zeros = np.zeros(n)
@@ -278,13 +280,11 @@ class CartesianGenerators:
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
         in_use = bool(count_nonzero(elbow.has) or count_nonzero(elbow.had))
         e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if in_use else None
-        S = self._joint  # [q, dq, ddq, dddq]
-        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=S[:, 0])
-        rules.joint_side(ik.q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=S[:, 1:])
-        joint = rules.JointSide(S[:, 2:], self._joint_checked(h, ik, first, active))
-        return _Step(
-            T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, S[:, 1], joint, S[:, :3]
-        )
+        q, differences, judged, recorded, dq = self._joint_views
+        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
+        rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
+        joint = rules.JointSide(judged, self._joint_checked(h, ik, first, active))
+        return _Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded)
 
     def _twist_target(self, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
         """A twist motion's IK target: the previous target ``T`` moved by the twist over

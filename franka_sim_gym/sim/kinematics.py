@@ -227,14 +227,9 @@ class ArmKinematics:
         self._base = np.asarray(layout.base_pos, dtype=np.float64)
         self._qpos = layout.qpos_adr
         self._eye6 = np.eye(6) * damping**2
-        d = self.data
-        # The arms' rows of MjData, as views where the indices are evenly spaced (every
-        # world built by world.py), else None (gathered and scattered every evaluation).
-        self._qpos_rows = _strided_rows(d.qpos, self._qpos)
-        self._site_pos = _strided_rows(d.site_xpos, self._sites)
-        self._site_mat = _strided_rows(d.site_xmat, self._sites)
-        self._axes = _strided_rows(d.xaxis, self._joints)
-        self._anchors = _strided_rows(d.xanchor, self._joints)
+        # The arms' rows of MjData as views (they stay put), or None where an index is
+        # not evenly spaced (every world built by world.py is): gathered each evaluation.
+        self._rows = self._mjdata_rows()
         # The last evaluation, reused when the next solve starts where it ended; written
         # in place by every evaluation (callers get copies).
         self._cached_q = np.full((n, 7), np.nan)
@@ -245,6 +240,7 @@ class ArmKinematics:
         self._R_out = self._R  # the rotations of the last evaluation (_R or MjData's rows)
         self._J = np.empty((n, 6, 7))
         self._Jt = self._J.transpose(0, 2, 1)
+        self._J_linear, self._J_angular = self._J[:, :3], self._J[:, 3:]
         # Scratch of one evaluation and one Gauss-Newton update.
         self._p_world = np.empty((n, 3))
         self._offset = np.empty((n, 3, 1))
@@ -254,7 +250,10 @@ class ArmKinematics:
         self._step = np.empty((n, 7, 1))
         self._abs_step = np.empty((n, 7))
         self._big = np.empty((n, 7), dtype=bool)
-        self._e = np.empty((n, 6))
+        self._e = np.empty((n, 6))  # the pose error [position | rotation]
+        self._e_col = self._e[..., None]
+        self._halves = self._e.reshape(n, 2, 3)
+        self._e_pos, self._e_rot = self._halves[:, 0], self._halves[:, 1]
         self._err2 = np.empty((n, 2))
         self._ok = np.empty((n, 2), dtype=bool)
         # Read-only verdicts every arm shares (returned as IkResult.converged).
@@ -262,6 +261,26 @@ class ArmKinematics:
         self._all.setflags(write=False)
         self._none = np.zeros(n, dtype=bool)
         self._none.setflags(write=False)
+
+    def _mjdata_rows(self) -> tuple | None:
+        """Views of the private MjData's rows every evaluation reads and writes: qpos,
+        the flange's position (also as (n, 1, 3)) and rotation (n, 3, 3), the joints'
+        axes (also transposed) and anchors; None when one is not a view."""
+        d = self.data
+        rows = (
+            _strided_rows(d.qpos, self._qpos),
+            _strided_rows(d.site_xpos, self._sites),
+            _strided_rows(d.site_xmat, self._sites),
+            _strided_rows(d.xaxis, self._joints),
+            _strided_rows(d.xanchor, self._joints),
+        )
+        if any(r is None for r in rows):
+            return None
+        qpos, site_pos, site_mat, axes, anchors = rows
+        R_site = site_mat.reshape(self.n, 3, 3)
+        if not np.shares_memory(R_site, d.site_xmat):  # pragma: no cover - reshape copied
+            return None
+        return qpos, site_pos, site_pos[:, None, :], R_site, axes, axes.transpose(0, 2, 1), anchors
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
         """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q.
@@ -276,35 +295,38 @@ class ArmKinematics:
             return self._p, self._R_out, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
-        if self._qpos_rows is not None:
-            self._qpos_rows[...] = q
+        if self._rows is not None:
+            qpos, site_pos, site_col, R_site, axes, axes_t, anchors = self._rows
+            qpos[...] = q
+            mujoco.mj_kinematics(self.model, d)
         else:
             d.qpos[self._qpos] = q
-        mujoco.mj_kinematics(self.model, d)
-        site_pos = d.site_xpos[self._sites] if self._site_pos is None else self._site_pos
-        site_mat = d.site_xmat[self._sites] if self._site_mat is None else self._site_mat
-        R_site = site_mat.reshape(self.n, 3, 3)
+            mujoco.mj_kinematics(self.model, d)
+            site_pos = d.site_xpos[self._sites]
+            site_col = site_pos[:, None, :]
+            R_site = d.site_xmat[self._sites].reshape(self.n, 3, 3)
+            axes = d.xaxis[self._joints]  # (n, 7, 3)
+            axes_t = axes.transpose(0, 2, 1)
+            anchors = d.xanchor[self._joints]
         if F_T_EE is not None:
             p_world, R = self._p_world, self._R
             np.matmul(R_site, F_T_EE[:, :3, 3:], out=self._offset)
             np.add(site_pos, self._offset[..., 0], out=p_world)
             np.matmul(R_site, F_T_EE[:, :3, :3], out=R)
+            site_col = p_world[:, None, :]
         else:  # the flange itself: MjData's rows as they are (they change only here)
             p_world, R = site_pos, R_site
         self._R_out = R
         np.subtract(p_world, self._base, out=self._p)
         # base frame = world frame (bases unrotated)
-        axes = d.xaxis[self._joints] if self._axes is None else self._axes  # (n, 7, 3)
-        anchors = d.xanchor[self._joints] if self._anchors is None else self._anchors
-        np.subtract(p_world[:, None, :], anchors, out=self._lever)
-        J = self._J
+        np.subtract(site_col, anchors, out=self._lever)
         # Linear part: axis x (EE point - joint anchor), as one contraction with the
         # Levi-Civita symbol (np.cross, or the products written out, cost 3x more here).
-        einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=J[:, :3, :])
-        J[:, 3:, :] = axes.transpose(0, 2, 1)
+        einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=self._J_linear)
+        self._J_angular[...] = axes_t
         self._cached_q[...] = q
         self._cached = True
-        return self._p, R, J
+        return self._p, R, self._J
 
     def _same_frame(self, F_T_EE: np.ndarray | None) -> bool:
         cached = self._cached_F
@@ -362,14 +384,14 @@ class ArmKinematics:
             else:
                 fixed = None
         p_t, R_t = target[:, :3, 3], target[:, :3, :3]
-        e, err2, ok = self._e, self._err2, self._ok
-        halves = e.reshape(n, 2, 3)
+        err2, ok, halves = self._err2, self._ok, self._halves
+        e_pos, e_rot = self._e_pos, self._e_rot
         tol2 = self.tolerance**2
         converged = self._all
         for iteration in range(self.max_iterations + 1):
             p, R, J = self._evaluate(q, F_T_EE)
-            np.subtract(p_t, p, out=e[:, :3])
-            einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
+            np.subtract(p_t, p, out=e_pos)
+            einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e_rot)
             # Squared position and rotation errors side by side, (n, 2); converged where
             # both are within tolerance (NaN: not converged).
             einsum("nkj,nkj->nk", halves, halves, out=err2)
@@ -386,12 +408,13 @@ class ArmKinematics:
                 n_todo = count_nonzero(todo)
             if iteration == self.max_iterations or not n_todo:
                 break
-            q += self._update(J, e, fixed, None if n_todo == n else todo)
-        e_pos, e_rot = np.sqrt(err2).T
-        return IkResult(q, converged if all_active else converged | ~active, e_pos, e_rot)
+            q += self._update(J, fixed, None if n_todo == n else todo)
+        position_error, rotation_error = np.sqrt(err2).T
+        converged = converged if all_active else converged | ~active
+        return IkResult(q, converged, position_error, rotation_error)
 
     def _update(
-        self, J: np.ndarray, e: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
+        self, J: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
     ) -> np.ndarray:
         """(n, 7) one damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e, zero where
         the elbow is held (``fixed``'s joint 3) and outside ``todo`` (None: every arm)."""
@@ -402,7 +425,7 @@ class ArmKinematics:
             Jt = J.transpose(0, 2, 1)
         JJt = np.matmul(J, Jt, out=self._JJt)
         JJt += self._eye6
-        step = np.matmul(Jt, _solve(JJt, e[..., None]), out=self._step)[..., 0]
+        step = np.matmul(Jt, _solve(JJt, self._e_col), out=self._step)[..., 0]
         if todo is not None:
             step[~todo] = 0.0
         # An unreachable target makes the damped step grow without bound near a
