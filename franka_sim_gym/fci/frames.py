@@ -46,9 +46,8 @@ def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | N
     n = len(values)
     if count_nonzero(np.isfinite(values)) != 16 * n:  # (and no inf * 0 in the product below)
         return is_homogeneous(from_wire(values), tol)
-    # Row and column norms alike (the wire holds R transposed: the set is the same), from
-    # the squares of all 16 entries (the others weigh 0).
-    norms2 = np.square(values) @ _ROW_COL_SUMS
+    # Row and column norms alike (the wire holds R transposed: the set is the same).
+    norms2 = np.square(values.reshape(n, 4, 4)[:, :3, :3]).reshape(n, 9) @ _ROW_COL_SUMS
     lo, hi = _QUICK_BAND if tol == 1e-5 else _quick_band(tol)
     if (
         count_nonzero((norms2 > lo) & (norms2 < hi)) == 6 * n
@@ -58,12 +57,11 @@ def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | N
     return is_homogeneous(from_wire(values), tol)
 
 
-#: (16, 6): a wire pose's squared entries to its rotation block's three row sums and three
-#: column sums (the translation and the bottom row weigh 0).
-_ROW_COL_SUMS = np.zeros((16, 6))
+#: (9, 6): a flat 3x3 block's squared entries to its three row sums and three column sums.
+_ROW_COL_SUMS = np.zeros((9, 6))
 for _r in range(3):
     for _c in range(3):
-        _ROW_COL_SUMS[4 * _c + _r, _r] = _ROW_COL_SUMS[4 * _c + _r, 3 + _c] = 1.0
+        _ROW_COL_SUMS[3 * _r + _c, _r] = _ROW_COL_SUMS[3 * _r + _c, 3 + _c] = 1.0
 #: The bottom row [0, 0, 0, 1] in the column-major wire array (slots 3, 7, 11, 15).
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 

@@ -90,9 +90,15 @@ def relative_rotation_log(
     two_cos -= 1.0
     np.sqrt(einsum("ni,ni->n", vee, vee), out=two_sin)
     angle = np.arctan2(two_sin, two_cos)
-    if count_nonzero(sin_cos > _TURNING_ACUTE) == 2 * n:
+    screen = sin_cos > _TURNING_ACUTE
+    screened = count_nonzero(screen)
+    if screened == 2 * n:
         # Every angle turning and below pi / 2 (so far from pi): the common case.
         vee *= (angle / two_sin)[:, None]
+        return vee
+    if screened == n and count_nonzero(screen[:, 1]) == n:
+        # None turning, every angle below pi / 2 (a pure translation): the limit 1/2.
+        vee *= 0.5
         return vee
     _scale_vee(vee, two_sin, angle)
     near_pi = np.pi - angle < 1e-6
