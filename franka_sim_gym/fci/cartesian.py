@@ -130,7 +130,8 @@ class CartesianGenerators:
         self._T_cmd_wire = self.T_cmd.transpose(0, 2, 1)
         # One cycle's scratch: a step is evaluated, judged and recorded before the next
         # (a late datagram's, a rewind's and the cycle's steps run one after another).
-        self._T_twist = np.empty((n, 4, 4))  # a twist motion's IK target
+        T_twist = np.empty((n, 4, 4))  # a twist motion's IK target, its position and rotation
+        self._T_twist = (T_twist, T_twist[:, :3, 3], T_twist[:, :3, :3])
         self._twist_stack = np.empty((n, 3, 6))  # [twist, dtwist, ddtwist]
         self._pose_stack = np.empty((n, 3, 6))  # the pose's derivatives
         self._joint = S = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
@@ -278,7 +279,9 @@ class CartesianGenerators:
         twist_stack = self._twist_derivatives(h, twist) if n_twist else None
         # -- the joint side: IK from the previous solution -----------------------------------
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
-        in_use = bool(count_nonzero(elbow.has) or count_nonzero(elbow.had))
+        in_use = elbow.has is not self._none and bool(
+            count_nonzero(elbow.has) or count_nonzero(elbow.had)
+        )  # (_elbow's stream without an elbow has self._none)
         e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if in_use else None
         q, differences, judged, recorded, dq = self._joint_views
         ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
@@ -290,11 +293,11 @@ class CartesianGenerators:
         """A twist motion's IK target: the previous target ``T`` moved by the twist over
         1 ms (translation in the base frame, rotation composed on the left: base-frame
         omega)."""
-        T_tw = self._T_twist
+        T_tw, p_tw, R_tw = self._T_twist
         T_tw[...] = T
-        T_tw[:, :3, 3] += twist[:, :3] * _DT
+        p_tw += twist[:, :3] * _DT
         if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
-            T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ T[:, :3, :3]
+            np.matmul(rotation_exp(twist[:, 3:] * _DT), T[:, :3, :3], out=R_tw)
         return T_tw
 
     def _twist_derivatives(self, h: CartesianHistory, twist: np.ndarray) -> np.ndarray:
@@ -367,13 +370,14 @@ class CartesianGenerators:
     def _check(self, step: _Step, first: np.ndarray, active: np.ndarray) -> None:
         """Judge ``active``'s step by its generator's precedence table: logged, enforced."""
         c, m = self.c, self.c.modes
+        n = c.n
         if m.n_cartesian_position:
-            judged_pose = active & m.cartesian_position
+            judged_pose = active if m.n_cartesian_position == n else active & m.cartesian_position
             if count_nonzero(judged_pose):
                 self._check_pose(step, first, judged_pose)
         if not m.n_cartesian_velocity:
             return
-        judged_twist = active & m.cartesian_velocity
+        judged_twist = active if m.n_cartesian_velocity == n else active & m.cartesian_velocity
         if count_nonzero(judged_twist):
             table, scale = c.table, c.config.joint_discontinuity_scale
             check = rules.check_cartesian_velocity(
@@ -559,9 +563,9 @@ class CartesianGenerators:
     ) -> None:
         """The elbow's history (the 1-D law's derivatives), kept only while one is streamed."""
         h, elbow = self.reference, step.elbow
+        if not (count_nonzero(elbow.has) or count_nonzero(h.has_elbow)):
+            return  # none streamed, now or before (the common case)
         streamed = apply & elbow.has
-        if not (count_nonzero(streamed) or count_nonzero(h.has_elbow)):
-            return
         de = elbow.derivatives
         np.copyto(h.de, np.where(extrapolate, step.de_ex, de.v), where=streamed)
         np.copyto(h.dde, np.where(extrapolate, h.dde_frozen, de.a), where=streamed)
