@@ -194,10 +194,12 @@ class CartesianGenerators:
         """Judge, extrapolate and solve this cycle's Cartesian references."""
         c = self.c
         rows = started & c.modes.cartesian
-        if not count_nonzero(rows):
+        k = count_nonzero(rows)
+        if not k:
             return
         have = c._have & rows
-        self._cycle(have, rows & ~have, self._cycle_candidates, c.writer.message_id)
+        lost = self._none if count_nonzero(have) == k else rows & ~have
+        self._cycle(have, lost, self._cycle_candidates, c.writer.message_id)
 
     def _cycle(
         self, have: np.ndarray, lost: np.ndarray, candidates: Candidates, echo: np.ndarray
