@@ -254,6 +254,7 @@ class ArmKinematics:
         self._same_q = np.empty((n, 7), dtype=bool)
         self._JJt = np.empty((n, 6, 6))
         self._step = np.empty((n, 7, 1))
+        self._step_flat = self._step[..., 0]
         self._abs_step = np.empty((n, 7))
         self._big = np.empty((n, 7), dtype=bool)
         self._e = np.empty((n, 6))  # the pose error [position | rotation]
@@ -431,7 +432,8 @@ class ArmKinematics:
             Jt = J.transpose(0, 2, 1)
         JJt = np.matmul(J, Jt, out=self._JJt)
         JJt += self._eye6
-        step = np.matmul(Jt, _solve(JJt, self._e_col), out=self._step)[..., 0]
+        np.matmul(Jt, _solve(JJt, self._e_col), out=self._step)
+        step = self._step_flat
         if todo is not None:
             step[~todo] = 0.0
         # An unreachable target makes the damped step grow without bound near a

@@ -205,13 +205,14 @@ def pose_derivatives(
     """
     h = interval(steps)
     D = np.empty((len(T_c), 3, 6)) if out is None else out
-    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=D[:, 0, :3])
-    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=D[:, 0, 3:])
-    D[:, 0] /= h
-    np.subtract(D[:, 0], history[:, 0], out=D[:, 1])
-    D[:, 1] /= h
-    np.subtract(D[:, 1], history[:, 1], out=D[:, 2])
-    D[:, 2] /= h
+    velocity, acceleration, jerk = D[:, 0], D[:, 1], D[:, 2]
+    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=velocity[:, :3])
+    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=velocity[:, 3:])
+    velocity /= h
+    np.subtract(velocity, history[:, 0], out=acceleration)
+    acceleration /= h
+    np.subtract(acceleration, history[:, 1], out=jerk)
+    jerk /= h
     return PoseDerivatives(D)
 
 
