@@ -566,8 +566,10 @@ class CartesianGenerators:
         """The elbow's history (the 1-D law's derivatives), kept only while one is streamed."""
         h, elbow = self.reference, step.elbow
         if not (count_nonzero(elbow.has) or count_nonzero(h.has_elbow)):
-            return  # none streamed, now or before (the common case)
+            return  # none streamed, now or before (the common case, without the mask)
         streamed = apply & elbow.has
+        if not (count_nonzero(streamed) or count_nonzero(h.has_elbow)):
+            return
         de = elbow.derivatives
         np.copyto(h.de, np.where(extrapolate, step.de_ex, de.v), where=streamed)
         np.copyto(h.dde, np.where(extrapolate, h.dde_frozen, de.a), where=streamed)
