@@ -128,9 +128,12 @@ def _scale_vee(vee: np.ndarray, two_sin: np.ndarray, angle: np.ndarray) -> None:
 def skew(u: np.ndarray) -> np.ndarray:
     """(..., 3) vectors to (..., 3, 3) cross-product matrices: skew(u) @ v = u x v."""
     lead = u.shape[:-1]
-    K = np.zeros((*lead, 9), dtype=u.dtype)
-    K[..., _SKEW_SLOTS] = u[..., _SKEW_SOURCE] * _SKEW_SIGN
-    return K.reshape(*lead, 3, 3)
+    # [0, u, -u], then one gather of the nine entries (fancy assignment costs ~3x more)
+    padded = np.empty(lead + (7,), dtype=u.dtype)
+    padded[..., 0] = 0.0
+    padded[..., 1:4] = u
+    np.negative(u, out=padded[..., 4:])
+    return padded.take(_SKEW_FROM_PADDED, -1).reshape(lead + (3, 3))
 
 
 def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
@@ -159,11 +162,9 @@ _TURNING_ACUTE = np.array([1e-12, 0.0])
 #: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
 _VEE_PLUS = np.array([7, 2, 3])
 _VEE_MINUS = np.array([5, 6, 1])
-#: skew(k) flat: entries (0, 1), (0, 2), (1, 0),
-#: (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
-_SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
-_SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
-_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
+#: skew(k) flat, row-major, from [0, kx, ky, kz, -kx, -ky, -kz]: entries (0, 1), (0, 2),
+#: (1, 0), (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
+_SKEW_FROM_PADDED = np.array([0, 6, 2, 3, 0, 4, 5, 1, 0])
 
 
 #: The Levi-Civita symbol: (a x b)_i = eps_iab a_a b_b.
