@@ -42,13 +42,14 @@ from ..sim.kinematics import (
     USABLE_ROTATION_ERROR,
     ArmKinematics,
     IkResult,
+    einsum,
     rotation_exp,
 )
 from . import extrapolation
 from ._fast import count_nonzero
 from .cartesian_reference import CartesianHistory, CartesianReference
 from .errors import Error
-from .frames import from_wire, to_wire
+from .frames import from_wire
 from .limits import cartesian as rules
 from .tables import DELTA_T, MAX_LOST_CYCLES
 
@@ -94,6 +95,8 @@ class _Step(NamedTuple):
     ik: IkResult
     dq: np.ndarray
     joint: rules.JointSide
+    #: (n, 3, 7) [q, dq, ddq] of the solution, side by side as the history keeps them
+    solution: np.ndarray
 
 
 class CartesianGenerators:
@@ -123,6 +126,22 @@ class CartesianGenerators:
         )
         self._none = np.zeros(n, dtype=bool)
         self._none.setflags(write=False)
+        # The transpose of T_cmd: the wire's column-major layout, as a view to copy into.
+        self._T_cmd_wire = self.T_cmd.transpose(0, 2, 1)
+        # One cycle's scratch: a step is evaluated, judged and recorded before the next
+        # (a late datagram's, a rewind's and the cycle's steps run one after another).
+        T_twist = np.empty((n, 4, 4))  # a twist motion's IK target, its position and rotation
+        self._T_twist = (T_twist, T_twist[:, :3, 3], T_twist[:, :3, :3])
+        self._twist_stack = np.empty((n, 3, 6))  # [twist, dtwist, ddtwist]
+        self._pose_stack = np.empty((n, 3, 6))  # the pose's derivatives
+        self._joint = S = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
+        # its views: q; [dq, ddq, dddq]; [ddq, dddq] (judged); [q, dq, ddq] (recorded); dq
+        self._joint_views = (S[:, 0], S[:, 1:], S[:, 2:], S[:, :3], S[:, 1])
+        self._spatial = np.empty((n, 6))  # a pose motion's reported twist
+        # The elbow's derivatives while no elbow is streamed (read, never written).
+        zeros = np.zeros(n)
+        zeros.setflags(write=False)
+        self._no_elbow = rules.ElbowDerivatives(zeros, zeros, zeros)
 
     @property
     def q_ik(self) -> np.ndarray:
@@ -147,16 +166,23 @@ class CartesianGenerators:
 
     def take(self, commands: np.ndarray, accepted: np.ndarray) -> None:
         """Keep the Cartesian fields of the accepted commands as the cycle's candidates."""
-        rows = accepted & self.c.modes.cartesian
-        if not count_nonzero(rows):
+        m = self.c.modes
+        rows = accepted & m.cartesian
+        k = count_nonzero(rows)
+        if not k:
             return
         r = rows[:, None]
-        m = self.c.modes
         # Each generator reads its own field only (the other is not looked at).
-        if m.n_cartesian_position:
-            np.copyto(self.T_cmd, from_wire(commands["O_T_EE_c"]), where=r[:, :, None])
-        if m.n_cartesian_velocity:
-            np.copyto(self.twist_cmd, commands["O_dP_EE_c"], where=r)
+        if k == self.c.n:  # every robot: plain copies (the wire pose is T_cmd transposed)
+            if m.n_cartesian_position:
+                self._T_cmd_wire[...] = commands["O_T_EE_c"].reshape(k, 4, 4)
+            if m.n_cartesian_velocity:
+                self.twist_cmd[...] = commands["O_dP_EE_c"]
+        else:
+            if m.n_cartesian_position:
+                np.copyto(self.T_cmd, from_wire(commands["O_T_EE_c"]), where=r[:, :, None])
+            if m.n_cartesian_velocity:
+                np.copyto(self.twist_cmd, commands["O_dP_EE_c"], where=r)
         valid = commands["valid_elbow"]
         if count_nonzero(valid) or count_nonzero(self.elbow_valid):
             np.copyto(self.elbow_cmd, commands["elbow_c"], where=r)
@@ -168,10 +194,12 @@ class CartesianGenerators:
         """Judge, extrapolate and solve this cycle's Cartesian references."""
         c = self.c
         rows = started & c.modes.cartesian
-        if not count_nonzero(rows):
+        k = count_nonzero(rows)
+        if not k:
             return
         have = c._have & rows
-        self._cycle(have, rows & ~have, self._cycle_candidates, c.writer.message_id)
+        lost = self._none if count_nonzero(have) == k else rows & ~have
+        self._cycle(have, lost, self._cycle_candidates, c.writer.message_id)
 
     def _cycle(
         self, have: np.ndarray, lost: np.ndarray, candidates: Candidates, echo: np.ndarray
@@ -189,7 +217,7 @@ class CartesianGenerators:
             h.twist[held] = 0.0
             h.reported[held] = h.dreported[held] = 0.0
             h.dq_ik[held] = 0.0
-        active = have | extrapolate
+        active = have | extrapolate if extrapolate is not self._none else have
         if not count_nonzero(active):
             return
         first = c._first & have
@@ -198,9 +226,11 @@ class CartesianGenerators:
         apply = active & m.cartesian  # robots aborted above are no longer in a Cartesian motion
         if not count_nonzero(apply):
             return
-        self._record(step, have & apply, apply, extrapolate, first)
-        h.record_real(have & apply, echo)
-        c._first &= ~have
+        real = have & apply
+        self._record(step, real, apply, extrapolate, first)
+        h.record_real(real, echo)
+        if count_nonzero(first):
+            c._first &= ~have
 
     def _evaluate(
         self,
@@ -215,12 +245,13 @@ class CartesianGenerators:
         against the history ``h`` and solve them from its IK solution (seed "The
         difference formulas": over one cycle)."""
         c, m = self.c, self.c.modes
-        pose = m.cartesian_position
-        hv = have[:, None]
-        x = extrapolate[:, None]
+        n = c.n
+        n_twist = m.n_cartesian_velocity
         # -- candidates: the command, or the seed's lost-cycle law ---------------------------
         pose_ex = None
         if count_nonzero(extrapolate):
+            hv = have[:, None]
+            x = extrapolate[:, None]
             T_ex, v_ex, w_ex = extrapolation.pose_step(
                 h.T, h.v, h.a_frozen, h.omega, h.alpha_frozen, _DT
             )
@@ -229,19 +260,14 @@ class CartesianGenerators:
             twist = np.where(hv, candidates.twist, np.where(x, tw_ex, h.twist))
             T_pose = np.where(hv[:, :, None], candidates.T, T_ex)
         else:
-            twist = candidates.twist if m.n_cartesian_velocity else h.twist
+            twist = candidates.twist if n_twist else h.twist
             T_pose = candidates.T
-        if m.n_cartesian_velocity:
-            # A twist motion's IK target: the previous target moved by the twist over 1 ms
-            # (translation in the base frame, rotation composed on the left: base-frame omega).
-            T_tw = h.T.copy()
-            T_tw[:, :3, 3] += twist[:, :3] * _DT
-            if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
-                T_tw[:, :3, :3] = rotation_exp(twist[:, 3:] * _DT) @ h.T[:, :3, :3]
+        if n_twist:
+            T_tw = self._twist_target(h.T, twist)
             T_cand = (
                 T_tw
-                if m.n_cartesian_velocity == c.n
-                else np.where(pose[:, None, None], T_pose, T_tw)
+                if n_twist == n
+                else np.where(m.cartesian_position[:, None, None], T_pose, T_tw)
             )
         else:
             T_cand = T_pose
@@ -249,37 +275,78 @@ class CartesianGenerators:
         # -- derivatives ----------------------------------------------------------------------
         # The pose's derivatives judge pose motions (and feed their extrapolation and
         # reported twist); the twist's judge twist motions. Each only when one runs.
-        d = rules.pose_derivatives(T_cand, h.T, h.history, 1) if m.n_cartesian_position else None
-        twist_stack = None
-        if m.n_cartesian_velocity:
-            # Side by side, (n, 3, 6): [twist, dtwist, ddtwist], as the pose's derivatives.
-            twist_stack = np.empty((c.n, 3, 6))
-            dtwist, ddtwist = twist_stack[:, 1], twist_stack[:, 2]
-            twist_stack[:, 0] = twist
-            np.subtract(twist, h.twist, out=dtwist)
-            dtwist /= _DT
-            np.subtract(dtwist, h.dtwist, out=ddtwist)
-            ddtwist /= _DT
+        d = None
+        if m.n_cartesian_position:
+            d = rules.pose_derivatives(T_cand, h.T, h.history, 1, out=self._pose_stack)
+        twist_stack = self._twist_derivatives(h, twist) if n_twist else None
         # -- the joint side: IK from the previous solution -----------------------------------
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
-        in_use = bool(count_nonzero(elbow.has) or count_nonzero(elbow.had))
+        in_use = elbow.has is not self._none and bool(
+            count_nonzero(elbow.has) or count_nonzero(elbow.had)
+        )  # (_elbow's stream without an elbow has self._none)
         e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if in_use else None
-        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active)
-        dq, ddq, dddq = rules.joint_side(ik.q, h.q_ik, h.dq_ik, h.ddq_ik, 1)
+        q, differences, judged, recorded, dq = self._joint_views
+        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
+        rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
+        joint = rules.JointSide(judged, self._joint_checked(h, ik, first, active))
+        return _Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded)
+
+    def _twist_target(self, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
+        """A twist motion's IK target: the previous target ``T`` moved by the twist over
+        1 ms (translation in the base frame, rotation composed on the left: base-frame
+        omega)."""
+        T_tw, p_tw, R_tw = self._T_twist
+        T_tw[...] = T
+        p_tw += twist[:, :3] * _DT
+        if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
+            np.matmul(rotation_exp(twist[:, 3:] * _DT), T[:, :3, :3], out=R_tw)
+        return T_tw
+
+    def _twist_derivatives(self, h: CartesianHistory, twist: np.ndarray) -> np.ndarray:
+        """(n, 3, 6) [twist, dtwist, ddtwist] against the history, side by side as the
+        pose's derivatives."""
+        stack = self._twist_stack
+        dtwist, ddtwist = stack[:, 1], stack[:, 2]
+        stack[:, 0] = twist
+        np.subtract(twist, h.twist, out=dtwist)
+        dtwist /= _DT
+        np.subtract(dtwist, h.dtwist, out=ddtwist)
+        ddtwist /= _DT
+        return stack
+
+    def _joint_checked(
+        self, h: CartesianHistory, ik: IkResult, first: np.ndarray, active: np.ndarray
+    ) -> np.ndarray:
+        """(n,) where the joint side's acceleration is judged (29 / 30); the jerk
+        (``self._joint[:, 3]``) is zeroed where its history is not warm yet."""
+        n = self.c.n
+        if count_nonzero(ik.converged) == n and not count_nonzero(first):
+            # Every solve converged, none opens its motion (the common case): judged as
+            # far as each history is warm; a warm jerk implies a warm acceleration.
+            ik_jerk = h.ik_warm >= _WARM_JERK
+            if count_nonzero(ik_jerk) == n:
+                return ik.converged
+            self._joint[~ik_jerk, 3] = 0.0
+            return h.ik_warm >= _WARM_ACCELERATION
         warm = ik.converged & ~first
         failed = active & ~ik.converged
         if count_nonzero(failed):
             self._log_ik_failure(failed, ik)
-        ik_acc = warm & (h.ik_warm >= _WARM_ACCELERATION)
         ik_jerk = warm & (h.ik_warm >= _WARM_JERK)
-        joint = rules.JointSide(ddq, np.where(ik_jerk[:, None], dddq, 0.0), ik_acc)
-        return _Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint)
+        self._joint[~ik_jerk, 3] = 0.0
+        return warm & (h.ik_warm >= _WARM_ACCELERATION)
 
     def _elbow(
         self, h: CartesianHistory, candidates: Candidates, have: np.ndarray, extrapolate
     ) -> tuple[rules.ElbowStream, np.ndarray]:
         """The elbow stream: the commanded one where valid, extrapolated while one is
         streamed; and elbow[0]'s extrapolated velocity."""
+        if not (count_nonzero(candidates.elbow_valid) or count_nonzero(h.has_elbow)):
+            # No elbow commanded nor streamed (the common case): nothing to difference.
+            stream = rules.ElbowStream(
+                h.elbow, self._none, h.has_elbow, h.elbow[:, 1], self._no_elbow
+            )
+            return stream, h.de
         n = self.c.n
         e_new = have & candidates.elbow_valid
         e_keep = extrapolate & h.has_elbow
@@ -305,15 +372,21 @@ class CartesianGenerators:
     def _check(self, step: _Step, first: np.ndarray, active: np.ndarray) -> None:
         """Judge ``active``'s step by its generator's precedence table: logged, enforced."""
         c, m = self.c, self.c.modes
-        judged_pose = active & m.cartesian_position
-        if count_nonzero(judged_pose):
-            self._check_pose(step, first, judged_pose)
-        judged_twist = active & m.cartesian_velocity
+        n = c.n
+        if m.n_cartesian_position:
+            judged_pose = active if m.n_cartesian_position == n else active & m.cartesian_position
+            if count_nonzero(judged_pose):
+                self._check_pose(step, first, judged_pose)
+        if not m.n_cartesian_velocity:
+            return
+        judged_twist = active if m.n_cartesian_velocity == n else active & m.cartesian_velocity
         if count_nonzero(judged_twist):
             table, scale = c.table, c.config.joint_discontinuity_scale
             check = rules.check_cartesian_velocity(
                 step.twist_stack, first, step.elbow, step.joint, table, scale
             )
+            if check.tripped is None:  # nothing tripped (the common case)
+                return
 
             def twist_quantities() -> dict:  # built only for a log line
                 twist, dtwist, ddtwist = (step.twist_stack[:, k] for k in range(3))
@@ -360,6 +433,8 @@ class CartesianGenerators:
             cfg.cartesian_start_rotation_tolerance,
             cfg.start_elbow_tolerance,
         )
+        if check.tripped is None:  # nothing tripped (the common case)
+            return
 
         def pose_quantities() -> dict:  # built only for a log line
             return {
@@ -417,14 +492,16 @@ class CartesianGenerators:
         c, m, h = self.c, self.c.modes, self.reference
         n = c.n
         d = step.d
-        a = apply[:, None]
-        x = extrapolate[:, None]
+        every = count_nonzero(apply) == n  # (the common case: plain copies)
+        every_real = every and count_nonzero(real) == n
         any_lost = step.pose_ex is not None
-        at_rest = (first & apply)[:, None]
-        np.copyto(h.T, step.T, where=a[:, :, None])
-        r3 = real[:, None]
+        any_first = count_nonzero(first) > 0
+        x = extrapolate[:, None] if any_lost else None
+        _put(h.T, step.T, apply, every)
         if d is not None:
-            if any_lost or count_nonzero(first):
+            if any_lost or any_first:
+                a = apply[:, None]
+                at_rest = (first & apply)[:, None]
                 v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
                 if any_lost:
                     v_ex, w_ex = step.pose_ex
@@ -440,31 +517,30 @@ class CartesianGenerators:
                 np.copyto(h.a, acc, where=a)
                 np.copyto(h.alpha, alpha, where=a)
             else:  # every value a real difference: the history's two orders in one copy
-                np.copyto(h.history, d.stacked[:, :2], where=a[:, :, None])
-            np.copyto(h.acceleration_frozen, h.history[:, 1], where=r3)
+                _put(h.history, d.stacked[:, :2], apply, every)
+            _put(h.acceleration_frozen, h.history[:, 1], real, every_real)
         if m.n_cartesian_velocity:
-            np.copyto(h.twist, step.twist, where=a)
+            _put(h.twist, step.twist, apply, every)
             dtwist = step.twist_stack[:, 1]
             if any_lost:
                 dtwist = np.where(x, h.dtwist_frozen, dtwist)
-            np.copyto(h.dtwist, dtwist, where=a)
-            np.copyto(h.dtwist_frozen, h.dtwist, where=r3)
-        self._record_reported(apply, at_rest, first)
+            _put(h.dtwist, dtwist, apply, every)
+            _put(h.dtwist_frozen, h.dtwist, real, every_real)
+        self._record_reported(apply, first, every and not any_first)
         self._record_elbow(step, real, apply, extrapolate)
-        self._record_joint_side(step, apply, first)
+        self._record_joint_side(step, apply, first, every and not any_first)
 
-    def _record_reported(self, apply: np.ndarray, at_rest: np.ndarray, first: np.ndarray) -> None:
+    def _record_reported(self, apply: np.ndarray, first: np.ndarray, plain: bool) -> None:
         """What the state reports as the commanded twist and its rate. A twist motion: its
         own twist. A pose motion: the commanded pose's twist in the base frame, rotation as
         log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
         then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
         acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion)."""
         c, m, h = self.c, self.c.modes, self.reference
-        a = apply[:, None]
         if m.n_cartesian_position:
-            spatial = np.empty((c.n, 6))
+            spatial = self._spatial
             spatial[:, :3] = h.v
-            np.einsum("nij,nj->ni", h.T[:, :3, :3], h.omega, out=spatial[:, 3:])
+            einsum("nij,nj->ni", h.T[:, :3, :3], h.omega, out=spatial[:, 3:])
             reported = (
                 spatial
                 if m.n_cartesian_position == c.n
@@ -472,9 +548,15 @@ class CartesianGenerators:
             )
         else:
             reported = h.twist
+        if plain:  # every robot recorded, none at rest: the rate in place, then the twist
+            np.subtract(reported, h.reported, out=h.dreported)
+            h.dreported /= _DT
+            h.reported[...] = reported
+            return
+        a = apply[:, None]
         dreported = (reported - h.reported) / _DT
         if count_nonzero(first):
-            dreported = np.where(at_rest, 0.0, dreported)
+            dreported = np.where((first & apply)[:, None], 0.0, dreported)
         np.copyto(h.dreported, dreported, where=a)
         np.copyto(h.reported, reported, where=a)
 
@@ -483,6 +565,8 @@ class CartesianGenerators:
     ) -> None:
         """The elbow's history (the 1-D law's derivatives), kept only while one is streamed."""
         h, elbow = self.reference, step.elbow
+        if not (count_nonzero(elbow.has) or count_nonzero(h.has_elbow)):
+            return  # none streamed, now or before (the common case, without the mask)
         streamed = apply & elbow.has
         if not (count_nonzero(streamed) or count_nonzero(h.has_elbow)):
             return
@@ -495,17 +579,22 @@ class CartesianGenerators:
         np.copyto(h.elbow, elbow.command, where=streamed[:, None])
         h.set_has_elbow(np.where(apply, elbow.has, h.has_elbow))
 
-    def _record_joint_side(self, step: _Step, apply: np.ndarray, first: np.ndarray) -> None:
-        """The joint history: rebased at rest on the opening command and after a failure."""
+    def _record_joint_side(
+        self, step: _Step, apply: np.ndarray, first: np.ndarray, plain: bool
+    ) -> None:
+        """The joint history: rebased at rest on the opening command and after a failure.
+        ``plain``: every robot records, none opens its motion."""
         h, ik = self.reference, step.ik
         a = apply[:, None]
         if count_nonzero(ik.converged) == self.c.n and not count_nonzero(first):
             # Every solve converged and none opens its motion (the common case): nothing
-            # is rebased, every applied solution is usable.
-            np.copyto(h.q_ik, ik.q, where=a)
-            np.copyto(h.dq_ik, step.dq, where=a)
-            np.copyto(h.ddq_ik, step.joint.ddq, where=a)
-            np.add(h.ik_warm, 1.0, out=h.ik_warm, where=apply)
+            # is rebased, every applied solution is usable; q, dq, ddq in one copy.
+            if plain:
+                h.joint[...] = step.solution
+                h.ik_warm += 1.0
+            else:
+                np.copyto(h.joint, step.solution, where=a[:, :, None])
+                np.add(h.ik_warm, 1.0, out=h.ik_warm, where=apply)
             return
         rebase = apply & (first | ~ik.converged)
         np.copyto(h.q_ik, ik.q, where=(apply & _usable(ik))[:, None])
@@ -626,8 +715,10 @@ class CartesianGenerators:
     def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None):
         """The joint servo's target: the IK solution for robots in a Cartesian motion (a
         late datagram's intent overrides it afterwards: engine.servo_reference)."""
-        h = self.reference
-        rows = self.c.modes.cartesian[:, None]
+        h, m = self.reference, self.c.modes
+        if m.n_cartesian == self.c.n:  # every robot (copies: the history moves on)
+            return h.q_ik.copy(), h.dq_ik.copy()
+        rows = m.cartesian[:, None]
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
         return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
 
@@ -635,23 +726,25 @@ class CartesianGenerators:
         """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
         robots in a Cartesian motion (seed "RobotState fields", the three regimes)."""
         c, m, w, h = self.c, self.c.modes, self.c.writer, self.reference
-        pose = m.cartesian_position[:, None]
-        twist = m.cartesian_velocity[:, None]
+        n = c.n
         if m.n_cartesian_position:
-            np.copyto(w.O_T_EE_d, to_wire(h.T), where=pose)
-            np.copyto(w.O_T_EE_c, to_wire(h.T), where=pose)
+            _put(w.O_T_EE_d, _wire(h.T), m.cartesian_position, m.n_cartesian_position == n)
+            _put(w.O_T_EE_c, w.O_T_EE_d, m.cartesian_position, m.n_cartesian_position == n)
         if m.n_cartesian_velocity:
-            np.copyto(w.O_T_EE_d, to_wire(self.start_T), where=twist)
-            np.copyto(w.O_T_EE_c, to_wire(self.start_T), where=twist)
-        cartesian = m.cartesian[:, None]
-        np.copyto(w.field["O_dP_EE_d"], h.reported, where=cartesian)
-        np.copyto(w.field["O_dP_EE_c"], h.reported, where=cartesian)
-        np.copyto(w.field["O_ddP_EE_c"], h.dreported, where=cartesian)
-        streamed = (m.cartesian & h.has_elbow)[:, None]
-        np.copyto(w.elbow_d, h.elbow, where=streamed)
-        np.copyto(w.elbow_c, h.elbow, where=streamed)
+            T_start = _wire(self.start_T)
+            _put(w.O_T_EE_d, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
+            _put(w.O_T_EE_c, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
+        every = m.n_cartesian == n
+        cartesian = m.cartesian
+        _put(w.field["O_dP_EE_d"], h.reported, cartesian, every)
+        _put(w.field["O_dP_EE_c"], h.reported, cartesian, every)
+        _put(w.field["O_ddP_EE_c"], h.dreported, cartesian, every)
+        if count_nonzero(h.has_elbow):
+            streamed = (m.cartesian & h.has_elbow)[:, None]
+            np.copyto(w.elbow_d, h.elbow, where=streamed)
+            np.copyto(w.elbow_c, h.elbow, where=streamed)
         # Seed: "the sim still publishes the measured q there during a Cartesian motion".
-        np.copyto(w.q_d, c.physics.q, where=m.cartesian[:, None])
+        _put(w.q_d, c.physics.q, cartesian, every)
 
     def remember(self, message_id: int) -> None:
         """The history as published in state ``message_id`` (what a late datagram
@@ -682,8 +775,21 @@ def _usable(ik: IkResult) -> np.ndarray:
     )
 
 
+def _put(dst: np.ndarray, src: np.ndarray, rows: np.ndarray, every: bool) -> None:
+    """Copy ``src`` into ``dst`` on the (n,) ``rows``; ``every``: all rows (a plain copy)."""
+    if every:
+        dst[...] = src
+    else:
+        np.copyto(dst, src, where=rows.reshape(-1, *(1,) * (dst.ndim - 1)))
+
+
+def _wire(T: np.ndarray) -> np.ndarray:
+    """(n, 16) column-major wire poses of (n, 4, 4) row-major ones (frames.to_wire)."""
+    return T.transpose(0, 2, 1).reshape(len(T), 16)
+
+
 def _norm3(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.einsum("ij,ij->i", x, x))
+    return np.sqrt(einsum("ij,ij->i", x, x))
 
 
 def _norm_rows(T: np.ndarray, w) -> np.ndarray:

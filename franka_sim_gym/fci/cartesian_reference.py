@@ -74,8 +74,10 @@ class CartesianHistory:
         self.de, self.dde, self.dde_frozen = take(), take(), take()
         #: 1.0 while an elbow is streamed (has_elbow), 0.0 otherwise
         self.elbow_flag = take()
-        #: the IK solution history: the joint servo's reference
-        self.q_ik, self.dq_ik, self.ddq_ik = take(7), take(7), take(7)
+        #: the IK solution history, (n, 3, 7): [q_ik, dq_ik, ddq_ik] (q_ik is the joint
+        #: servo's reference)
+        self.joint = take(3, 7)
+        self.q_ik, self.dq_ik, self.ddq_ik = self.joint[:, 0], self.joint[:, 1], self.joint[:, 2]
         #: converged IK samples since the joint history was last rebased (a count)
         self.ik_warm = take()
         if take.used != WIDTH:

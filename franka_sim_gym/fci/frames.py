@@ -48,10 +48,10 @@ def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | N
         return is_homogeneous(from_wire(values), tol)
     # Row and column norms alike (the wire holds R transposed: the set is the same).
     norms2 = np.square(values.reshape(n, 4, 4)[:, :3, :3]).reshape(n, 9) @ _ROW_COL_SUMS
-    lo, hi = _quick_band(tol)
+    lo, hi = _QUICK_BAND if tol == 1e-5 else _quick_band(tol)
     if (
         count_nonzero((norms2 > lo) & (norms2 < hi)) == 6 * n
-        and count_nonzero(values[:, _BOTTOM_SLOTS] == _BOTTOM) == 4 * n
+        and count_nonzero(values[:, 3::4] == _BOTTOM) == 4 * n
     ):
         return None
     return is_homogeneous(from_wire(values), tol)
@@ -62,14 +62,16 @@ _ROW_COL_SUMS = np.zeros((9, 6))
 for _r in range(3):
     for _c in range(3):
         _ROW_COL_SUMS[3 * _r + _c, _r] = _ROW_COL_SUMS[3 * _r + _c, 3 + _c] = 1.0
-#: The bottom row [0, 0, 0, 1] in the column-major wire array.
-_BOTTOM_SLOTS = np.array([3, 7, 11, 15])
+#: The bottom row [0, 0, 0, 1] in the column-major wire array (slots 3, 7, 11, 15).
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def _quick_band(tol: float) -> tuple[float, float]:
     """Squared norms strictly inside |norm - 1| <= tol / 2 (so inside the exact band)."""
     return (1.0 - 0.5 * tol) ** 2, (1.0 + 0.5 * tol) ** 2
+
+
+_QUICK_BAND = _quick_band(1e-5)
 
 
 def is_homogeneous_transformation(values: np.ndarray, tol: float = 1e-5) -> bool:

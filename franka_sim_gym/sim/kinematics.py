@@ -28,6 +28,13 @@ try:  # numpy's batched LAPACK solve, without np.linalg.solve's Python checks (~
 except ImportError:  # pragma: no cover - other numpy layouts
     _solve = np.linalg.solve
 
+try:  # np.einsum's C core, without its Python wrapper (~0.6 us a call): the same arithmetic
+    # (np.einsum without ``optimize`` hands its operands to it unchanged); ``out`` must
+    # be an array when given
+    from numpy._core.multiarray import c_einsum as einsum
+except ImportError:  # pragma: no cover - other numpy layouts
+    einsum = np.einsum
+
 #: Joint 3 is the FR3's redundancy angle (seed "RobotState fields": elbow[0] = q[2]).
 ELBOW_JOINT = 2
 
@@ -65,13 +72,35 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     return out
 
 
-def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
+def relative_rotation_log(
+    R_a: np.ndarray, R_b: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs, without forming the product
-    away from pi: its skew part and trace are contractions of R_a with R_b."""
-    vee = np.einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
-    two_cos = np.einsum("nka,nka->n", R_a, R_b)
+    away from pi: its skew part and trace are contractions of R_a with R_b. ``out``: an
+    (n, 3) array to write the result into (and return)."""
+    n = len(R_a)
+    if out is None:
+        vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b)
+    else:
+        vee = einsum("iab,nka,nkb->ni", _NEG_LEVI_CIVITA, R_a, R_b, out=out)
+    # 2 sin(angle) and 2 cos(angle) side by side, so that one comparison screens both
+    sin_cos = np.empty((n, 2))
+    two_sin, two_cos = sin_cos[:, 0], sin_cos[:, 1]
+    einsum("nka,nka->n", R_a, R_b, out=two_cos)
     two_cos -= 1.0
-    angle = _scale_to_angle(vee, two_cos)
+    np.sqrt(einsum("ni,ni->n", vee, vee), out=two_sin)
+    angle = np.arctan2(two_sin, two_cos)
+    screen = sin_cos > _TURNING_ACUTE
+    screened = count_nonzero(screen)
+    if screened == 2 * n:
+        # Every angle turning and below pi / 2 (so far from pi): the common case.
+        vee *= (angle / two_sin)[:, None]
+        return vee
+    if screened == n and count_nonzero(screen[:, 1]) == n:
+        # None turning, every angle below pi / 2 (a pure translation): the limit 1/2.
+        vee *= 0.5
+        return vee
+    _scale_vee(vee, two_sin, angle)
     near_pi = np.pi - angle < 1e-6
     if count_nonzero(near_pi):  # the skew part vanishes: rotation_log's branch
         vee[near_pi] = rotation_log(R_a[near_pi].transpose(0, 2, 1) @ R_b[near_pi])
@@ -81,22 +110,30 @@ def relative_rotation_log(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
 def _scale_to_angle(vee: np.ndarray, two_cos: np.ndarray) -> np.ndarray:
     """Scale the skew part ``vee`` (2 sin(angle) axis) to angle * axis in place; return
     the angle, atan2(|vee|, 2 cos(angle)), exact over [0, pi]."""
-    two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
+    two_sin = np.sqrt(einsum("...i,...i->...", vee, vee))
     angle = np.arctan2(two_sin, two_cos)
+    _scale_vee(vee, two_sin, angle)
+    return angle
+
+
+def _scale_vee(vee: np.ndarray, two_sin: np.ndarray, angle: np.ndarray) -> None:
+    """vee (2 sin(angle) axis) *= angle / (2 sin(angle)), in place."""
     turning = two_sin > 1e-12
     if count_nonzero(turning) == turning.size:
         vee *= (angle / two_sin)[..., None]
     else:  # angle / (2 sin angle) -> 1/2 as the angle -> 0
         vee *= np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)[..., None]
-    return angle
 
 
 def skew(u: np.ndarray) -> np.ndarray:
     """(..., 3) vectors to (..., 3, 3) cross-product matrices: skew(u) @ v = u x v."""
     lead = u.shape[:-1]
-    K = np.zeros((*lead, 9), dtype=u.dtype)
-    K[..., _SKEW_SLOTS] = u[..., _SKEW_SOURCE] * _SKEW_SIGN
-    return K.reshape(*lead, 3, 3)
+    # [0, u, -u], then one gather of the nine entries (fancy assignment costs ~3x more)
+    padded = np.empty(lead + (7,), dtype=u.dtype)
+    padded[..., 0] = 0.0
+    padded[..., 1:4] = u
+    np.negative(u, out=padded[..., 4:])
+    return padded.take(_SKEW_FROM_PADDED, -1).reshape(lead + (3, 3))
 
 
 def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
@@ -104,25 +141,30 @@ def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     # np.linalg.norm's own arithmetic, without its dispatch.
     angle = np.sqrt(np.add.reduce(rotvec * rotvec, axis=-1))
     small = angle < 1e-8
-    safe = np.where(small, 1.0, angle)
     K = skew(rotvec)
     if count_nonzero(small):
+        safe = np.where(small, 1.0, angle)
         a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
         b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
     else:  # the same arithmetic, without the series' branch
         a = np.sin(angle) / angle
         b = (1.0 - np.cos(angle)) / angle**2
-    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return _EYE3 + a[..., None, None] * K + b[..., None, None] * (K @ K)
 
+
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
+
+#: [2 sin, 2 cos] strictly above these: the angle turns (the ratio angle / (2 sin) is
+#: computed as is) and is below pi / 2 (atan2 of a positive cosine), far from pi.
+_TURNING_ACUTE = np.array([1e-12, 0.0])
 
 #: rotation_log's skew part in the flat row-major matrix: entries 7 - 5, 2 - 6, 3 - 1.
 _VEE_PLUS = np.array([7, 2, 3])
 _VEE_MINUS = np.array([5, 6, 1])
-#: skew(k) flat: entries (0, 1), (0, 2), (1, 0),
-#: (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
-_SKEW_SLOTS = np.array([1, 2, 3, 5, 6, 7])
-_SKEW_SOURCE = np.array([2, 1, 2, 0, 1, 0])
-_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
+#: skew(k) flat, row-major, from [0, kx, ky, kz, -kx, -ky, -kz]: entries (0, 1), (0, 2),
+#: (1, 0), (1, 2), (2, 0), (2, 1) are -kz, ky, kz, -kx, -ky, kx; the diagonal is zero.
+_SKEW_FROM_PADDED = np.array([0, 6, 2, 3, 0, 4, 5, 1, 0])
 
 
 #: The Levi-Civita symbol: (a x b)_i = eps_iab a_a b_b.
@@ -163,6 +205,10 @@ class ArmKinematics:
             A Gauss-Newton residual is smooth along a smooth trajectory (it scales
             with the square of the per-cycle step), so the joint-side checks, which
             difference solutions three times over 1 ms, do not see it.
+
+    The solve runs every cycle at 1 kHz on small arrays, where each numpy call costs
+    about as much as its arithmetic: the scratch arrays are allocated once, and the
+    arms' rows of MjData are read and written through views where the layout allows.
     """
 
     def __init__(
@@ -176,7 +222,7 @@ class ArmKinematics:
         self.model = model
         self.data = mujoco.MjData(model)
         self.layout = layout
-        self.n = layout.n
+        n = self.n = layout.n
         self.damping = damping
         self.max_iterations = max_iterations
         self.tolerance = tolerance
@@ -188,39 +234,107 @@ class ArmKinematics:
         self._base = np.asarray(layout.base_pos, dtype=np.float64)
         self._qpos = layout.qpos_adr
         self._eye6 = np.eye(6) * damping**2
-        # The last evaluation, reused when the next solve starts where it ended.
-        self._cached_q = np.full((self.n, 7), np.nan)
-        self._cached: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # The arms' rows of MjData as views (they stay put), or None where an index is
+        # not evenly spaced (every world built by world.py is): gathered each evaluation.
+        self._rows = self._mjdata_rows()
+        # The last evaluation, reused when the next solve starts where it ended; written
+        # in place by every evaluation (callers get copies).
+        self._cached_q = np.full((n, 7), np.nan)
+        self._cached = False
         self._cached_F: np.ndarray | None = None  # the EE frame it was evaluated at
+        self._p = np.empty((n, 3))
+        self._R = np.empty((n, 3, 3))
+        self._R_out = self._R  # the rotations of the last evaluation (_R or MjData's rows)
+        self._J = np.empty((n, 6, 7))
+        self._Jt = self._J.transpose(0, 2, 1)
+        self._J_linear, self._J_angular = self._J[:, :3], self._J[:, 3:]
+        # Scratch of one evaluation and one Gauss-Newton update.
+        self._p_world = np.empty((n, 3))
+        self._offset = np.empty((n, 3, 1))
+        self._lever = np.empty((n, 7, 3))
+        self._same_q = np.empty((n, 7), dtype=bool)
+        self._JJt = np.empty((n, 6, 6))
+        self._step = np.empty((n, 7, 1))
+        self._step_flat = self._step[..., 0]
+        self._abs_step = np.empty((n, 7))
+        self._big = np.empty((n, 7), dtype=bool)
+        self._e = np.empty((n, 6))  # the pose error [position | rotation]
+        self._e_col = self._e[..., None]
+        self._halves = self._e.reshape(n, 2, 3)
+        self._e_pos, self._e_rot = self._halves[:, 0], self._halves[:, 1]
+        self._err2 = np.empty((n, 2))
+        self._ok = np.empty((n, 2), dtype=bool)
+        # Read-only verdicts every arm shares (returned as IkResult.converged).
+        self._all = np.ones(n, dtype=bool)
+        self._all.setflags(write=False)
+        self._none = np.zeros(n, dtype=bool)
+        self._none.setflags(write=False)
+
+    def _mjdata_rows(self) -> tuple | None:
+        """Views of the private MjData's rows every evaluation reads and writes: qpos,
+        the flange's position (also as (n, 1, 3)) and rotation (n, 3, 3), the joints'
+        axes (also transposed) and anchors; None when one is not a view."""
+        d = self.data
+        rows = (
+            _strided_rows(d.qpos, self._qpos),
+            _strided_rows(d.site_xpos, self._sites),
+            _strided_rows(d.site_xmat, self._sites),
+            _strided_rows(d.xaxis, self._joints),
+            _strided_rows(d.xanchor, self._joints),
+        )
+        if any(r is None for r in rows):
+            return None
+        qpos, site_pos, site_mat, axes, anchors = rows
+        R_site = site_mat.reshape(self.n, 3, 3)
+        if not np.shares_memory(R_site, d.site_xmat):  # pragma: no cover - reshape copied
+            return None
+        return qpos, site_pos, site_pos[:, None, :], R_site, axes, axes.transpose(0, 2, 1), anchors
 
     def _evaluate(self, q: np.ndarray, F_T_EE: np.ndarray | None):
-        """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q."""
+        """EE position (n, 3), rotation (n, 3, 3) and Jacobian (n, 6, 7) at q.
+
+        The arrays are the evaluation's own buffers: valid until the next evaluation.
+        """
         if (
-            self._cached is not None
-            and count_nonzero(q == self._cached_q) == q.size
+            self._cached
+            and count_nonzero(np.equal(q, self._cached_q, out=self._same_q)) == q.size
             and self._same_frame(F_T_EE)
         ):
-            return self._cached
+            return self._p, self._R_out, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
-        d.qpos[self._qpos] = q
-        mujoco.mj_kinematics(self.model, d)
-        p_world = d.site_xpos[self._sites]
-        R = d.site_xmat[self._sites].reshape(self.n, 3, 3)
+        if self._rows is not None:
+            qpos, site_pos, site_col, R_site, axes, axes_t, anchors = self._rows
+            qpos[...] = q
+            mujoco.mj_kinematics(self.model, d)
+        else:
+            d.qpos[self._qpos] = q
+            mujoco.mj_kinematics(self.model, d)
+            site_pos = d.site_xpos[self._sites]
+            site_col = site_pos[:, None, :]
+            R_site = d.site_xmat[self._sites].reshape(self.n, 3, 3)
+            axes = d.xaxis[self._joints]  # (n, 7, 3)
+            axes_t = axes.transpose(0, 2, 1)
+            anchors = d.xanchor[self._joints]
         if F_T_EE is not None:
-            p_world = p_world + (R @ F_T_EE[:, :3, 3:])[..., 0]
-            R = R @ F_T_EE[:, :3, :3]
-        p = p_world - self._base
-        axes = d.xaxis[self._joints]  # (n, 7, 3), base frame = world frame (bases unrotated)
-        lever = p_world[:, None, :] - d.xanchor[self._joints]
-        J = np.empty((self.n, 6, 7))
+            p_world, R = self._p_world, self._R
+            np.matmul(R_site, F_T_EE[:, :3, 3:], out=self._offset)
+            np.add(site_pos, self._offset[..., 0], out=p_world)
+            np.matmul(R_site, F_T_EE[:, :3, :3], out=R)
+            site_col = p_world[:, None, :]
+        else:  # the flange itself: MjData's rows as they are (they change only here)
+            p_world, R = site_pos, R_site
+        self._R_out = R
+        np.subtract(p_world, self._base, out=self._p)
+        # base frame = world frame (bases unrotated)
+        np.subtract(site_col, anchors, out=self._lever)
         # Linear part: axis x (EE point - joint anchor), as one contraction with the
         # Levi-Civita symbol (np.cross, or the products written out, cost 3x more here).
-        np.einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, lever, out=J[:, :3, :])
-        J[:, 3:, :] = axes.transpose(0, 2, 1)
+        einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=self._J_linear)
+        self._J_angular[...] = axes_t
         self._cached_q[...] = q
-        self._cached = (p, R, J)
-        return self._cached
+        self._cached = True
+        return self._p, R, self._J
 
     def _same_frame(self, F_T_EE: np.ndarray | None) -> bool:
         cached = self._cached_F
@@ -248,6 +362,7 @@ class ArmKinematics:
         F_T_EE: np.ndarray | None = None,
         elbow: np.ndarray | None = None,
         rows: np.ndarray | None = None,
+        out: np.ndarray | None = None,
     ) -> IkResult:
         """Damped Gauss-Newton from ``q_init`` to the (n, 4, 4) ``target`` poses.
 
@@ -258,9 +373,17 @@ class ArmKinematics:
             elbow: (n,) joint-3 angles to hold fixed (NaN where the elbow is free:
                 ``valid_elbow`` false), or None for every elbow free.
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
+            out: an (n, 7) array to iterate in and return as the solution (default: new).
         """
-        q = np.array(q_init, dtype=np.float64, copy=True)
-        active = np.ones(self.n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        n = self.n
+        if out is None:
+            q = np.array(q_init, dtype=np.float64, copy=True)
+        else:
+            q = out
+            q[...] = q_init
+        active = self._all if rows is None else np.asarray(rows, dtype=bool)
+        n_active = n if rows is None else count_nonzero(active)
+        all_active = n_active == n
         fixed = None
         if elbow is not None:
             fixed = active & np.isfinite(elbow)
@@ -269,33 +392,87 @@ class ArmKinematics:
             else:
                 fixed = None
         p_t, R_t = target[:, :3, 3], target[:, :3, :3]
-        e = np.empty((self.n, 6))
-        halves = e.reshape(self.n, 2, 3)
+        err2, ok, halves = self._err2, self._ok, self._halves
+        e_pos, e_rot = self._e_pos, self._e_rot
         tol2 = self.tolerance**2
+        converged = self._all
         for iteration in range(self.max_iterations + 1):
             p, R, J = self._evaluate(q, F_T_EE)
-            np.subtract(p_t, p, out=e[:, :3])
-            np.einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e[:, 3:])
-            # Squared position and rotation errors side by side, (n, 2).
-            err2 = np.einsum("nkj,nkj->nk", halves, halves)
-            converged = np.maximum.reduce(err2, axis=1) <= tol2  # NaN: not converged
-            todo = active & ~converged
-            n_todo = count_nonzero(todo)
+            np.subtract(p_t, p, out=e_pos)
+            einsum("iab,nak,nbk->ni", _HALF_VEE, R_t, R, out=e_rot)
+            # Squared position and rotation errors side by side, (n, 2); converged where
+            # both are within tolerance (NaN: not converged).
+            einsum("nkj,nkj->nk", halves, halves, out=err2)
+            np.less_equal(err2, tol2, out=ok)
+            n_ok = count_nonzero(ok)
+            if n_ok == 2 * n:  # every arm converged (the usual last pass)
+                converged = self._all
+                break
+            if n_ok < 2:  # no arm has both halves in (the usual first pass)
+                converged, todo, n_todo = self._none, active, n_active
+            else:
+                converged = ok[:, 0] & ok[:, 1]
+                todo = ~converged if all_active else active & ~converged
+                n_todo = count_nonzero(todo)
             if iteration == self.max_iterations or not n_todo:
                 break
-            if fixed is not None:
-                J = J.copy()
-                J[fixed, :, ELBOW_JOINT] = 0.0
-            JJt = J @ J.transpose(0, 2, 1)
-            JJt += self._eye6
-            step = (J.transpose(0, 2, 1) @ _solve(JJt, e[..., None]))[..., 0]
-            if n_todo != self.n:
-                step[~todo] = 0.0
-            # An unreachable target makes the damped step grow without bound near a
-            # singularity; cap it, so a solve that cannot converge cannot run away.
-            if count_nonzero(np.abs(step) > MAX_STEP):
-                biggest = np.abs(step).max(axis=1)
-                step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
-            q += step
-        e_pos, e_rot = np.sqrt(err2).T
-        return IkResult(q, converged | ~active, e_pos, e_rot)
+            q += self._update(J, fixed, None if n_todo == n else todo)
+        position_error, rotation_error = np.sqrt(err2).T
+        converged = converged if all_active else converged | ~active
+        return IkResult(q, converged, position_error, rotation_error)
+
+    def _update(
+        self, J: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
+    ) -> np.ndarray:
+        """(n, 7) one damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e, zero where
+        the elbow is held (``fixed``'s joint 3) and outside ``todo`` (None: every arm)."""
+        Jt = self._Jt
+        if fixed is not None:
+            J = J.copy()
+            J[fixed, :, ELBOW_JOINT] = 0.0
+            Jt = J.transpose(0, 2, 1)
+        JJt = np.matmul(J, Jt, out=self._JJt)
+        JJt += self._eye6
+        np.matmul(Jt, _solve(JJt, self._e_col), out=self._step)
+        step = self._step_flat
+        if todo is not None:
+            step[~todo] = 0.0
+        # An unreachable target makes the damped step grow without bound near a
+        # singularity; cap it, so a solve that cannot converge cannot run away.
+        size = np.abs(step, out=self._abs_step)
+        if count_nonzero(np.greater(size, MAX_STEP, out=self._big)):
+            biggest = size.max(axis=1)
+            step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
+        return step
+
+
+def _strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """``array[index]`` as a view when ``index`` (integer, any shape) steps evenly along
+    each of its axes, else None. Rows of a MuJoCo data array stay put for its lifetime."""
+    index = np.asarray(index, dtype=np.intp)
+    if not array.flags.c_contiguous or index.size == 0:
+        return None
+    if index.min() < 0 or index.max() >= len(array):
+        return None
+    steps = []  # the step along each axis of the index, if constant
+    for axis in range(index.ndim):
+        if index.shape[axis] < 2:
+            steps.append(0)
+            continue
+        diff = np.diff(index, axis=axis)
+        if diff.flat[0] < 0 or not (diff == diff.flat[0]).all():
+            return None
+        steps.append(int(diff.flat[0]))
+
+    def rows_of(a: np.ndarray) -> np.ndarray:
+        return np.lib.stride_tricks.as_strided(
+            a[int(index.flat[0]) :],
+            shape=index.shape + a.shape[1:],
+            strides=tuple(s * a.strides[0] for s in steps) + a.strides[1:],
+        )
+
+    # the same view of a probe of the same layout must select the rows the index names
+    probe = np.arange(array.size, dtype=array.dtype).reshape(array.shape)
+    if not np.array_equal(rows_of(probe), probe[index]):  # pragma: no cover - a layout error
+        raise AssertionError("a strided view disagrees with its gather")
+    return rows_of(array)

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import relative_rotation_log, rotation_log
+from ...sim.kinematics import einsum, relative_rotation_log, rotation_log
 from .._fast import count_nonzero
 from ..errors import Error
 from ..frames import from_wire
@@ -107,14 +107,32 @@ class Twist(NamedTuple):
 class PoseDerivatives(NamedTuple):
     """Backward differences of a commanded pose against its history."""
 
-    v: np.ndarray
-    omega: np.ndarray
-    a: np.ndarray
-    alpha: np.ndarray
-    jerk: np.ndarray
-    zeta: np.ndarray  # rotational jerk
-    #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the fields above are its views
+    #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the properties are its views
     stacked: np.ndarray
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.stacked[:, 0, :3]
+
+    @property
+    def omega(self) -> np.ndarray:
+        return self.stacked[:, 0, 3:]
+
+    @property
+    def a(self) -> np.ndarray:
+        return self.stacked[:, 1, :3]
+
+    @property
+    def alpha(self) -> np.ndarray:
+        return self.stacked[:, 1, 3:]
+
+    @property
+    def jerk(self) -> np.ndarray:
+        return self.stacked[:, 2, :3]
+
+    @property
+    def zeta(self) -> np.ndarray:  # rotational jerk
+        return self.stacked[:, 2, 3:]
 
 
 class ElbowDerivatives(NamedTuple):
@@ -141,11 +159,19 @@ class ElbowStream(NamedTuple):
 
 
 class JointSide(NamedTuple):
-    """The IK solution's acceleration and jerk (n, 7), judged where ``checked`` (n,)."""
+    """The IK solution's acceleration and jerk, judged where ``checked`` (n,)."""
 
-    ddq: np.ndarray
-    dddq: np.ndarray
+    #: (n, 2, 7): rows ddq, dddq (the properties are its views)
+    stacked: np.ndarray
     checked: np.ndarray
+
+    @property
+    def ddq(self) -> np.ndarray:
+        return self.stacked[:, 0]
+
+    @property
+    def dddq(self) -> np.ndarray:
+        return self.stacked[:, 1]
 
 
 class CartesianCheck(NamedTuple):
@@ -158,7 +184,7 @@ class CartesianCheck(NamedTuple):
 
 
 def _norm(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.einsum("ij,ij->i", x, x))
+    return np.sqrt(einsum("ij,ij->i", x, x))
 
 
 def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
@@ -168,26 +194,26 @@ def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 
 def pose_derivatives(
-    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps
+    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps, out: np.ndarray | None = None
 ) -> PoseDerivatives:
     """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
     rotation as the body-frame rotation vector of R_prev^T R_c per interval.
 
     ``history`` is the previous (n, 2, 6) [[v | omega], [a | alpha]], side by side so
-    that each order takes one difference.
+    that each order takes one difference. ``out``: an (n, 3, 6) array to fill (and keep
+    as ``stacked``), default a new one.
     """
     h = interval(steps)
-    D = np.empty((len(T_c), 3, 6))
-    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=D[:, 0, :3])
-    D[:, 0, 3:] = relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3])
-    D[:, 0] /= h
-    np.subtract(D[:, 0], history[:, 0], out=D[:, 1])
-    D[:, 1] /= h
-    np.subtract(D[:, 1], history[:, 1], out=D[:, 2])
-    D[:, 2] /= h
-    return PoseDerivatives(
-        D[:, 0, :3], D[:, 0, 3:], D[:, 1, :3], D[:, 1, 3:], D[:, 2, :3], D[:, 2, 3:], D
-    )
+    D = np.empty((len(T_c), 3, 6)) if out is None else out
+    velocity, acceleration, jerk = D[:, 0], D[:, 1], D[:, 2]
+    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=velocity[:, :3])
+    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=velocity[:, 3:])
+    velocity /= h
+    np.subtract(velocity, history[:, 0], out=acceleration)
+    acceleration /= h
+    np.subtract(acceleration, history[:, 1], out=jerk)
+    jerk /= h
+    return PoseDerivatives(D)
 
 
 def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
@@ -198,22 +224,32 @@ def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives
     return ElbowDerivatives(v, a, (a - dde_prev) / h)
 
 
-def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps):
-    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c)."""
+def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps, out: np.ndarray | None = None):
+    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c); ``out``: an
+    (n, 3, 7) array to write them into, side by side (default: new arrays)."""
     h = interval(steps)
-    dq = (q_ik - q_prev) / h
-    ddq = (dq - dq_prev) / h
-    return dq, ddq, (ddq - ddq_prev) / h
+    if out is None:
+        dq = (q_ik - q_prev) / h
+        ddq = (dq - dq_prev) / h
+        return dq, ddq, (ddq - ddq_prev) / h
+    dq, ddq, dddq = out[:, 0], out[:, 1], out[:, 2]
+    np.subtract(q_ik, q_prev, out=dq)
+    dq /= h
+    np.subtract(dq, dq_prev, out=ddq)
+    ddq /= h
+    np.subtract(ddq, ddq_prev, out=dddq)
+    dddq /= h
+    return dq, ddq, dddq
 
 
 def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
     """Rows 21 and 17 (both generators): the branch flag flipping mid-motion; elbow[0]
     outside joint 3's range (always), or its velocity, acceleration or jerk over the
     kMaxElbow* limits (after the first command)."""
+    if not count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
+        return elbow.has, elbow.has
     continuing = later & elbow.has & elbow.had
     sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
-    if not count_nonzero(elbow.has):
-        return sign, elbow.has
     e_c, d = elbow.command[:, 0], elbow.derivatives
     out_of_range = ~((e_c >= table.q_lower[2]) & (e_c <= table.q_upper[2]))
     too_fast = (
@@ -226,33 +262,70 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
 
 def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     """The IK solution's acceleration over kMaxJointAcceleration, its jerk over
-    kMaxJointJerk (the robot's per-joint tables times the discontinuity scale)."""
+    kMaxJointJerk (the robot's per-joint tables times the discontinuity scale): the two
+    (n,) rows, or None when neither tripped anywhere (the common case)."""
     checked = joint.checked
     if not count_nonzero(checked):
-        return checked, checked
-    over = np.abs(np.concatenate((joint.ddq, joint.dddq), axis=1)) > _ik_limits(table, scale)
+        return None
+    over = np.abs(joint.stacked) > _ik_limits(table, scale)  # NaN is not over
     if not count_nonzero(over):  # nothing over: the common case
-        return np.zeros_like(checked), np.zeros_like(checked)
-    return checked & over[:, :7].any(axis=1), checked & over[:, 7:].any(axis=1)
+        return None
+    return checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
+
+
+def _no_rows(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two (n,) rows that did not trip."""
+    return np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
 
 
 def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
-    """(14,) the joint side's acceleration and jerk limits side by side, scaled."""
+    """(2, 7) the joint side's acceleration and jerk limits, scaled."""
     key = (table.name, scale)
     cached = _IK_LIMITS.get(key)
     if cached is None:
-        cached = _IK_LIMITS[key] = np.concatenate((table.ik_ddq_max, table.ik_dddq_max)) * scale
+        cached = np.stack((table.ik_ddq_max, table.ik_dddq_max)) * scale
+        cached.setflags(write=False)
+        _IK_LIMITS[key] = cached
     return cached
 
 
 _IK_LIMITS: dict[tuple[str, float], np.ndarray] = {}
 
 
-def _over(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
-    """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] over the
-    table's limits, in one pass ("not inside": NaN trips)."""
+def _inside(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
+    """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] within the
+    table's limits, in one pass (NaN is not within: it trips)."""
     x = stacked.reshape(len(stacked), 6, 3)
-    return ~(np.einsum("nkj,nkj->nk", x, x) <= _limits2(table))
+    return einsum("nkj,nkj->nk", x, x) <= _limits2(table)
+
+
+def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: float) -> bool:
+    """Whether no Cartesian norm of ``stacked`` (n, 3, 6) is over its limit and no joint-side
+    value of any robot (judged or not) is over its own: then neither kind of row trips.
+
+    One comparison of the squared norms (as :func:`_inside` forms them) and the joint
+    side's magnitudes side by side; a NaN fails it (the exact rows then decide).
+    """
+    n = len(stacked)
+    values = np.empty((n, 20))
+    x = stacked.reshape(n, 6, 3)
+    einsum("nkj,nkj->nk", x, x, out=values[:, :6])
+    np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
+    return count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
+
+
+def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
+    """(20,) :func:`_limits2` and the joint side's acceleration and jerk limits, scaled."""
+    key = (table.name, scale)
+    cached = _QUIET_LIMITS.get(key)
+    if cached is None:
+        cached = np.concatenate((_limits2(table), _ik_limits(table, scale).reshape(14)))
+        cached.setflags(write=False)
+        _QUIET_LIMITS[key] = cached
+    return cached
+
+
+_QUIET_LIMITS: dict[tuple[str, float], np.ndarray] = {}
 
 
 def _limits2(table: RobotTable) -> np.ndarray:
@@ -302,8 +375,13 @@ def check_cartesian_pose(
         translation_tolerance, rotation_tolerance, elbow_tolerance: start checks.
     """
     first = np.asarray(first, dtype=bool)
-    later = ~first
+    n = len(first)
     starting = count_nonzero(first) > 0
+    if not starting and not count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
+        return _no_error(n)  # mid-motion, no elbow, nothing near a limit: the common case
+    inside = _inside(d.stacked, table)
+    joint_rows = _joint_side_rows(joint, table, scale)
+    later = ~first
     if starting:
         T_m = from_wire(O_T_EE)
         dp = _norm(T_c[:, :3, 3] - T_m[:, :3, 3])
@@ -320,13 +398,12 @@ def check_cartesian_pose(
         )
     else:
         start_pose = start_elbow = first
-    over = _over(d.stacked, table)
+    over = ~inside
     over &= later[:, None]
-    ik29, ik30 = _joint_side_rows(joint, table, scale)
+    ik29, ik30 = _no_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, later, table)
     if not (starting or _any(elbow.has, over, ik29, ik30)):
-        # Mid-motion, no elbow, nothing over: the common case, without the selection.
-        return _no_error(len(first))
+        return _no_error(n)
     vel = over[:, 0] | over[:, 1]
     acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
@@ -350,11 +427,16 @@ def check_cartesian_velocity(
     rest, so the opening twist is an acceleration from standstill, as on the robot).
     """
     first = np.asarray(first, dtype=bool)
-    over = _over(stacked, table)
-    ik_acc, ik_jerk = _joint_side_rows(joint, table, scale)
+    n = len(first)
+    if not count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
+        return _no_error(n)  # no elbow, nothing near a limit: the common case
+    inside = _inside(stacked, table)
+    joint_rows = _joint_side_rows(joint, table, scale)
+    over = ~inside
+    ik_acc, ik_jerk = _no_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
     if not _any(over, ik_acc, ik_jerk, sign, elbow_limit):
-        return _no_error(len(first))  # nothing over: the common case, without the selection
+        return _no_error(n)
     vel = over[:, 0] | over[:, 1]
     acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
@@ -368,8 +450,15 @@ def _any(*tripped: np.ndarray) -> bool:
 
 
 def _no_error(n: int) -> CartesianCheck:
-    """No robot tripped a row (``tripped`` is then not built)."""
-    return CartesianCheck(np.full(n, NO_ERROR, np.int64), None)
+    """No robot tripped a row (``tripped`` is then not built; ``error`` is read-only)."""
+    error = _NO_ERRORS.get(n)
+    if error is None:
+        error = _NO_ERRORS[n] = np.full(n, NO_ERROR, np.int64)
+        error.setflags(write=False)
+    return CartesianCheck(error, None)
+
+
+_NO_ERRORS: dict[int, np.ndarray] = {}
 
 
 def describe_cartesian(i: int, error: int, row: str, quantities: dict) -> Violation:
