@@ -20,7 +20,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from ..fci._fast import count_nonzero
+from ..fci._fast import count_nonzero, einsum
 from .world import ArmLayout
 
 try:  # numpy's batched LAPACK solve, without np.linalg.solve's Python checks (~2 us a call)
@@ -28,12 +28,6 @@ try:  # numpy's batched LAPACK solve, without np.linalg.solve's Python checks (~
 except ImportError:  # pragma: no cover - other numpy layouts
     _solve = np.linalg.solve
 
-try:  # np.einsum's C core, without its Python wrapper (~0.6 us a call): the same arithmetic
-    # (np.einsum without ``optimize`` hands its operands to it unchanged); ``out`` must
-    # be an array when given
-    from numpy._core.multiarray import c_einsum as einsum
-except ImportError:  # pragma: no cover - other numpy layouts
-    einsum = np.einsum
 
 #: Joint 3 is the FR3's redundancy angle (seed "RobotState fields": elbow[0] = q[2]).
 ELBOW_JOINT = 2

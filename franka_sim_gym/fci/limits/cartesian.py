@@ -42,8 +42,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import einsum, relative_rotation_log, rotation_log
-from .._fast import count_nonzero
+from ...sim.kinematics import relative_rotation_log, rotation_log
+from .._fast import count_nonzero, einsum
 from ..errors import Error
 from ..frames import from_wire
 from ..tables import RobotTable
