@@ -15,59 +15,12 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
 from cycle_rate import (
     CARTESIAN_POSITION,
     CARTESIAN_VELOCITY,
-    IMPEDANCE,
     JOINT_POSITION,
-    streaming_cycle,
+    motion,
 )
-
-from franka_sim_gym.fci.config import ControllerConfig
-from franka_sim_gym.fci.controller import FciController
-from franka_sim_gym.sim.arm import ArmPhysics
-
-PERIOD = 4000
-
-
-def _turn(angle: np.ndarray) -> np.ndarray:
-    """(k, 3, 3) rotations about z."""
-    c, s = np.cos(angle), np.sin(angle)
-    R = np.zeros((len(angle), 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
-    return R
-
-
-def motion(n: int, generator, rotate: bool):
-    """A started controller and its streaming cycle (one command per arm per call)."""
-    ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
-    for i in range(n):
-        ctrl.move(i, int(IMPEDANCE), int(generator))
-    for _ in range(2):
-        ctrl.step()
-    t = np.arange(PERIOD) * 1e-3
-    bump = 1 - np.cos(2 * np.pi * t / 4.0)  # 0 .. 2 .. 0 over the period
-    rate = np.sin(2 * np.pi * t / 4.0) * 2 * np.pi / 4.0  # its derivative
-    if generator == CARTESIAN_POSITION:
-        pose0 = ctrl.states["O_T_EE_d"].astype(np.float64)
-        waypoints = np.repeat(pose0[None], PERIOD, axis=0)
-        waypoints[:, :, 12] += (0.025 * bump)[:, None]
-        if rotate:  # R0 Rz(turn), written column-major (the wire's R^T block)
-            R0 = pose0.reshape(n, 4, 4).transpose(0, 2, 1)[:, :3, :3]
-            R = np.einsum("nab,tbc->tnac", R0, _turn(0.05 * bump))
-            waypoints.reshape(PERIOD, n, 4, 4)[:, :, :3, :3] = R.transpose(0, 1, 3, 2)
-        return streaming_cycle(ctrl, "O_T_EE_c", waypoints)
-    if generator == CARTESIAN_VELOCITY:
-        waypoints = np.zeros((PERIOD, n, 6))
-        waypoints[:, :, 0] = (0.025 * rate)[:, None]
-        if rotate:
-            waypoints[:, :, 5] = (0.05 * rate)[:, None]
-        return streaming_cycle(ctrl, "O_dP_EE_c", waypoints)
-    q0 = ctrl.states["q_d"].astype(np.float64)
-    waypoints = np.repeat(q0[None], PERIOD, axis=0)
-    waypoints[:, :, 3] += (0.1 * bump)[:, None]
-    return streaming_cycle(ctrl, "q_c", waypoints)
 
 
 def cycle_cpu(cycle, cycles: int, repeats: int) -> float:
@@ -99,7 +52,7 @@ def main() -> None:
     for n in args.arms:
         joint = None
         for name, generator in generators.items():
-            cpu = cycle_cpu(motion(n, generator, args.rotate), args.cycles, args.repeats)
+            cpu = cycle_cpu(motion(n, generator, args.rotate)[1], args.cycles, args.repeats)
             joint = joint or cpu
             print(f"{f'{name}, n={n}':<32}{cpu * 1e6:>10.1f}{cpu / joint:>10.2f}")
 

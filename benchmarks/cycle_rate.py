@@ -76,21 +76,58 @@ def idle_rate(n: int, seconds: float) -> float:
     return rate(ctrl.step, seconds)
 
 
-def motion_rate(n: int, seconds: float) -> float:
+PERIOD = 4000
+
+
+def _turn(angle: np.ndarray) -> np.ndarray:
+    """(k, 3, 3) rotations about z."""
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.zeros((len(angle), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+def motion(n: int, generator, rotate: bool = False):
+    """A started controller and its streaming cycle (one command per arm per call).
+
+    The client's waypoints are computed before timing (client work, not the
+    controller's): one period of a 4 s cosine, on joint 4 (0.2 rad) or of 5 cm along x
+    (as poses, or as their twist), one row per arm per cycle, wrapped (the cosine is
+    periodic, so the wrap is smooth). ``rotate`` adds a 0.1 rad turn about z (and
+    back) to the Cartesian streams.
+    """
     ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
     for i in range(n):
-        ctrl.move(i, int(IMPEDANCE), int(JOINT_POSITION))
+        ctrl.move(i, int(IMPEDANCE), int(generator))
     for _ in range(2):
         ctrl.step()
+    t = np.arange(PERIOD) * 1e-3
+    bump = 1 - np.cos(2 * np.pi * t / 4.0)  # 0 .. 2 .. 0 over the period
+    rate_of_bump = np.sin(2 * np.pi * t / 4.0) * 2 * np.pi / 4.0
+    if generator == CARTESIAN_POSITION:
+        pose0 = ctrl.states["O_T_EE_d"].astype(np.float64)
+        waypoints = np.repeat(pose0[None], PERIOD, axis=0)
+        waypoints[:, :, 12] += (0.025 * bump)[:, None]
+        if rotate:  # R0 Rz(turn), written column-major (the wire's R^T block)
+            R0 = pose0.reshape(n, 4, 4).transpose(0, 2, 1)[:, :3, :3]
+            R = np.einsum("nab,tbc->tnac", R0, _turn(0.05 * bump))
+            waypoints.reshape(PERIOD, n, 4, 4)[:, :, :3, :3] = R.transpose(0, 1, 3, 2)
+        return ctrl, streaming_cycle(ctrl, "O_T_EE_c", waypoints)
+    if generator == CARTESIAN_VELOCITY:
+        waypoints = np.zeros((PERIOD, n, 6))
+        waypoints[:, :, 0] = (0.025 * rate_of_bump)[:, None]
+        if rotate:
+            waypoints[:, :, 5] = (0.05 * rate_of_bump)[:, None]
+        return ctrl, streaming_cycle(ctrl, "O_dP_EE_c", waypoints)
     q0 = ctrl.states["q_d"].astype(np.float64)
-    # The client's waypoints are computed before timing (client work, not the
-    # controller's): one period of a 4 s cosine on joint 4, one (n, 7) row per
-    # cycle, wrapped (the cosine is periodic, so the wrap is smooth).
-    period = 4000
-    t = np.arange(period) * 1e-3
-    waypoints = np.repeat(q0[None], period, axis=0)
-    waypoints[:, :, 3] += (0.1 * (1 - np.cos(2 * np.pi * t / 4.0)))[:, None]
-    cycles = rate(streaming_cycle(ctrl, "q_c", waypoints), seconds)
+    waypoints = np.repeat(q0[None], PERIOD, axis=0)
+    waypoints[:, :, 3] += (0.1 * bump)[:, None]
+    return ctrl, streaming_cycle(ctrl, "q_c", waypoints)
+
+
+def motion_rate(n: int, seconds: float) -> float:
+    ctrl, cycle = motion(n, JOINT_POSITION)
+    cycles = rate(cycle, seconds)
     # The cycle accounting alone (success-rate window, lost runs), every robot counting.
     accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting
@@ -99,23 +136,7 @@ def motion_rate(n: int, seconds: float) -> float:
 
 def cartesian_rate(n: int, seconds: float, generator) -> float:
     """A Cartesian motion: a 4 s cosine of 5 cm along x, as poses or as their twist."""
-    ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
-    for i in range(n):
-        ctrl.move(i, int(IMPEDANCE), int(generator))
-    for _ in range(2):
-        ctrl.step()
-    period = 4000
-    t = np.arange(period) * 1e-3
-    if generator == CARTESIAN_POSITION:
-        pose0 = ctrl.states["O_T_EE_d"].astype(np.float64)
-        waypoints = np.repeat(pose0[None], period, axis=0)
-        waypoints[:, :, 12] += (0.025 * (1 - np.cos(2 * np.pi * t / 4.0)))[:, None]
-        field = "O_T_EE_c"
-    else:
-        waypoints = np.zeros((period, n, 6))
-        waypoints[:, :, 0] = (0.025 * 2 * np.pi / 4.0 * np.sin(2 * np.pi * t / 4.0))[:, None]
-        field = "O_dP_EE_c"
-    return rate(streaming_cycle(ctrl, field, waypoints), seconds)
+    return rate(motion(n, generator)[1], seconds)
 
 
 #: per n: the accounting's share of one motion cycle

@@ -413,8 +413,9 @@ def test_interpolate_rejects_unknown_kind_and_alpha_out_of_range():
 def test_the_far_limiter_is_the_limiter_wherever_the_band_cannot_bind(
     joint, where, v_last, a_last, v_c
 ):
-    # The env's shortcut (FarFromTheBand + limit_velocities_far_core) must give the very
-    # bits of the general limiter against the envelope at q, whenever it claims the cycle.
+    # The env's shortcut (FarFromTheBand, then limit_velocities_core without the band)
+    # must give the very bits of the limiter against the envelope at q, whenever it
+    # claims the cycle.
     from franka_sim_gym.envs.commands import LIMITER_MARGIN
 
     a_max, j_max = FR3.ddq_max - LIMITER_MARGIN["ddq"], FR3.dddq_max - LIMITER_MARGIN["dddq"]
@@ -429,7 +430,7 @@ def test_the_far_limiter_is_the_limiter_wherever_the_band_cannot_bind(
         return
     both = FR3.velocity_envelope_halves(q) - LIMITER_MARGIN["dq"]
     exact = cf.limit_velocities_core(command, last, acc, both[:, :7], -both[:, 7:], a_max, j_max)
-    assert (cf.limit_velocities_far_core(command, last, acc, a_max, j_max) == exact).all()
+    assert (cf.limit_velocities_core(command, last, acc, None, None, a_max, j_max) == exact).all()
 
 
 def test_the_far_limiter_claims_the_usual_cycle_and_not_the_edge_of_the_band():
@@ -467,4 +468,6 @@ def test_the_far_limiter_is_exact_at_the_largest_speed_it_claims():
             exact = cf.limit_velocities_core(
                 command, last, acc, both[:, :7], -both[:, 7:], a_max, j_max
             )
-            assert (cf.limit_velocities_far_core(command, last, acc, a_max, j_max) == exact).all()
+            assert (
+                cf.limit_velocities_core(command, last, acc, None, None, a_max, j_max) == exact
+            ).all()

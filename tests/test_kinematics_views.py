@@ -1,6 +1,6 @@
-"""sim/kinematics.py reads MjData's rows through strided views where the layout allows:
-the views select the rows the indices name, and the gathering fallback gives the same
-bits."""
+"""sim/views.py gives MjData's rows as strided views where the layout allows (sim/arm.py,
+sim/kinematics.py): the views select the rows the indices name, and the gathering
+fallback gives the same bits."""
 
 from __future__ import annotations
 
@@ -8,20 +8,21 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.sim.arm import ArmPhysics
-from franka_sim_gym.sim.kinematics import ArmKinematics, _strided_rows
+from franka_sim_gym.sim.kinematics import ArmKinematics
+from franka_sim_gym.sim.views import strided_rows
 from franka_sim_gym.sim.world import HOME_Q
 
 
 def test_strided_rows_view_evenly_spaced_indices_and_refuse_others():
     a = np.arange(40.0).reshape(20, 2)
     index = np.array([[1, 2, 3], [7, 8, 9]])
-    view = _strided_rows(a, index)
+    view = strided_rows(a, index)
     np.testing.assert_array_equal(view, a[index])
     view[1, 2] = -1.0  # a view: writes land in the array
     assert a[9].tolist() == [-1.0, -1.0]
-    assert _strided_rows(a, np.array([0, 1, 3])) is None  # uneven
-    assert _strided_rows(a, np.array([3, 2])) is None  # descending
-    assert _strided_rows(a, np.array([19, 20])) is None  # out of range
+    assert strided_rows(a, np.array([0, 1, 3])) is None  # uneven
+    assert strided_rows(a, np.array([3, 2])) is None  # descending
+    assert strided_rows(a, np.array([19, 20])) is None  # out of range
 
 
 @pytest.mark.parametrize("hand", [False, True])

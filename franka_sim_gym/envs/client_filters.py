@@ -216,7 +216,8 @@ def lowpass_core(x: np.ndarray, x_ref: np.ndarray, gain) -> np.ndarray:
 
 
 def limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
-    """:func:`limit_rate_joint_positions`'s arithmetic on validated float64 arrays."""
+    """:func:`limit_rate_joint_positions`'s arithmetic on validated float64 arrays (no
+    band: as :func:`limit_velocities_core`)."""
     v = limit_velocities_core((q_c - q_last) / DELTA_T, v_last, a_last, upper, lower, a_max, j_max)
     return q_last + v * DELTA_T
 
@@ -282,34 +283,33 @@ def limit_rate_joint_velocities(
 
 
 def limit_velocities_core(v_c, v_last, a_last, upper, lower, a_max, j_max) -> np.ndarray:
-    """The scalar velocity limiter of src/rate_limiting.cpp, on validated float64 arrays."""
+    """The scalar velocity limiter of src/rate_limiting.cpp, on validated float64 arrays.
+
+    ``upper`` and ``lower`` None: the band is far from ``v_last``, so that both
+    acceleration bounds are at +-A (``J / A * (upper - v_last) >= A`` and the mirror)
+    and ``min(., A)`` / ``max(., -A)`` return A and -A exactly; the caller proves that
+    (:class:`FarFromTheBand`). The result is then the very bits the band would give.
+    """
     dt = DELTA_T
     # Differentiate to get jerk.
     jerk = (((v_c - v_last) / dt) - a_last) / dt
     # Limit jerk and integrate to get acceleration.
     acc = a_last + np.maximum(np.minimum(jerk, j_max), -j_max) * dt
     # Compute acceleration limits.
-    ratio = j_max / a_max
-    safe_max = np.minimum(ratio * (upper - v_last), a_max)
-    safe_min = np.maximum(ratio * (lower - v_last), -a_max)
+    if upper is None:
+        safe_max, safe_min = a_max, -a_max
+    else:
+        ratio = j_max / a_max
+        safe_max = np.minimum(ratio * (upper - v_last), a_max)
+        safe_min = np.maximum(ratio * (lower - v_last), -a_max)
     # Limit acceleration and integrate to get the velocity.
     return v_last + np.maximum(np.minimum(acc, safe_max), safe_min) * dt
 
 
-def limit_velocities_far_core(v_c, v_last, a_last, a_max, j_max) -> np.ndarray:
-    """:func:`limit_velocities_core` where the velocity band is far from ``v_last``: both
-    acceleration bounds are at +-A (``J / A * (upper - v_last) >= A`` and the mirror), so
-    ``min(., A)`` and ``max(., -A)`` return A and -A exactly; the caller proves that
-    (:class:`FarFromTheBand`). Bit-identical to the general core in that case."""
-    dt = DELTA_T
-    jerk = (((v_c - v_last) / dt) - a_last) / dt
-    acc = a_last + np.maximum(np.minimum(jerk, j_max), -j_max) * dt
-    return v_last + np.maximum(np.minimum(acc, a_max), -a_max) * dt
-
-
 class FarFromTheBand:
     """Decides, on one comparison, that libfranka's velocity limiter cannot meet its
-    position-based velocity band this cycle, so that its envelope need not be computed.
+    position-based velocity band this cycle, so that its envelope need not be computed
+    (:func:`limit_velocities_core` with no band).
 
     The limiter's acceleration bounds are ``min(J / A * (upper(q) - v_last), A)`` and the
     mirror; they are exactly +-A whenever ``v_last`` is at least A^2 / J inside the band.

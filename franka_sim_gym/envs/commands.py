@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import DELTA_T, FR3, RobotTable
+from ..fci.tables import FR3, RobotTable
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
 
@@ -275,14 +275,12 @@ class CommandGenerator:
         ddq_d = state["ddq_d"].astype(np.float64)
         a_max, j_max = self._ddq_max, self._dddq_max
         if self._far(q_d, dq_d):  # the band cannot bind: no envelope needed
-            if interface == "joint_position":
-                v = cf.limit_velocities_far_core((out - q_d) / DELTA_T, dq_d, ddq_d, a_max, j_max)
-                return q_d + v * DELTA_T
-            return cf.limit_velocities_far_core(out, dq_d, ddq_d, a_max, j_max)
-        both = self.table.velocity_envelope_halves(q_d)  # [upper | -lower]
-        # upper - margin and -(lower + margin), in libfranka's order of operations
-        both -= LIMITER_MARGIN["dq"]
-        upper, lower = both[:, :7], -both[:, 7:]
+            upper = lower = None
+        else:
+            both = self.table.velocity_envelope_halves(q_d)  # [upper | -lower]
+            # upper - margin and -(lower + margin), in libfranka's order of operations
+            both -= LIMITER_MARGIN["dq"]
+            upper, lower = both[:, :7], -both[:, 7:]
         if interface == "joint_position":
             return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
         return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)

@@ -16,4 +16,14 @@ try:  # np.einsum's C core, without its Python wrapper (~0.6 us a call): the sam
 except ImportError:  # pragma: no cover - other numpy layouts
     einsum = np.einsum
 
-__all__ = ["count_nonzero", "einsum"]
+
+def put_rows(dst: np.ndarray, src: np.ndarray, rows: np.ndarray, every: bool) -> None:
+    """Copy ``src`` into ``dst`` on the robots ``rows`` (n,); ``every``: all of them, so a
+    plain copy (no mask: the usual case, every robot in the same situation)."""
+    if every:
+        dst[...] = src
+    else:
+        np.copyto(dst, src, where=rows.reshape(-1, *(1,) * (dst.ndim - 1)))
+
+
+__all__ = ["count_nonzero", "einsum", "put_rows"]

@@ -46,10 +46,10 @@ from ..sim.kinematics import (
     rotation_exp,
 )
 from . import extrapolation
-from ._fast import count_nonzero
+from ._fast import count_nonzero, put_rows
 from .cartesian_reference import CartesianHistory, CartesianReference
 from .errors import Error
-from .frames import from_wire
+from .frames import from_wire, to_wire
 from .limits import cartesian as rules
 from .tables import DELTA_T, MAX_LOST_CYCLES
 
@@ -497,7 +497,7 @@ class CartesianGenerators:
         any_lost = step.pose_ex is not None
         any_first = count_nonzero(first) > 0
         x = extrapolate[:, None] if any_lost else None
-        _put(h.T, step.T, apply, every)
+        put_rows(h.T, step.T, apply, every)
         if d is not None:
             if any_lost or any_first:
                 a = apply[:, None]
@@ -517,15 +517,15 @@ class CartesianGenerators:
                 np.copyto(h.a, acc, where=a)
                 np.copyto(h.alpha, alpha, where=a)
             else:  # every value a real difference: the history's two orders in one copy
-                _put(h.history, d.stacked[:, :2], apply, every)
-            _put(h.acceleration_frozen, h.history[:, 1], real, every_real)
+                put_rows(h.history, d.stacked[:, :2], apply, every)
+            put_rows(h.acceleration_frozen, h.history[:, 1], real, every_real)
         if m.n_cartesian_velocity:
-            _put(h.twist, step.twist, apply, every)
+            put_rows(h.twist, step.twist, apply, every)
             dtwist = step.twist_stack[:, 1]
             if any_lost:
                 dtwist = np.where(x, h.dtwist_frozen, dtwist)
-            _put(h.dtwist, dtwist, apply, every)
-            _put(h.dtwist_frozen, h.dtwist, real, every_real)
+            put_rows(h.dtwist, dtwist, apply, every)
+            put_rows(h.dtwist_frozen, h.dtwist, real, every_real)
         self._record_reported(apply, first, every and not any_first)
         self._record_elbow(step, real, apply, extrapolate)
         self._record_joint_side(step, apply, first, every and not any_first)
@@ -728,23 +728,23 @@ class CartesianGenerators:
         c, m, w, h = self.c, self.c.modes, self.c.writer, self.reference
         n = c.n
         if m.n_cartesian_position:
-            _put(w.O_T_EE_d, _wire(h.T), m.cartesian_position, m.n_cartesian_position == n)
-            _put(w.O_T_EE_c, w.O_T_EE_d, m.cartesian_position, m.n_cartesian_position == n)
+            put_rows(w.O_T_EE_d, to_wire(h.T), m.cartesian_position, m.n_cartesian_position == n)
+            put_rows(w.O_T_EE_c, w.O_T_EE_d, m.cartesian_position, m.n_cartesian_position == n)
         if m.n_cartesian_velocity:
-            T_start = _wire(self.start_T)
-            _put(w.O_T_EE_d, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
-            _put(w.O_T_EE_c, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
+            T_start = to_wire(self.start_T)
+            put_rows(w.O_T_EE_d, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
+            put_rows(w.O_T_EE_c, T_start, m.cartesian_velocity, m.n_cartesian_velocity == n)
         every = m.n_cartesian == n
         cartesian = m.cartesian
-        _put(w.field["O_dP_EE_d"], h.reported, cartesian, every)
-        _put(w.field["O_dP_EE_c"], h.reported, cartesian, every)
-        _put(w.field["O_ddP_EE_c"], h.dreported, cartesian, every)
+        put_rows(w.field["O_dP_EE_d"], h.reported, cartesian, every)
+        put_rows(w.field["O_dP_EE_c"], h.reported, cartesian, every)
+        put_rows(w.field["O_ddP_EE_c"], h.dreported, cartesian, every)
         if count_nonzero(h.has_elbow):
             streamed = (m.cartesian & h.has_elbow)[:, None]
             np.copyto(w.elbow_d, h.elbow, where=streamed)
             np.copyto(w.elbow_c, h.elbow, where=streamed)
         # Seed: "the sim still publishes the measured q there during a Cartesian motion".
-        _put(w.q_d, c.physics.q, cartesian, every)
+        put_rows(w.q_d, c.physics.q, cartesian, every)
 
     def remember(self, message_id: int) -> None:
         """The history as published in state ``message_id`` (what a late datagram
@@ -773,19 +773,6 @@ def _usable(ik: IkResult) -> np.ndarray:
     return ik.converged | (
         (ik.position_error <= USABLE_POSITION_ERROR) & (ik.rotation_error <= USABLE_ROTATION_ERROR)
     )
-
-
-def _put(dst: np.ndarray, src: np.ndarray, rows: np.ndarray, every: bool) -> None:
-    """Copy ``src`` into ``dst`` on the (n,) ``rows``; ``every``: all rows (a plain copy)."""
-    if every:
-        dst[...] = src
-    else:
-        np.copyto(dst, src, where=rows.reshape(-1, *(1,) * (dst.ndim - 1)))
-
-
-def _wire(T: np.ndarray) -> np.ndarray:
-    """(n, 16) column-major wire poses of (n, 4, 4) row-major ones (frames.to_wire)."""
-    return T.transpose(0, 2, 1).reshape(len(T), 16)
 
 
 def _norm3(x: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ import numpy as np
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
 from . import frames, setters
-from ._fast import count_nonzero
+from ._fast import count_nonzero, put_rows
 from .accounting import CycleAccounting
 from .config import ControllerConfig
 from .engine import MotionLimitEngine
@@ -174,11 +174,11 @@ class FciController:
                 accepted = accepted & ~late_joint
         all_in = count_nonzero(accepted) == n
         if m.n_joint_position:
-            self._take(self._q_c, commands["q_c"], accepted, all_in)
+            put_rows(self._q_c, commands["q_c"], accepted, all_in)
         if m.n_joint_velocity:
-            self._take(self._dq_c, commands["dq_c"], accepted, all_in)
+            put_rows(self._dq_c, commands["dq_c"], accepted, all_in)
         if m.n_external:
-            self._take(self._tau_c, commands["tau_J_d"], accepted, all_in)
+            put_rows(self._tau_c, commands["tau_J_d"], accepted, all_in)
         if m.n_cartesian:
             self.engine.cartesian.take(commands, accepted)
         self._have |= accepted
@@ -195,13 +195,6 @@ class FciController:
             )
         if count_nonzero(finished):  # (the last command of a motion only)
             self._finish |= accepted & finished
-
-    @staticmethod
-    def _take(dst: np.ndarray, src: np.ndarray, accepted: np.ndarray, all_in: bool) -> None:
-        if all_in:
-            dst[...] = src
-        else:
-            np.copyto(dst, src, where=accepted[:, None])
 
     def step(self) -> list[Event]:
         """Run one 1 ms cycle and publish state k+1; returns the events it produced."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from .views import strided_rows
 from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
@@ -29,32 +30,13 @@ from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 DEFAULT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 
 
-def _affine_view(flat: np.ndarray, adr: np.ndarray) -> np.ndarray | None:
-    """An (n, k) *view* of ``flat`` at addresses ``adr`` when they are affine.
-
-    MuJoCo lays the arms out one after another, so arm i's joints sit at
-    start + i * stride + j; a strided view then replaces a fancy-index copy on
-    every read and write of the hot path.
-    """
-    n, k = adr.shape
-    start = int(adr[0, 0])
-    stride = int(adr[1, 0] - adr[0, 0]) if n > 1 else k
-    expected = start + stride * np.arange(n)[:, None] + np.arange(k)[None, :]
-    if stride < k or not np.array_equal(adr, expected):
-        return None
-    item = flat.itemsize
-    return np.lib.stride_tricks.as_strided(
-        flat[start:], shape=(n, k), strides=(stride * item, item), writeable=True
-    )
-
-
 class _ArmArray:
     """Read/write access to one (n, 7) slice of a flat MuJoCo array."""
 
     def __init__(self, flat: np.ndarray, adr: np.ndarray) -> None:
         self.flat = flat
         self.adr = adr
-        self.view = _affine_view(flat, adr)
+        self.view = strided_rows(flat, adr)  # None: addresses not evenly spaced
 
     def get(self) -> np.ndarray:
         return self.view if self.view is not None else self.flat[self.adr]
@@ -109,18 +91,16 @@ class ArmPhysics:
             a.view is None
             for a in (self._qpos, self._qvel, self._actuator, self._bias, self._gravcomp)
         )
-        sites = np.asarray(lay.flange_site)
-        # One arm (or evenly spaced sites): a slice, i.e. a view, instead of a fancy index.
-        step = int(sites[1] - sites[0]) if n_arms > 1 else 1
-        evenly = step > 0 and np.array_equal(sites, sites[0] + step * np.arange(n_arms))
-        self._flange_sites = slice(int(sites[0]), int(sites[-1]) + 1, step) if evenly else sites
+        self._flange_sites = np.asarray(lay.flange_site)
+        pos = strided_rows(self.data.site_xpos, self._flange_sites)
+        mat = strided_rows(self.data.site_xmat, self._flange_sites)
         #: live views of the flange's world position (n, 3) and of its rotation
         #: transposed (n, 3, 3) -- the column-major wire layout of O_T_EE's block --
         #: when the sites are evenly spaced; None otherwise
         self.flange_views: tuple[np.ndarray, np.ndarray] | None = None
-        if evenly:
-            xmat = self.data.site_xmat[self._flange_sites].reshape(n_arms, 3, 3)
-            self.flange_views = (self.data.site_xpos[self._flange_sites], xmat.transpose(0, 2, 1))
+        R = None if mat is None else mat.reshape(n_arms, 3, 3)
+        if pos is not None and R is not None and np.shares_memory(R, self.data.site_xmat):
+            self.flange_views = (pos, R.transpose(0, 2, 1))
         self._effective_inertia = self._home_inertia()
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))

@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from ..fci._fast import count_nonzero, einsum
+from .views import strided_rows
 from .world import ArmLayout
 
 try:  # numpy's batched LAPACK solve, without np.linalg.solve's Python checks (~2 us a call)
@@ -270,11 +271,11 @@ class ArmKinematics:
         axes (also transposed) and anchors; None when one is not a view."""
         d = self.data
         rows = (
-            _strided_rows(d.qpos, self._qpos),
-            _strided_rows(d.site_xpos, self._sites),
-            _strided_rows(d.site_xmat, self._sites),
-            _strided_rows(d.xaxis, self._joints),
-            _strided_rows(d.xanchor, self._joints),
+            strided_rows(d.qpos, self._qpos),
+            strided_rows(d.site_xpos, self._sites),
+            strided_rows(d.site_xmat, self._sites),
+            strided_rows(d.xaxis, self._joints),
+            strided_rows(d.xanchor, self._joints),
         )
         if any(r is None for r in rows):
             return None
@@ -438,35 +439,3 @@ class ArmKinematics:
             biggest = size.max(axis=1)
             step *= np.minimum(1.0, MAX_STEP / np.maximum(biggest, MAX_STEP))[:, None]
         return step
-
-
-def _strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
-    """``array[index]`` as a view when ``index`` (integer, any shape) steps evenly along
-    each of its axes, else None. Rows of a MuJoCo data array stay put for its lifetime."""
-    index = np.asarray(index, dtype=np.intp)
-    if not array.flags.c_contiguous or index.size == 0:
-        return None
-    if index.min() < 0 or index.max() >= len(array):
-        return None
-    steps = []  # the step along each axis of the index, if constant
-    for axis in range(index.ndim):
-        if index.shape[axis] < 2:
-            steps.append(0)
-            continue
-        diff = np.diff(index, axis=axis)
-        if diff.flat[0] < 0 or not (diff == diff.flat[0]).all():
-            return None
-        steps.append(int(diff.flat[0]))
-
-    def rows_of(a: np.ndarray) -> np.ndarray:
-        return np.lib.stride_tricks.as_strided(
-            a[int(index.flat[0]) :],
-            shape=index.shape + a.shape[1:],
-            strides=tuple(s * a.strides[0] for s in steps) + a.strides[1:],
-        )
-
-    # the same view of a probe of the same layout must select the rows the index names
-    probe = np.arange(array.size, dtype=array.dtype).reshape(array.shape)
-    if not np.array_equal(rows_of(probe), probe[index]):  # pragma: no cover - a layout error
-        raise AssertionError("a strided view disagrees with its gather")
-    return rows_of(array)

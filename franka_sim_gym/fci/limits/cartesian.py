@@ -104,35 +104,23 @@ class Twist(NamedTuple):
     angular: np.ndarray
 
 
+def _block(*index) -> property:
+    """A read-only property: the view ``stacked[:, *index]`` of a stacked result."""
+    return property(lambda self: self.stacked[(slice(None), *index)])
+
+
 class PoseDerivatives(NamedTuple):
     """Backward differences of a commanded pose against its history."""
 
     #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the properties are its views
     stacked: np.ndarray
 
-    @property
-    def v(self) -> np.ndarray:
-        return self.stacked[:, 0, :3]
-
-    @property
-    def omega(self) -> np.ndarray:
-        return self.stacked[:, 0, 3:]
-
-    @property
-    def a(self) -> np.ndarray:
-        return self.stacked[:, 1, :3]
-
-    @property
-    def alpha(self) -> np.ndarray:
-        return self.stacked[:, 1, 3:]
-
-    @property
-    def jerk(self) -> np.ndarray:
-        return self.stacked[:, 2, :3]
-
-    @property
-    def zeta(self) -> np.ndarray:  # rotational jerk
-        return self.stacked[:, 2, 3:]
+    v = _block(0, slice(0, 3))
+    omega = _block(0, slice(3, 6))
+    a = _block(1, slice(0, 3))
+    alpha = _block(1, slice(3, 6))
+    jerk = _block(2, slice(0, 3))
+    zeta = _block(2, slice(3, 6))  # rotational jerk
 
 
 class ElbowDerivatives(NamedTuple):
@@ -165,13 +153,8 @@ class JointSide(NamedTuple):
     stacked: np.ndarray
     checked: np.ndarray
 
-    @property
-    def ddq(self) -> np.ndarray:
-        return self.stacked[:, 0]
-
-    @property
-    def dddq(self) -> np.ndarray:
-        return self.stacked[:, 1]
+    ddq = _block(0)
+    dddq = _block(1)
 
 
 class CartesianCheck(NamedTuple):
