@@ -18,6 +18,7 @@ KERNELS = [
     Extension(
         f"franka_sim_gym.native.{source.stem}",
         [source.as_posix()],
+        depends=["franka_sim_gym/native/_arrays.h"],
         extra_compile_args=FLAGS,
         optional=True,
     )

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import FR3, RobotTable
+from ..fci.tables import FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
 
@@ -156,6 +156,11 @@ class CommandGenerator:
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
         self._far = cf.FarFromTheBand(table, self._ddq_max, self._dddq_max, m["dq"])
+        # The fused C copy of _filtered's joint path (native/_joint.c): for libfranka's
+        # rate limiter against a position-based envelope (the FER's is constant).
+        limited = action_filter == "limit_rate" and table.envelope_table is not None
+        self._kernel = JOINT_KERNEL if limited and isinstance(self._gain, float) else None
+        self._out = np.zeros((n, 7))
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
@@ -192,8 +197,9 @@ class CommandGenerator:
             self._target = a * np.asarray(self.scale.torque)
 
     def command(self, state: np.ndarray, k: int, sent: np.ndarray | None = None) -> np.ndarray:
-        """Cycle ``k``'s (0-based) command, given the newest state: (n, 7) joint values or
-        torques, (n, 16) column-major O_T_EE_c, or (n, 6) O_dP_EE_c.
+        """Cycle ``k``'s (0-based) command (valid until the next call), given the newest
+        state: (n, 7) joint values or torques, (n, 16) column-major O_T_EE_c, or (n, 6)
+        O_dP_EE_c.
 
         ``sent`` marks the robots whose command is actually sent this cycle (None: all);
         a robot's first-command status ends only with a command sent.
@@ -255,6 +261,27 @@ class CommandGenerator:
 
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         target, interface = self._target, self.interface
+        if self._kernel is not None and interface in _JOINT_LIMITED:
+            # libfranka's low-pass and rate limiter in one fused C call (native/_joint.c):
+            # the same bits as the numpy below.
+            first = self._first if interface == "joint_position" and self._n_first else None
+            out = self._out
+            self._kernel.limit_rate(
+                interface == "joint_position",
+                target,
+                state[_REFERENCE[interface]],
+                first,
+                self._gain,
+                state["q_d"],
+                state["dq_d"],
+                state["ddq_d"],
+                self.table.envelope_table,
+                (JOINT_VELOCITY_LIMIT_TOLERANCE, LIMITER_MARGIN["dq"]),
+                self._ddq_max,
+                self._dddq_max,
+                out,
+            )
+            return out
         # The reference the filters run against, read off the state once.
         ref = state[_REFERENCE[interface]].astype(np.float64)
         if interface == "joint_position" and self._n_first:
@@ -285,6 +312,9 @@ class CommandGenerator:
             return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
         return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
 
+
+#: The interfaces whose commands libfranka's joint rate limiter shapes.
+_JOINT_LIMITED = ("joint_position", "joint_velocity")
 
 #: The state field each interface's filters run against (libfranka's ControlLoop).
 _REFERENCE = {

@@ -21,7 +21,13 @@ from . import extrapolation, limits
 from ._fast import count_nonzero
 from .cartesian import CartesianGenerators
 from .errors import ERROR_NAMES, Error
-from .tables import DELTA_T, INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
+from .tables import (
+    DELTA_T,
+    INTERIOR_SPEED,
+    JOINT_KERNEL,
+    JOINT_VELOCITY_LIMIT_TOLERANCE,
+    MAX_LOST_CYCLES,
+)
 from .violations import ViolationLog, latched_bits
 
 if TYPE_CHECKING:
@@ -73,6 +79,10 @@ class MotionLimitEngine:
         )
         self._upper = self._upper_interior[:, :28].copy()
         self._lower = self._lower_interior[:, :28].copy()
+        # The fused C copies of these checks (native/_joint.c), where built; the
+        # q_c check needs a position-based envelope (the FER's is constant).
+        self._kernel = JOINT_KERNEL
+        self._q_c_kernel = JOINT_KERNEL if t.envelope_table is not None else None
         #: the Cartesian generators (their history, checks and IK)
         self.cartesian = CartesianGenerators(self)
 
@@ -118,6 +128,18 @@ class MotionLimitEngine:
         commands never get here (refused on arrival).
         """
         ref, x = self.c.reference, self._stacked
+        if self._q_c_kernel is not None:  # the same arithmetic, fused
+            return self._q_c_kernel.positions_inside(
+                q_c,
+                ref.q,
+                ref.dq,
+                ref.ddq,
+                x,
+                self._upper_interior,
+                self._lower_interior,
+                self.c.table.envelope_table,
+                JOINT_VELOCITY_LIMIT_TOLERANCE,
+            )
         dq, ddq, dddq, q_ref = self._derivatives[1:]
         x[:, :7] = q_c
         np.subtract(q_c, ref.q, out=dq)
@@ -394,15 +416,21 @@ class MotionLimitEngine:
         # The measured EE speed at F_T_EE: backward difference of the measured
         # O_T_EE position over the 1 ms cycle (equal to J(q) dq to first order).
         v_ee = x[:, 14:17]
-        np.subtract(w.O_T_EE[:, 12:15], self.ee_prev, out=v_ee)
-        v_ee *= 1.0 / DELTA_T
-        x[:, :7] = dq
-        x[:, 7:14] = q
-        np.negative(x[:, :17], out=x[:, 17:])
+        if self._kernel is not None:  # the same row and comparison, fused
+            inside = self._kernel.measured_inside(
+                dq, q, w.O_T_EE, self.ee_prev, x, self._measured_bounds
+            )
+        else:
+            np.subtract(w.O_T_EE[:, 12:15], self.ee_prev, out=v_ee)
+            v_ee *= 1.0 / DELTA_T
+            x[:, :7] = dq
+            x[:, 7:14] = q
+            np.negative(x[:, :17], out=x[:, 17:])
+            inside = count_nonzero(x <= self._measured_bounds) == x.size
         close = close_link_pairs(
             physics.model, physics.data, physics.layout, self.c.config.self_collision_distance
         )
-        if count_nonzero(x <= self._measured_bounds) == x.size and not count_nonzero(close):
+        if inside and not count_nonzero(close):
             return
         # Undecided: exactly.
         signed = self._signed_dq

@@ -16,6 +16,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..native import load
+
 #: libfranka include/franka/rate_limiting.h: kDeltaT, the 1 kHz cycle.
 DELTA_T = 1e-3
 #: libfranka rate_limiting.h: kLimitEps.
@@ -90,6 +92,14 @@ class RobotTable:
         bound = np.concatenate([self.q_upper, -self.q_lower])
         return two_a, bound, np.concatenate([self.dq_offset] * 2), np.concatenate([self.dq_max] * 2)
 
+    @cached_property
+    def envelope_table(self) -> np.ndarray | None:
+        """(4, 14) the envelope's constants as the C kernels take them (rows 2 a_dec, bound,
+        v_off, v_max; native/_joint.c); None for a constant envelope."""
+        if self.dq_offset is None:
+            return None
+        return _ro(np.stack(self._envelope_constants))
+
     def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The admissible joint velocity band at q, shape (..., 7) each.
 
@@ -112,6 +122,17 @@ class RobotTable:
         if self.dq_offset is None:
             vmax = np.concatenate([self.dq_max] * 2)
             return np.broadcast_to(vmax, (*np.shape(q)[:-1], 14)) - shift
+        if (
+            JOINT_KERNEL is not None
+            and type(q) is np.ndarray
+            and q.ndim == 2
+            and q.dtype == _F64
+            and (type(shift) is float or np.shape(shift)[-1:] == (14,))
+        ):
+            # One fused C call (native/_joint.c), the same bits as the numpy below.
+            out = q if doubled else np.empty((len(q), 14))
+            JOINT_KERNEL.envelope(q, self.envelope_table, shift, out)
+            return out
         two_a, bound, offset, vmax = self._envelope_constants
         r = q if doubled else np.concatenate((q, q), axis=-1)
         r *= _MIRROR
@@ -152,6 +173,14 @@ class RobotTable:
         halves = self.velocity_envelope_halves(np.concatenate([upper_edge, lower_edge]), shift)
         return np.concatenate([halves[:7], upper_edge, halves[7:], -lower_edge])
 
+
+_F64 = np.dtype(np.float64)
+
+#: The joint-side C kernels (native/_joint.c; None: not built, or turned off), built
+#: for this module's cycle.
+JOINT_KERNEL = load("_joint")
+if JOINT_KERNEL is not None and JOINT_KERNEL.DELTA_T != DELTA_T:  # pragma: no cover - stale
+    JOINT_KERNEL = None
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
 _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))

@@ -1,0 +1,261 @@
+"""The joint-side C kernels (native/_joint.c) against their numpy references, bit for bit.
+
+Each kernel fuses elementwise numpy arithmetic in the same order of operations, built
+without fused multiply-adds, so its results must be the reference's very bits: the
+velocity envelope, the mid-motion q_c check, the safety controller's screening row and
+libfranka's joint low-pass + rate limiter in the env's client. Inputs sweep the joint
+ranges past the stops, speeds past the limits and states near the band, so both
+verdicts and every clamp of the limiter are exercised.
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_sim_gym.envs.commands as commands_module
+import franka_sim_gym.fci.engine as engine_module
+import franka_sim_gym.fci.tables as tables_module
+from franka_sim_gym import native
+from franka_sim_gym.envs.commands import CommandGenerator
+from franka_sim_gym.fci.tables import FER, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
+from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
+from tests.fci_helpers import make_controller
+
+kernel = native.load("_joint")
+needs_kernel = pytest.mark.skipif(kernel is None, reason="native/_joint.c not built")
+
+
+def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    a, b = np.ascontiguousarray(a, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64)
+    return a.shape == b.shape and bool(np.array_equal(a.view(np.uint64), b.view(np.uint64)))
+
+
+def joint_samples(rng: np.random.Generator, n: int, table=FR3, past: float = 0.05) -> np.ndarray:
+    """(n, 7) joint positions over the ranges and ``past`` of the span beyond either stop
+    (negative: that far inside)."""
+    span = table.q_upper - table.q_lower
+    return table.q_lower - past * span + rng.random((n, 7)) * (1.0 + 2.0 * past) * span
+
+
+def test_kernels_are_built_where_a_compiler_is():
+    """The install compiles the kernels (setup.py); a silent fallback to numpy would leave
+    the speed the benchmarks record unmeasured."""
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler on this machine")
+    if not native.ENABLED:
+        pytest.skip("FRANKA_SIM_GYM_NATIVE=0")
+    assert native.loaded()["_joint"], "native/_joint.c was not built: pip install -e . again"
+
+
+@needs_kernel
+@pytest.mark.parametrize("n", [1, 16])
+def test_envelope_kernel_is_the_numpy_envelope_bit_for_bit(n, monkeypatch):
+    rng = np.random.default_rng(n)
+    shifts = [JOINT_VELOCITY_LIMIT_TOLERANCE, -0.04, rng.random(14), rng.random((n, 14))]
+    for _ in range(50):
+        q = joint_samples(rng, n)
+        for shift in shifts:
+            fast = FR3.velocity_envelope_halves(q.copy(), shift)
+            doubled = np.concatenate([q, q], axis=1)
+            fast_doubled = FR3.velocity_envelope_halves(doubled, shift)
+            with monkeypatch.context() as m:
+                m.setattr(tables_module, "JOINT_KERNEL", None)
+                reference = FR3.velocity_envelope_halves(q.copy(), shift)
+            assert same_bits(fast, reference)
+            assert same_bits(fast_doubled, reference)
+            assert fast_doubled is doubled  # in place, as the reference
+
+
+@needs_kernel
+def test_envelope_kernel_is_exact_at_the_stops_and_the_offsets_edge():
+    """The clamps' edges: at a stop the distance is 0 (sqrt(0) under the offset), just
+    inside and outside it, and where sqrt(2 a d) equals the offset."""
+    two_a, bound, offset, _ = FR3._envelope_constants
+    d_edge = offset[:7] ** 2 / two_a[:7]
+    rows = [
+        FR3.q_upper,
+        FR3.q_lower,
+        np.nextafter(FR3.q_upper, 0.0 * FR3.q_upper - 10),
+        np.nextafter(FR3.q_upper, FR3.q_upper + 10),
+        FR3.q_upper - d_edge,
+        FR3.q_lower + d_edge,
+    ]
+    q = np.array(rows)
+    fast = FR3.velocity_envelope_halves(q)
+    tables_module_kernel = tables_module.JOINT_KERNEL
+    try:
+        tables_module.JOINT_KERNEL = None
+        reference = FR3.velocity_envelope_halves(q)
+    finally:
+        tables_module.JOINT_KERNEL = tables_module_kernel
+    assert same_bits(fast, reference)
+
+
+@needs_kernel
+def test_kernels_name_a_bad_argument_instead_of_reading_past_it():
+    table = FR3.envelope_table
+    with pytest.raises(ValueError, match="q: expected"):
+        kernel.envelope(np.zeros((2, 5)), table, 0.0, np.zeros((2, 14)))
+    with pytest.raises(ValueError, match="out: axis 0 has length 1, expected 2"):
+        kernel.envelope(np.zeros((2, 7)), table, 0.0, np.zeros((1, 14)))
+    with pytest.raises(ValueError, match="constants"):
+        kernel.envelope(np.zeros((2, 7)), table[:3], 0.0, np.zeros((2, 14)))
+    with pytest.raises(ValueError, match="q: expected a 2-D float64"):
+        kernel.envelope(np.zeros((2, 7), dtype=np.float32), table, 0.0, np.zeros((2, 14)))
+    with pytest.raises(ValueError, match="writable"):
+        ro = np.zeros((2, 14))
+        ro.setflags(write=False)
+        kernel.envelope(np.zeros((2, 7)), table, 0.0, ro)
+    with pytest.raises(ValueError, match="shift"):
+        kernel.envelope(np.zeros((2, 7)), table, np.zeros(3), np.zeros((2, 14)))
+    with pytest.raises(TypeError):
+        kernel.envelope(np.zeros((2, 7)), table)
+
+
+def _reference_motion(ctrl, rng, scale: float) -> np.ndarray:
+    """Random reference (q, dq, ddq) and a q_c around it: ``scale`` sets how far the
+    derivatives reach (0.01 inside the ranges passes, 3 trips rows)."""
+    ref = ctrl.reference
+    n = ctrl.n
+    ref.q[...] = joint_samples(rng, n, past=-0.1 if scale < 0.1 else 0.05)
+    ref.dq[...] = rng.normal(0.0, 1.5 * scale, (n, 7))
+    ref.ddq[...] = rng.normal(0.0, 5.0 * scale, (n, 7))
+    v = ref.dq + rng.normal(0.0, 0.005 * scale, (n, 7))
+    return ref.q + v * 1e-3
+
+
+@needs_kernel
+@pytest.mark.parametrize("n", [1, 16])
+def test_q_c_check_kernel_gives_the_reference_verdict_and_derivatives(n):
+    ctrl = make_controller(n)
+    eng = ctrl.engine
+    rng = np.random.default_rng(7 + n)
+    verdicts = set()
+    for trial in range(400):
+        q_c = _reference_motion(ctrl, rng, scale=[0.01, 0.3, 1.0, 3.0][trial % 4])
+        eng._q_c_kernel = engine_module.JOINT_KERNEL
+        fast = eng._positions_inside_limits(q_c)
+        fast_rows = eng._stacked.copy()
+        eng._stacked[...] = np.nan
+        eng._q_c_kernel = None
+        reference = eng._positions_inside_limits(q_c)
+        assert fast is reference
+        assert same_bits(fast_rows, eng._stacked)
+        verdicts.add(fast)
+    assert verdicts == {True, False}
+
+
+@needs_kernel
+@pytest.mark.parametrize("n", [1, 16])
+def test_measured_screen_kernel_gives_the_reference_row_and_verdict(n):
+    ctrl = make_controller(n)
+    eng, physics, w = ctrl.engine, ctrl.physics, ctrl.writer
+    rng = np.random.default_rng(3 + n)
+    verdicts = set()
+    for trial in range(300):
+        calm = trial % 3 == 0  # inside the shortcut's bounds; the others trip some row
+        q = joint_samples(rng, n, past=-0.3 if calm else 0.05)
+        physics.data.qpos[physics.layout.qpos_adr] = q
+        physics.data.qvel[physics.layout.dof_adr] = rng.normal(0, 0.1 if calm else 2.0, (n, 7))
+        w.O_T_EE[:, 12:15] = rng.normal(0.4, 0.2, (n, 3))
+        eng.ee_prev[...] = w.O_T_EE[:, 12:15] + rng.normal(0, 2e-4 if calm else 2e-3, (n, 3))
+        fast = kernel.measured_inside(
+            physics.dq, physics.q, w.O_T_EE, eng.ee_prev, eng._measured, eng._measured_bounds
+        )
+        fast_row = eng._measured.copy()
+        x = eng._measured
+        np.subtract(w.O_T_EE[:, 12:15], eng.ee_prev, out=x[:, 14:17])
+        x[:, 14:17] *= 1.0 / 1e-3
+        x[:, :7] = physics.dq
+        x[:, 7:14] = physics.q
+        np.negative(x[:, :17], out=x[:, 17:])
+        reference = np.count_nonzero(x <= eng._measured_bounds) == x.size
+        assert fast is bool(reference)
+        assert same_bits(fast_row, x)
+        verdicts.add(fast)
+    assert verdicts == {True, False}
+
+
+def _random_state(rng, n: int, near_band: bool) -> np.ndarray:
+    """A wire state (float32 fields, packed records) with q_d, dq_d, ddq_d: anywhere, or
+    heading into a stop with the band binding."""
+    s = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
+    q = joint_samples(rng, n)
+    dq = rng.normal(0, 1.0, (n, 7))
+    if near_band:
+        q = FR3.q_upper - rng.random((n, 7)) * 0.05
+        dq = rng.random((n, 7)) * 1.0
+    s["q_d"] = q
+    s["dq_d"] = dq
+    s["ddq_d"] = rng.normal(0, 6.0, (n, 7))
+    s["tau_J_d"] = rng.normal(0, 5.0, (n, 7))
+    return s
+
+
+@needs_kernel
+@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
+@pytest.mark.parametrize("n", [1, 16])
+def test_rate_limiter_kernel_is_libfrankas_filter_bit_for_bit(interface, n):
+    gen = CommandGenerator(interface, "limit_rate", 40, n=n)
+    assert gen._kernel is not None
+    rng = np.random.default_rng(11 + n)
+    for trial in range(300):
+        state = _random_state(rng, n, near_band=trial % 3 == 0)
+        gen.reset()
+        gen.begin_step(rng.uniform(-1, 1, (n, 7)), state)
+        if trial % 2:
+            gen._first[: n // 2 + 1] = False  # a mix of first commands and filtered ones
+            gen._n_first = int(np.count_nonzero(gen._first))
+        else:
+            gen._first[...] = False
+            gen._n_first = 0
+        fast = gen._filtered(state).copy()
+        kernel_fn, gen._kernel = gen._kernel, None
+        reference = gen._filtered(state)
+        gen._kernel = kernel_fn
+        assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
+
+
+@needs_kernel
+def test_the_fer_keeps_its_numpy_paths():
+    """The FER's envelope is constant: no kernel table, the numpy paths decide."""
+    assert FER.envelope_table is None
+    gen = CommandGenerator("joint_position", "limit_rate", 40, table=FER)
+    assert gen._kernel is None
+    ctrl = make_controller(1, robot="fer")
+    assert ctrl.engine._q_c_kernel is None
+
+
+def _rollout(interface: str, action_filter: str, steps: int = 25):
+    env = gym.make("FrankaFCI-v0", action_interface=interface, action_filter=action_filter)
+    obs, _ = env.reset(seed=5)
+    rng = np.random.default_rng(5)
+    out = [obs["observation"].copy()]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(
+            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        )
+        out.append(obs["observation"].copy())
+        out.append(np.array([reward, info["cycles"], len(info["errors"])], dtype=np.float64))
+        if terminated or truncated:
+            obs, _ = env.reset()
+    env.close()
+    return out
+
+
+@needs_kernel
+@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
+def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypatch):
+    """End to end, random actions through libfranka's limiter (reflexes included): the
+    kernels change no bit of what a policy sees."""
+    fast = _rollout(interface, "limit_rate")
+    for module in (tables_module, engine_module, commands_module):
+        monkeypatch.setattr(module, "JOINT_KERNEL", None)
+    reference = _rollout(interface, "limit_rate")
+    assert len(fast) == len(reference)
+    for a, b in zip(fast, reference, strict=True):
+        assert same_bits(a, b)
