@@ -22,6 +22,8 @@ from cycle_rate import (
     motion,
 )
 
+from franka_sim_gym.native import describe
+
 
 def cycle_cpu(cycle, cycles: int, repeats: int) -> float:
     """Best process time of one call of ``cycle`` [s] over ``repeats`` runs."""
@@ -48,6 +50,7 @@ def main() -> None:
         "Cartesian pose": CARTESIAN_POSITION,
         "Cartesian velocity": CARTESIAN_VELOCITY,
     }
+    print(describe())
     print(f"{'row':<32}{'us/cycle':>10}{'vs joint':>10}")
     for n in args.arms:
         joint = None

@@ -21,6 +21,7 @@ import numpy as np
 from franka_sim_gym.fci.config import ControllerConfig
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
+from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
 
 IMPEDANCE = MoveControllerMode.kJointImpedance
@@ -158,6 +159,7 @@ def main() -> None:
         rows.append((f"controller Cartesian-pose motion, n={n}", n, pose))
         twist = cartesian_rate(n, args.seconds, CARTESIAN_VELOCITY)
         rows.append((f"controller Cartesian-velocity motion, n={n}", n, twist))
+    print(describe())
     print(f"{'row':<42}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
     for name, n, cycles in rows:
         print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")

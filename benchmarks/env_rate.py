@@ -23,6 +23,7 @@ import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.commands import INTERFACES
+from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
 
 
@@ -75,6 +76,7 @@ def main() -> None:
             mujoco.mj_step(physics.model, physics.data)
         calls += 100
     bare = calls / (time.perf_counter() - start)
+    print(describe())
     print(f"{'row':<34}{'steps/s':>10}{'cycles/s':>12}{'vs mj_step':>12}{'resets':>8}")
     print(f"{'bare mj_step (one arm)':<34}{'':>10}{bare:>12,.0f}{1.0:>12.2f}{'':>8}")
     rates = {}

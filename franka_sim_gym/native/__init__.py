@@ -39,9 +39,20 @@ def load(name: str) -> ModuleType | None:
         return None
 
 
+#: The kernel modules setup.py builds (one per ``_<name>.c``).
+MODULES = ("_joint", "_cartesian")
+
+
 def loaded() -> dict[str, bool]:
     """Which kernel modules are in use (for benchmarks and bug reports)."""
-    return {name: load(name) is not None for name in ("_joint", "_cartesian")}
+    return {name: load(name) is not None for name in MODULES}
 
 
-__all__ = ["ENABLED", "load", "loaded"]
+def describe() -> str:
+    """One line for a benchmark's header: which kernels ran."""
+    state = ", ".join(f"{name[1:]} {'on' if on else 'off'}" for name, on in loaded().items())
+    switch = "" if ENABLED else " (FRANKA_SIM_GYM_NATIVE=0)"
+    return f"C kernels: {state}{switch}"
+
+
+__all__ = ["ENABLED", "MODULES", "describe", "load", "loaded"]
