@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..fci.tables import DELTA_T, FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..native import load
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
 
@@ -161,6 +162,13 @@ class CommandGenerator:
         limited = action_filter == "limit_rate" and table.envelope_table is not None
         self._kernel = JOINT_KERNEL if limited and isinstance(self._gain, float) else None
         self._out = np.zeros((n, 7))
+        # And of its Cartesian velocity path (native/_client.c).
+        twist_limited = action_filter == "limit_rate" and interface == "cartesian_velocity"
+        self._twist_kernel = (
+            CLIENT_KERNEL if twist_limited and isinstance(self._gain, float) else None
+        )
+        self._twist_limits = np.array(self.cartesian_limits, dtype=np.float64)
+        self._twist_out = np.zeros((n, 6))
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
@@ -282,6 +290,20 @@ class CommandGenerator:
                 out,
             )
             return out
+        if self._twist_kernel is not None:
+            # The low-pass and libfranka's twist limiter in one fused C call
+            # (native/_client.c), the same bits as below; False for a non-finite input,
+            # which the numpy path below refuses with libfranka's message.
+            fused = self._twist_kernel.limit_twist(
+                target,
+                state["O_dP_EE_c"],
+                state["O_ddP_EE_c"],
+                self._gain,
+                self._twist_limits,
+                self._twist_out,
+            )
+            if fused:
+                return self._twist_out
         # The reference the filters run against, read off the state once.
         ref = state[_REFERENCE[interface]].astype(np.float64)
         if interface == "joint_position" and self._n_first:
@@ -312,6 +334,11 @@ class CommandGenerator:
             return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
         return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
 
+
+#: The env client's Cartesian velocity kernel (None: not built, or turned off).
+CLIENT_KERNEL = load("_client")
+if CLIENT_KERNEL is not None and CLIENT_KERNEL.DELTA_T != DELTA_T:  # pragma: no cover - stale
+    CLIENT_KERNEL = None
 
 #: The interfaces whose commands libfranka's joint rate limiter shapes.
 _JOINT_LIMITED = ("joint_position", "joint_velocity")

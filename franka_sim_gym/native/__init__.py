@@ -40,7 +40,7 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``_<name>.c``).
-MODULES = ("_joint", "_cartesian")
+MODULES = ("_joint", "_cartesian", "_client")
 
 
 def loaded() -> dict[str, bool]:

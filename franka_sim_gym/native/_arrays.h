@@ -107,6 +107,10 @@ static inline void f64_release(F64 *a)
     a->view.obj = NULL;
 }
 
+/* numpy's minimum / maximum on non-NaN values (the kernels' inputs are finite). */
+static inline double np_minimum(double a, double b) { return a <= b ? a : b; }
+static inline double np_maximum(double a, double b) { return a >= b ? a : b; }
+
 /* Release every array of a call (those never borrowed are skipped). */
 static inline void f64_release_all(F64 *arrays, int count)
 {

@@ -24,10 +24,6 @@
 /* fci/tables.py DELTA_T: the 1 ms cycle (exported; the Python side checks it). */
 #define DELTA_T 1e-3
 
-/* numpy's minimum / maximum on non-NaN values (every input here is finite). */
-static inline double vmin(double a, double b) { return a <= b ? a : b; }
-static inline double vmax(double a, double b) { return a >= b ? a : b; }
-
 /* The envelope's constants, (4, 14): rows 2 a_dec, bound ([q_upper | -q_lower]),
  * v_off and v_max, each doubled as [upper half | lower half]
  * (RobotTable._envelope_constants). */
@@ -40,12 +36,12 @@ static inline double envelope_entry(const F64 *c, int k, double q, double shift)
     double r = k < 7 ? q : -q;
     r = AT2(*c, 1, k) - r; /* distance to the stop */
     r *= AT2(*c, 0, k);
-    r = vmax(r, 0.0);
+    r = np_maximum(r, 0.0);
     r = sqrt(r);
     double offset = AT2(*c, 2, k);
-    r = vmax(r, offset); /* max(0, s - v_off) as max(s, v_off) - v_off */
+    r = np_maximum(r, offset); /* max(0, s - v_off) as max(s, v_off) - v_off */
     r -= offset;
-    r = vmin(r, AT2(*c, 3, k));
+    r = np_minimum(r, AT2(*c, 3, k));
     return r - shift;
 }
 
@@ -311,11 +307,11 @@ static PyObject *limit_rate(PyObject *self, PyObject *const *args, Py_ssize_t na
             /* client_filters.limit_velocities_core */
             double v_c = positions ? (x - q_last) / dt : x;
             double jerk = (((v_c - v_last) / dt) - a_last) / dt;
-            double acc = a_last + vmax(vmin(jerk, j_max), -j_max) * dt;
+            double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
             double ratio = j_max / a_max;
-            double safe_max = vmin(ratio * (upper - v_last), a_max);
-            double safe_min = vmax(ratio * (lower - v_last), -a_max);
-            double v = v_last + vmax(vmin(acc, safe_max), safe_min) * dt;
+            double safe_max = np_minimum(ratio * (upper - v_last), a_max);
+            double safe_min = np_maximum(ratio * (lower - v_last), -a_max);
+            double v = v_last + np_maximum(np_minimum(acc, safe_max), safe_min) * dt;
             put2(&a[OUT], i, j, positions ? q_last + v * dt : v);
         }
     }
