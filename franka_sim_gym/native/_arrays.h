@@ -1,0 +1,116 @@
+/* float64 array arguments of the kernels: numpy arrays through the buffer protocol,
+ * strided (views of structured state fields and of stacked scratch rows are fine),
+ * with their shape checked before a single element is read or written. */
+#ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
+#define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <string.h>
+
+typedef struct {
+    Py_buffer view;
+    char *data;
+    int ndim;
+    Py_ssize_t shape[4];
+    Py_ssize_t strides[4];
+    char kind; /* 'd' (float64) or, through num_get, 'f' (float32) */
+} F64;
+
+/* Element access: 1-, 2- and 3-D. */
+#define AT1(a, i) (*(double *)((a).data + (i) * (a).strides[0]))
+#define AT2(a, i, j) (*(double *)((a).data + (i) * (a).strides[0] + (j) * (a).strides[1]))
+#define AT3(a, i, j, k)                                                                  \
+    (*(double *)((a).data + (i) * (a).strides[0] + (j) * (a).strides[1] +               \
+                 (k) * (a).strides[2]))
+
+/* Borrow ``obj`` as a float64 array of ``ndim`` axes; ``shape[k]`` < 0 accepts any
+ * length on axis k. Returns 0, or -1 with a ValueError naming ``name``. */
+static inline int borrow(PyObject *obj, F64 *a, int ndim, const Py_ssize_t *shape, int writable,
+                  const char *name, int float32_too);
+
+static inline int f64_get(PyObject *obj, F64 *a, int ndim, const Py_ssize_t *shape, int writable,
+                   const char *name)
+{
+    return borrow(obj, a, ndim, shape, writable, name, 0);
+}
+
+/* As f64_get, and float32 accepted too (the wire state's fields); read such arrays with
+ * num2 / put2, which also allow the wire's unaligned (packed) records. */
+static inline int num_get(PyObject *obj, F64 *a, int ndim, const Py_ssize_t *shape, int writable,
+                   const char *name)
+{
+    return borrow(obj, a, ndim, shape, writable, name, 1);
+}
+
+static inline int borrow(PyObject *obj, F64 *a, int ndim, const Py_ssize_t *shape, int writable,
+                  const char *name, int float32_too)
+{
+    int flags = PyBUF_RECORDS_RO | (writable ? PyBUF_WRITABLE : 0);
+    memset(a, 0, sizeof(*a));
+    if (PyObject_GetBuffer(obj, &a->view, flags) < 0) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a%s float64 array", name,
+                     writable ? " writable" : "");
+        return -1;
+    }
+    const char *f = a->view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
+    int is_f8 = f && strcmp(f, "d") == 0 && a->view.itemsize == 8;
+    int is_f4 = float32_too && f && strcmp(f, "f") == 0 && a->view.itemsize == 4;
+    if (a->view.ndim != ndim || !(is_f8 || is_f4)) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a %d-D float64%s array", name, ndim,
+                     float32_too ? " or float32" : "");
+        PyBuffer_Release(&a->view);
+        a->view.obj = NULL;
+        return -1;
+    }
+    for (int k = 0; k < ndim; k++) {
+        if (shape[k] >= 0 && a->view.shape[k] != shape[k]) {
+            PyErr_Format(PyExc_ValueError, "%s: axis %d has length %zd, expected %zd", name,
+                         k, a->view.shape[k], shape[k]);
+            PyBuffer_Release(&a->view);
+            a->view.obj = NULL;
+            return -1;
+        }
+        a->shape[k] = a->view.shape[k];
+        a->strides[k] = a->view.strides ? a->view.strides[k] : 8;
+    }
+    a->data = (char *)a->view.buf;
+    a->ndim = ndim;
+    a->kind = is_f8 ? 'd' : 'f';
+    return 0;
+}
+
+/* Element (i, j) of a num_get array as a double (float32 widened exactly). */
+static inline double num2(const F64 *a, Py_ssize_t i, Py_ssize_t j)
+{
+    const char *p = a->data + i * a->strides[0] + j * a->strides[1];
+    if (a->kind == 'd') {
+        double v;
+        memcpy(&v, p, 8);
+        return v;
+    }
+    float v;
+    memcpy(&v, p, 4);
+    return (double)v;
+}
+
+/* Store into element (i, j) of a writable float64 num_get array (any alignment). */
+static inline void put2(const F64 *a, Py_ssize_t i, Py_ssize_t j, double v)
+{
+    memcpy(a->data + i * a->strides[0] + j * a->strides[1], &v, 8);
+}
+
+static inline void f64_release(F64 *a)
+{
+    if (a->view.obj) PyBuffer_Release(&a->view);
+    a->view.obj = NULL;
+}
+
+/* Release every array of a call (those never borrowed are skipped). */
+static inline void f64_release_all(F64 *arrays, int count)
+{
+    for (int k = 0; k < count; k++) f64_release(&arrays[k]);
+}
+
+#endif
