@@ -409,9 +409,10 @@ class CartesianGenerators:
         c, m = self.c, self.c.modes
         n = c.n
         if m.n_cartesian_position:
+            # The kernel's screen is check_cartesian_pose's own shortcut; it runs only when
+            # every robot runs this generator, so there is no twist table to judge either.
             if step.quiet and not (count_nonzero(first) or count_nonzero(step.elbow.has)):
-                return  # the kernel's screen: check_cartesian_pose's own shortcut (one
-                # generator for every robot, so there is no twist table to judge)
+                return
             judged_pose = active if m.n_cartesian_position == n else active & m.cartesian_position
             if count_nonzero(judged_pose):
                 self._check_pose(step, first, judged_pose)

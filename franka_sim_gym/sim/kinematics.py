@@ -442,7 +442,8 @@ class ArmKinematics:
         if elbow is not None:
             elbow = np.asarray(elbow, dtype=np.float64)
         qpos, site_pos, _, R_site, axes, _, anchors = self._rows
-        q_init = np.asarray(q_init, dtype=np.float64)
+        if type(q_init) is not np.ndarray or q_init.dtype != np.float64:  # (lists, float32)
+            q_init = np.asarray(q_init, dtype=np.float64)
         moved = k.ik_begin(q_init, q, self._cached_q, qpos, elbow, active)
         if moved or not self._rows_valid or not self._same_frame(F_T_EE):
             mujoco.mj_kinematics(self.model, self.data)
