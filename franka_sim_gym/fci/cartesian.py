@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from .. import native
 from ..sim.kinematics import (
     USABLE_POSITION_ERROR,
     USABLE_ROTATION_ERROR,
@@ -58,6 +59,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("franka_sim_gym.fci")
 _DT = DELTA_T
+#: the one-cycle differencing interval (limits/_common.interval(1): the same value)
+_H = float(1) * DELTA_T
 #: IK samples after a rebase before the joint side is judged: a solution, then its
 #: velocity; the acceleration (29) needs two and the jerk (30) three differences.
 _WARM_ACCELERATION = 1
@@ -97,6 +100,9 @@ class _Step(NamedTuple):
     joint: rules.JointSide
     #: (n, 3, 7) [q, dq, ddq] of the solution, side by side as the history keeps them
     solution: np.ndarray
+    #: the kernel's screen found no Cartesian norm and no joint-side value of any robot
+    #: near its limit (rules._quiet's verdict, before the cold jerk is zeroed)
+    quiet: bool = False
 
 
 class CartesianGenerators:
@@ -108,7 +114,7 @@ class CartesianGenerators:
         self.c = c
         n = c.n
         physics = c.physics
-        self.kinematics = ArmKinematics(physics.model, physics.layout)
+        self.kinematics = ArmKinematics(physics.model, physics.layout, kernel=True)
         #: the history (pose, twist, elbow, reported twist, IK joint history), its last
         #: real sample and the ring of published ones (cartesian_reference.py)
         self.reference = CartesianReference(n)
@@ -142,6 +148,8 @@ class CartesianGenerators:
         zeros = np.zeros(n)
         zeros.setflags(write=False)
         self._no_elbow = rules.ElbowDerivatives(zeros, zeros, zeros)
+        #: the C kernels (native/_cartesian.c), or None: the numpy reference path only
+        self._kernel = native.load("_cartesian")
 
     @property
     def q_ik(self) -> np.ndarray:
@@ -275,21 +283,48 @@ class CartesianGenerators:
         # -- derivatives ----------------------------------------------------------------------
         # The pose's derivatives judge pose motions (and feed their extrapolation and
         # reported twist); the twist's judge twist motions. Each only when one runs.
-        d = None
-        if m.n_cartesian_position:
-            d = rules.pose_derivatives(T_cand, h.T, h.history, 1, out=self._pose_stack)
-        twist_stack = self._twist_derivatives(h, twist) if n_twist else None
-        # -- the joint side: IK from the previous solution -----------------------------------
         F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
         in_use = elbow.has is not self._none and bool(
             count_nonzero(elbow.has) or count_nonzero(elbow.had)
         )  # (_elbow's stream without an elbow has self._none)
         e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if in_use else None
         q, differences, judged, recorded, dq = self._joint_views
-        ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
-        rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
+        quiet = False
+        if self._kernel is not None and n in (m.n_cartesian_position, n_twist):
+            # One generator for every robot: the kernel differences the candidates and the
+            # IK solution in one call (the same values; see _fused).
+            ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
+            d, twist_stack, quiet = self._fused(h, T_cand, twist, q, differences)
+        else:
+            d = None
+            if m.n_cartesian_position:
+                d = rules.pose_derivatives(T_cand, h.T, h.history, 1, out=self._pose_stack)
+            twist_stack = self._twist_derivatives(h, twist) if n_twist else None
+            # -- the joint side: IK from the previous solution -------------------------------
+            ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
+            rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
         joint = rules.JointSide(judged, self._joint_checked(h, ik, first, active))
-        return _Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded)
+        return _Step(
+            T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded, quiet
+        )
+
+    def _fused(self, h: CartesianHistory, T_cand, twist, q, differences) -> tuple:
+        """The derivatives (pose_derivatives or _twist_derivatives), the joint side
+        (joint_side into ``differences``) and rules._quiet's screen in one kernel call, for
+        a world whose robots all run one generator: (d, twist_stack, quiet). A rotation the
+        kernel leaves alone (at or past pi / 2 in a cycle) takes the numpy functions."""
+        k, c = self._kernel, self.c
+        limits = rules._quiet_limits(c.table, c.config.joint_discontinuity_scale)
+        if self.c.modes.n_cartesian_position:
+            stack = self._pose_stack
+            quiet = k.pose_step(T_cand, h.T, h.history, stack, q, h.joint, differences, _H, limits)
+            if quiet < 0:
+                rules.pose_derivatives(T_cand, h.T, h.history, 1, out=stack)
+                rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
+            return rules.PoseDerivatives(stack), None, quiet > 0
+        stack = self._twist_stack
+        quiet = k.twist_step(twist, h.twist, h.dtwist, stack, q, h.joint, differences, _H, limits)
+        return None, stack, quiet
 
     def _twist_target(self, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
         """A twist motion's IK target: the previous target ``T`` moved by the twist over
@@ -374,12 +409,18 @@ class CartesianGenerators:
         c, m = self.c, self.c.modes
         n = c.n
         if m.n_cartesian_position:
+            # The kernel's screen is check_cartesian_pose's own shortcut; it runs only when
+            # every robot runs this generator, so there is no twist table to judge either.
+            if step.quiet and not (count_nonzero(first) or count_nonzero(step.elbow.has)):
+                return
             judged_pose = active if m.n_cartesian_position == n else active & m.cartesian_position
             if count_nonzero(judged_pose):
                 self._check_pose(step, first, judged_pose)
         if not m.n_cartesian_velocity:
             return
         judged_twist = active if m.n_cartesian_velocity == n else active & m.cartesian_velocity
+        if step.quiet and not count_nonzero(step.elbow.has):
+            return  # the kernel's screen: check_cartesian_velocity's own shortcut
         if count_nonzero(judged_twist):
             table, scale = c.table, c.config.joint_discontinuity_scale
             check = rules.check_cartesian_velocity(

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import native
 from ._fast import count_nonzero
+
+#: native/_cartesian.c (its homogeneous_quick), or None: the numpy quick test
+_KERNEL = native.load("_cartesian")
 
 IDENTITY16 = np.eye(4).reshape(16)
 IDENTITY16.setflags(write=False)
@@ -44,18 +48,35 @@ def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | N
     the band (half the tolerance), so a pose it passes passes the exact test too;
     anything nearer the edge, or failing, is judged by the exact test.
     """
-    n = len(values)
-    if count_nonzero(np.isfinite(values)) != 16 * n:  # (and no inf * 0 in the product below)
-        return is_homogeneous(from_wire(values), tol)
-    # Row and column norms alike (the wire holds R transposed: the set is the same).
-    norms2 = np.square(values.reshape(n, 4, 4)[:, :3, :3]).reshape(n, 9) @ _ROW_COL_SUMS
     lo, hi = _QUICK_BAND if tol == 1e-5 else _quick_band(tol)
-    if (
-        count_nonzero((norms2 > lo) & (norms2 < hi)) == 6 * n
-        and count_nonzero(values[:, 3::4] == _BOTTOM) == 4 * n
-    ):
+    if _quick_test(values, lo, hi):
         return None
     return is_homogeneous(from_wire(values), tol)
+
+
+def _quick_test_numpy(values: np.ndarray, lo: float, hi: float) -> bool:
+    """Whether every (n, 16) wire pose is finite, has the bottom row [0, 0, 0, 1] and
+    every row's and column's squared norm strictly inside (lo, hi) (the reference)."""
+    n = len(values)
+    if count_nonzero(np.isfinite(values)) != 16 * n:  # (and no inf * 0 in the product below)
+        return False
+    # Row and column norms alike (the wire holds R transposed: the set is the same).
+    norms2 = np.square(values.reshape(n, 4, 4)[:, :3, :3]).reshape(n, 9) @ _ROW_COL_SUMS
+    return bool(
+        count_nonzero((norms2 > lo) & (norms2 < hi)) == 6 * n
+        and count_nonzero(values[:, 3::4] == _BOTTOM) == 4 * n
+    )
+
+
+def _quick_test_kernel(values: np.ndarray, lo: float, hi: float) -> bool:
+    """:func:`_quick_test_numpy` in one C call (its sums may round differently in the last
+    bit, far inside the half-tolerance margin: the verdicts are the same)."""
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 2:
+        return _KERNEL.homogeneous_quick(values, lo, hi)
+    return _quick_test_numpy(values, lo, hi)
+
+
+_quick_test = _quick_test_numpy if _KERNEL is None else _quick_test_kernel
 
 
 #: (9, 6): a flat 3x3 block's squared entries to its three row sums and three column sums.

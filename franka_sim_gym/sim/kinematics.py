@@ -20,6 +20,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from .. import native
 from ..fci._fast import count_nonzero, einsum
 from .views import strided_rows
 from .world import ArmLayout
@@ -200,6 +201,9 @@ class ArmKinematics:
             A Gauss-Newton residual is smooth along a smooth trajectory (it scales
             with the square of the per-cycle step), so the joint-side checks, which
             difference solutions three times over 1 ms, do not see it.
+        kernel: solve through the C kernel (native/_cartesian.c) where it is built and the
+            arms' rows are views (the controller's 1 kHz path); False: the numpy
+            reference, bit for bit (the kernel agrees with it to rounding).
 
     The solve runs every cycle at 1 kHz on small arrays, where each numpy call costs
     about as much as its arithmetic: the scratch arrays are allocated once, and the
@@ -213,6 +217,7 @@ class ArmKinematics:
         damping: float = 1e-4,
         max_iterations: int = 8,
         tolerance: float = 1e-7,
+        kernel: bool = False,
     ) -> None:
         self.model = model
         self.data = mujoco.MjData(model)
@@ -264,6 +269,13 @@ class ArmKinematics:
         self._all.setflags(write=False)
         self._none = np.zeros(n, dtype=bool)
         self._none.setflags(write=False)
+        # MjData's rows are at _cached_q / _cached_F (the evaluation buffers above may not
+        # be: the kernel's solve reads the rows directly).
+        self._rows_valid = False
+        # The C kernel's solve (native/_cartesian.c), where built and the rows are views.
+        self._kernel = native.load("_cartesian") if kernel else None
+        self._converged = np.empty(n, dtype=bool)  # the kernel's verdicts and errors
+        self._errors = np.empty((2, n))
 
     def _mjdata_rows(self) -> tuple | None:
         """Views of the private MjData's rows every evaluation reads and writes: qpos,
@@ -328,7 +340,7 @@ class ArmKinematics:
         einsum("iab,nja,njb->nij", _LEVI_CIVITA, axes, self._lever, out=self._J_linear)
         self._J_angular[...] = axes_t
         self._cached_q[...] = q
-        self._cached = True
+        self._cached = self._rows_valid = True
         return self._p, R, self._J
 
     def _same_frame(self, F_T_EE: np.ndarray | None) -> bool:
@@ -370,6 +382,8 @@ class ArmKinematics:
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
             out: an (n, 7) array to iterate in and return as the solution (default: new).
         """
+        if self._kernel is not None and self._rows is not None:
+            return self._solve_native(target, q_init, F_T_EE, elbow, rows, out)
         n = self.n
         if out is None:
             q = np.array(q_init, dtype=np.float64, copy=True)
@@ -415,6 +429,44 @@ class ArmKinematics:
         position_error, rotation_error = np.sqrt(err2).T
         converged = converged if all_active else converged | ~active
         return IkResult(q, converged, position_error, rotation_error)
+
+    def _solve_native(self, target, q_init, F_T_EE, elbow, rows, out) -> IkResult:
+        """:meth:`solve` through the C kernel: per Gauss-Newton pass one ``ik_step`` (the
+        evaluation from MjData's rows, the error, the verdicts and the damped step) and,
+        where an arm stepped, one ``mj_kinematics``. The same passes, verdicts and
+        errors as the numpy loop; the solution agrees to rounding (a 6x6 elimination in
+        place of LAPACK's)."""
+        k, n = self._kernel, self.n
+        q = np.empty((n, 7)) if out is None else out
+        active = None if rows is None else np.asarray(rows, dtype=bool)
+        if elbow is not None:
+            elbow = np.asarray(elbow, dtype=np.float64)
+        qpos, site_pos, _, R_site, axes, _, anchors = self._rows
+        if type(q_init) is not np.ndarray or q_init.dtype != np.float64:  # (lists, float32)
+            q_init = np.asarray(q_init, dtype=np.float64)
+        moved = k.ik_begin(q_init, q, self._cached_q, qpos, elbow, active)
+        if moved or not self._rows_valid or not self._same_frame(F_T_EE):
+            mujoco.mj_kinematics(self.model, self.data)
+            self._cached_F = None if F_T_EE is None else F_T_EE.copy()
+            self._rows_valid = True
+        self._cached = False  # the evaluation buffers are not at q any more
+        converged, errors = self._converged, self._errors
+        tol2 = self.tolerance**2
+        for iteration in range(self.max_iterations + 1):
+            last = iteration == self.max_iterations
+            stepped = k.ik_step(
+                q, qpos, self._cached_q, site_pos, R_site, axes, anchors, self._base, target,
+                F_T_EE, elbow, active, errors, converged, self.damping**2, tol2, MAX_STEP, last,
+            )  # fmt: skip
+            if not stepped:
+                break
+            mujoco.mj_kinematics(self.model, self.data)
+        if count_nonzero(converged) == n:
+            verdict = self._all
+        else:
+            verdict = converged.copy() if active is None else converged | ~active
+        position_error, rotation_error = errors.copy()  # (the next solve reuses errors)
+        return IkResult(q, verdict, position_error, rotation_error)
 
     def _update(
         self, J: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
