@@ -440,3 +440,82 @@ def test_a_controller_with_the_kernels_publishes_what_the_reference_does(
 def _names(messages: list[str]) -> list[str]:
     """The log lines without their numbers (the error names and rows stay)."""
     return [" ".join(w for w in m.split() if not any(ch.isdigit() for ch in w)) for m in messages]
+
+
+def _history(n: int, rng):
+    """A Cartesian history with random values (a live controller's layout)."""
+    h = make_controller(n).engine.cartesian.reference
+    h.buffer[...] = rng.normal(0, 1, h.buffer.shape)
+    return h
+
+
+@pytest.mark.parametrize("n", [1, 16])
+def test_record_kernels_copy_and_report_as_cartesian_record_does(n: int):
+    """record_pose / record_twist against _record's plain path (every robot recorded a
+    command that arrived): the copies, and the reported twist and its rate, bit for bit."""
+    rng = np.random.default_rng(n)
+    T_c, _ = _poses(rng, n, 0.05)
+    stack = rng.normal(0, 1, (n, 3, 6))
+    twist = rng.normal(0, 1, (n, 6))
+    for kind in ("pose", "twist"):
+        fast, ref = _history(n, rng), None
+        ref_buffer = fast.buffer.copy()
+        if kind == "pose":
+            K.record_pose(
+                T_c,
+                stack,
+                fast.T,
+                fast.history,
+                fast.acceleration_frozen,
+                fast.reported,
+                fast.dreported,
+            )
+        else:
+            K.record_twist(
+                T_c,
+                twist,
+                stack,
+                fast.T,
+                fast.twist,
+                fast.dtwist,
+                fast.dtwist_frozen,
+                fast.reported,
+                fast.dreported,
+            )
+        ref = make_controller(n).engine.cartesian.reference
+        ref.buffer[...] = ref_buffer
+        # fci/cartesian.py _record and _record_reported, plain path.
+        ref.T[...] = T_c
+        if kind == "pose":
+            ref.history[...] = stack[:, :2]
+            ref.acceleration_frozen[...] = ref.history[:, 1]
+            spatial = np.empty((n, 6))
+            spatial[:, :3] = ref.v
+            np.einsum("nij,nj->ni", ref.T[:, :3, :3], ref.omega, out=spatial[:, 3:])
+        else:
+            ref.twist[...] = twist
+            ref.dtwist[...] = stack[:, 1]
+            ref.dtwist_frozen[...] = ref.dtwist
+            spatial = ref.twist.copy()
+        np.subtract(spatial, ref.reported, out=ref.dreported)
+        ref.dreported /= DELTA_T
+        ref.reported[...] = spatial
+        assert np.array_equal(fast.buffer.view(np.uint64), ref.buffer.view(np.uint64)), kind
+
+
+@pytest.mark.parametrize("n", [1, 16])
+def test_twist_target_kernel_moves_the_target_as_the_reference(n: int):
+    rng = np.random.default_rng(3 + n)
+    T, _ = _poses(rng, n, 0.1)
+    for turning in (False, True):
+        twist = rng.normal(0, 0.3, (n, 6))
+        if not turning:
+            twist[:, 3:] = 0.0
+        else:
+            twist[:, 3:] = 0.0
+            twist[n - 1, 4] = 1e-300  # one robot barely turning is turning
+        out = np.full((n, 4, 4), np.nan)
+        assert K.twist_target(T, twist, out) is turning
+        ref = T.copy()
+        ref[:, :3, 3] += twist[:, :3] * DELTA_T
+        assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))

@@ -331,9 +331,13 @@ class CartesianGenerators:
         1 ms (translation in the base frame, rotation composed on the left: base-frame
         omega)."""
         T_tw, p_tw, R_tw = self._T_twist
-        T_tw[...] = T
-        p_tw += twist[:, :3] * _DT
-        if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
+        if self._kernel is not None:  # the copy and the translation in one call
+            turning = self._kernel.twist_target(T, twist, T_tw)
+        else:
+            T_tw[...] = T
+            p_tw += twist[:, :3] * _DT
+            turning = count_nonzero(twist[:, 3:])
+        if turning:  # (a zero rotation leaves R exactly as it is)
             np.matmul(rotation_exp(twist[:, 3:] * _DT), T[:, :3, :3], out=R_tw)
         return T_tw
 
@@ -538,6 +542,39 @@ class CartesianGenerators:
         any_lost = step.pose_ex is not None
         any_first = count_nonzero(first) > 0
         x = extrapolate[:, None] if any_lost else None
+        if self._kernel is not None and every_real and not (any_lost or any_first):
+            # Every robot recorded a command that arrived, none opens its motion, one
+            # generator for all (the common case): the copies and the reported twist in
+            # one kernel call, the same values as below.
+            k = self._kernel
+            if m.n_cartesian_position == n:
+                k.record_pose(
+                    step.T,
+                    d.stacked,
+                    h.T,
+                    h.history,
+                    h.acceleration_frozen,
+                    h.reported,
+                    h.dreported,
+                )
+            elif m.n_cartesian_velocity == n:
+                k.record_twist(
+                    step.T,
+                    step.twist,
+                    step.twist_stack,
+                    h.T,
+                    h.twist,
+                    h.dtwist,
+                    h.dtwist_frozen,
+                    h.reported,
+                    h.dreported,
+                )
+            else:
+                k = None
+            if k is not None:
+                self._record_elbow(step, real, apply, extrapolate)
+                self._record_joint_side(step, apply, first, True)
+                return
         put_rows(h.T, step.T, apply, every)
         if d is not None:
             if any_lost or any_first:

@@ -16,6 +16,16 @@
  *       -> bool: fci/cartesian.py _twist_derivatives, joint_side and the _quiet screen.
  *   homogeneous_quick(values, lo, hi) -> bool
  *       fci/frames.py is_homogeneous_wire's quick test (True: every pose passes).
+ *   twist_target(T, twist, T_tw) -> bool
+ *       fci/cartesian.py _twist_target's translation: T_tw = T moved by the twist's
+ *       translation over one cycle; True when some twist turns (its rotation is then
+ *       composed in numpy).
+ *   record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported)
+ *   record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported,
+ *                dreported)
+ *       fci/cartesian.py _record and _record_reported for a cycle in which every robot
+ *       recorded a command that arrived and none opened its motion (plain copies, the
+ *       reported twist and its rate).
  *
  * Elementwise chains (the translations, every backward difference, the joint side)
  * follow the reference's order of operations and are built without fused multiply-adds
@@ -613,6 +623,139 @@ static PyObject *homogeneous_quick(PyObject *self, PyObject *const *args, Py_ssi
     return PyBool_FromLong(pass);
 }
 
+/* The cycle's time step (fci/tables.py DELTA_T; fci/cartesian.py _DT). */
+#define CYCLE_DT 1e-3
+
+/* The reported twist's rate, then the twist: dreported = (twist - reported) / dt. */
+static inline void report(const F64 *reported, const F64 *dreported, Py_ssize_t i,
+                          const double twist[6])
+{
+    for (int k = 0; k < 6; k++) {
+        AT2(*dreported, i, k) = (twist[k] - AT2(*reported, i, k)) / CYCLE_DT;
+        AT2(*reported, i, k) = twist[k];
+    }
+}
+
+/* twist_target(T, twist, T_tw) -> bool: T_tw = T, its translation += twist[:3] * dt
+ * (numpy's order: the product first); whether any twist has a rotation. */
+static PyObject *twist_target(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 3, "twist_target") < 0) return NULL;
+    enum { T, TW, OUT, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t n = leading(args[0], "T");
+    if (n < 0) goto done;
+    Py_ssize_t s44[3] = {n, 4, 4}, s6[2] = {n, 6};
+    if (f64_get(args[0], &a[T], 3, s44, 0, "T") < 0) goto done;
+    if (f64_get(args[1], &a[TW], 2, s6, 0, "twist") < 0) goto done;
+    if (f64_get(args[2], &a[OUT], 3, s44, 1, "T_tw") < 0) goto done;
+    int turning = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++) AT3(a[OUT], i, r, c) = AT3(a[T], i, r, c);
+        for (int k = 0; k < 3; k++) {
+            AT3(a[OUT], i, k, 3) += AT2(a[TW], i, k) * CYCLE_DT;
+            if (AT2(a[TW], i, 3 + k) != 0.0) turning = 1;
+        }
+    }
+    result = PyBool_FromLong(turning);
+done:
+    f64_release_all(a, COUNT);
+    return result;
+}
+
+/* record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported)
+ *
+ * T = T_c; history = stack[:, :2] ([v | omega], [a | alpha]); acceleration_frozen =
+ * [a | alpha]; the reported twist is [v | R omega] with R = T's rotation (the body
+ * rate turned into the base frame; numpy's einsum sums the three products as
+ * (0 + 2) + 1, and so does this), and its rate against the last one. */
+static PyObject *record_pose(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 7, "record_pose") < 0) return NULL;
+    enum { TC, STACK, T, HIST, FROZEN, REP, DREP, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t n = leading(args[0], "T_c");
+    if (n < 0) goto done;
+    Py_ssize_t s44[3] = {n, 4, 4}, s36[3] = {n, 3, 6}, s26[3] = {n, 2, 6}, s6[2] = {n, 6};
+    if (f64_get(args[0], &a[TC], 3, s44, 0, "T_c") < 0) goto done;
+    if (f64_get(args[1], &a[STACK], 3, s36, 0, "stack") < 0) goto done;
+    if (f64_get(args[2], &a[T], 3, s44, 1, "T") < 0) goto done;
+    if (f64_get(args[3], &a[HIST], 3, s26, 1, "history") < 0) goto done;
+    if (f64_get(args[4], &a[FROZEN], 2, s6, 1, "acceleration_frozen") < 0) goto done;
+    if (f64_get(args[5], &a[REP], 2, s6, 1, "reported") < 0) goto done;
+    if (f64_get(args[6], &a[DREP], 2, s6, 1, "dreported") < 0) goto done;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++) AT3(a[T], i, r, c) = AT3(a[TC], i, r, c);
+        for (int k = 0; k < 6; k++) {
+            AT3(a[HIST], i, 0, k) = AT3(a[STACK], i, 0, k);
+            AT3(a[HIST], i, 1, k) = AT3(a[STACK], i, 1, k);
+            AT2(a[FROZEN], i, k) = AT3(a[STACK], i, 1, k);
+        }
+        double twist[6];
+        for (int k = 0; k < 3; k++) {
+            twist[k] = AT3(a[HIST], i, 0, k);
+            twist[3 + k] = (AT3(a[T], i, k, 0) * AT3(a[HIST], i, 0, 3) +
+                            AT3(a[T], i, k, 2) * AT3(a[HIST], i, 0, 5)) +
+                           AT3(a[T], i, k, 1) * AT3(a[HIST], i, 0, 4);
+        }
+        report(&a[REP], &a[DREP], i, twist);
+    }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release_all(a, COUNT);
+    return result;
+}
+
+/* record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported, dreported)
+ *
+ * T = T_c (the twist-integrated target); the twist and its rate (stack[:, 1]), frozen
+ * for extrapolation; the reported twist is the twist itself. */
+static PyObject *record_twist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 9, "record_twist") < 0) return NULL;
+    enum { TC, TW, STACK, T, HTW, DTW, FROZEN, REP, DREP, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t n = leading(args[0], "T_c");
+    if (n < 0) goto done;
+    Py_ssize_t s44[3] = {n, 4, 4}, s36[3] = {n, 3, 6}, s6[2] = {n, 6};
+    if (f64_get(args[0], &a[TC], 3, s44, 0, "T_c") < 0) goto done;
+    if (f64_get(args[1], &a[TW], 2, s6, 0, "twist") < 0) goto done;
+    if (f64_get(args[2], &a[STACK], 3, s36, 0, "stack") < 0) goto done;
+    if (f64_get(args[3], &a[T], 3, s44, 1, "T") < 0) goto done;
+    if (f64_get(args[4], &a[HTW], 2, s6, 1, "h_twist") < 0) goto done;
+    if (f64_get(args[5], &a[DTW], 2, s6, 1, "dtwist") < 0) goto done;
+    if (f64_get(args[6], &a[FROZEN], 2, s6, 1, "dtwist_frozen") < 0) goto done;
+    if (f64_get(args[7], &a[REP], 2, s6, 1, "reported") < 0) goto done;
+    if (f64_get(args[8], &a[DREP], 2, s6, 1, "dreported") < 0) goto done;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++) AT3(a[T], i, r, c) = AT3(a[TC], i, r, c);
+        double twist[6];
+        for (int k = 0; k < 6; k++) {
+            twist[k] = AT2(a[TW], i, k);
+            AT2(a[HTW], i, k) = twist[k];
+            AT2(a[DTW], i, k) = AT3(a[STACK], i, 1, k);
+            AT2(a[FROZEN], i, k) = AT3(a[STACK], i, 1, k);
+        }
+        report(&a[REP], &a[DREP], i, twist);
+    }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release_all(a, COUNT);
+    return result;
+}
+
 static PyMethodDef METHODS[] = {
     {"ik_begin", (PyCFunction)(void (*)(void))ik_begin, METH_FASTCALL,
      "ik_begin(q_init, q, cached_q, qpos, elbow, active) -> bool: ArmKinematics.solve's "
@@ -629,6 +772,15 @@ static PyMethodDef METHODS[] = {
      "-> bool: _twist_derivatives, joint_side and _quiet."},
     {"homogeneous_quick", (PyCFunction)(void (*)(void))homogeneous_quick, METH_FASTCALL,
      "homogeneous_quick(values, lo, hi) -> bool: is_homogeneous_wire's quick test."},
+    {"twist_target", (PyCFunction)(void (*)(void))twist_target, METH_FASTCALL,
+     "twist_target(T, twist, T_tw) -> bool: _twist_target's translation; True when some "
+     "twist turns."},
+    {"record_pose", (PyCFunction)(void (*)(void))record_pose, METH_FASTCALL,
+     "record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported): "
+     "_record of a pose cycle every robot recorded."},
+    {"record_twist", (PyCFunction)(void (*)(void))record_twist, METH_FASTCALL,
+     "record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported, "
+     "dreported): _record of a twist cycle every robot recorded."},
     {NULL, NULL, 0, NULL},
 };
 
