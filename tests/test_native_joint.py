@@ -48,7 +48,16 @@ def test_kernels_are_built_where_a_compiler_is():
         pytest.skip("no C compiler on this machine")
     if not native.ENABLED:
         pytest.skip("FRANKA_SIM_GYM_NATIVE=0")
-    assert native.loaded()["_joint"], "native/_joint.c was not built: pip install -e . again"
+    assert all(native.loaded().values()), f"not built: {native.describe()}; pip install -e ."
+
+
+def test_the_kernels_difference_over_the_controllers_cycle():
+    """Each module carries the cycle it was built for; load() refuses another."""
+    assert native.CYCLE == tables_module.DELTA_T
+    for name in native.MODULES:
+        module = native.load(name)
+        if module is not None:
+            assert module.DELTA_T == tables_module.DELTA_T
 
 
 @needs_kernel

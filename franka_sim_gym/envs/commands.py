@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import DELTA_T, FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..fci.tables import FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..native import load
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
@@ -337,8 +337,6 @@ class CommandGenerator:
 
 #: The env client's Cartesian velocity kernel (None: not built, or turned off).
 CLIENT_KERNEL = load("_client")
-if CLIENT_KERNEL is not None and CLIENT_KERNEL.DELTA_T != DELTA_T:  # pragma: no cover - stale
-    CLIENT_KERNEL = None
 
 #: The interfaces whose commands libfranka's joint rate limiter shapes.
 _JOINT_LIMITED = ("joint_position", "joint_velocity")

@@ -176,11 +176,8 @@ class RobotTable:
 
 _F64 = np.dtype(np.float64)
 
-#: The joint-side C kernels (native/_joint.c; None: not built, or turned off), built
-#: for this module's cycle.
+#: The joint-side C kernels (native/_joint.c; None: not built, or turned off).
 JOINT_KERNEL = load("_joint")
-if JOINT_KERNEL is not None and JOINT_KERNEL.DELTA_T != DELTA_T:  # pragma: no cover - stale
-    JOINT_KERNEL = None
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
 _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))

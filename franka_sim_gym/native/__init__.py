@@ -28,15 +28,21 @@ ENABLED = os.environ.get("FRANKA_SIM_GYM_NATIVE", "1").strip().lower() not in {
 }
 
 
+#: The cycle the kernels difference over: fci/tables.py DELTA_T (libfranka's kDeltaT).
+#: Repeated here, not imported, so that this package depends on nothing of the others.
+CYCLE = 1e-3
+
+
 def load(name: str) -> ModuleType | None:
-    """The kernel module ``franka_sim_gym.native.<name>``, or None when it was not built
-    or the kernels are turned off."""
+    """The kernel module ``franka_sim_gym.native.<name>``, or None when it was not built,
+    the kernels are turned off, or it was built for another cycle (a stale build)."""
     if not ENABLED:
         return None
     try:
-        return importlib.import_module(f"{__name__}.{name}")
+        module = importlib.import_module(f"{__name__}.{name}")
     except ImportError:
         return None
+    return module if getattr(module, "DELTA_T", None) == CYCLE else None
 
 
 #: The kernel modules setup.py builds (one per ``_<name>.c``).

@@ -107,6 +107,22 @@ static inline void f64_release(F64 *a)
     a->view.obj = NULL;
 }
 
+/* fci/tables.py DELTA_T, the 1 ms cycle every kernel differences and integrates over;
+ * each module exports it as DELTA_T and native.load refuses a module whose value
+ * differs (a stale build). */
+#define KERNEL_DT 1e-3
+
+/* A kernel module, with its DELTA_T. */
+static inline PyObject *kernel_module(PyModuleDef *def)
+{
+    PyObject *m = PyModule_Create(def);
+    if (m && PyModule_AddObject(m, "DELTA_T", PyFloat_FromDouble(KERNEL_DT)) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
+
 /* numpy's minimum / maximum on non-NaN values (the kernels' inputs are finite). */
 static inline double np_minimum(double a, double b) { return a <= b ? a : b; }
 static inline double np_maximum(double a, double b) { return a >= b ? a : b; }

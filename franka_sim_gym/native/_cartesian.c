@@ -623,8 +623,8 @@ static PyObject *homogeneous_quick(PyObject *self, PyObject *const *args, Py_ssi
     return PyBool_FromLong(pass);
 }
 
-/* The cycle's time step (fci/tables.py DELTA_T; fci/cartesian.py _DT). */
-#define CYCLE_DT 1e-3
+/* The cycle's time step (fci/cartesian.py _DT). */
+#define CYCLE_DT KERNEL_DT
 
 /* The reported twist's rate, then the twist: dreported = (twist - reported) / dt. */
 static inline void report(const F64 *reported, const F64 *dreported, Py_ssize_t i,
@@ -790,4 +790,4 @@ static struct PyModuleDef MODULE = {
     METHODS, NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__cartesian(void) { return PyModule_Create(&MODULE); }
+PyMODINIT_FUNC PyInit__cartesian(void) { return kernel_module(&MODULE); }

@@ -16,8 +16,7 @@
 
 #include "_arrays.h"
 
-/* fci/tables.py DELTA_T (exported; the Python side checks it). */
-#define DELTA_T 1e-3
+#define DELTA_T KERNEL_DT
 
 /* client_filters._NORM_EPS: libfranka's kNormEps, float64 machine epsilon. */
 static const double NORM_EPS = 2.220446049250313e-16;
@@ -125,12 +124,4 @@ static struct PyModuleDef MODULE = {
     METHODS, NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__client(void)
-{
-    PyObject *m = PyModule_Create(&MODULE);
-    if (m && PyModule_AddObject(m, "DELTA_T", PyFloat_FromDouble(DELTA_T)) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
-}
+PyMODINIT_FUNC PyInit__client(void) { return kernel_module(&MODULE); }

@@ -21,8 +21,7 @@
 
 #include "_arrays.h"
 
-/* fci/tables.py DELTA_T: the 1 ms cycle (exported; the Python side checks it). */
-#define DELTA_T 1e-3
+#define DELTA_T KERNEL_DT
 
 /* The envelope's constants, (4, 14): rows 2 a_dec, bound ([q_upper | -q_lower]),
  * v_off and v_max, each doubled as [upper half | lower half]
@@ -343,12 +342,4 @@ static struct PyModuleDef MODULE = {
     METHODS, NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__joint(void)
-{
-    PyObject *m = PyModule_Create(&MODULE);
-    if (m && PyModule_AddObject(m, "DELTA_T", PyFloat_FromDouble(DELTA_T)) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
-}
+PyMODINIT_FUNC PyInit__joint(void) { return kernel_module(&MODULE); }
