@@ -1,9 +1,11 @@
-"""Build the optional C kernels (franka_sim_gym/native/_*.c).
+"""Build the optional C kernels: every ``franka_sim_gym/<layer>/_<name>.c``.
 
-Everything else is in pyproject.toml. Each ``franka_sim_gym/native/_<name>.c`` becomes
-the extension ``franka_sim_gym.native._<name>``. The kernels are optional: a machine
-without a C compiler still installs, and the package runs on its numpy reference paths
-(``franka_sim_gym.native`` says which are loaded).
+Everything else is in pyproject.toml. Each kernel sits next to the numpy code it copies
+(fci/: the robot's rules, sim/: the IK, envs/: the libfranka client's filters) and
+becomes the extension ``franka_sim_gym.<layer>._<name>``; franka_sim_gym/native/ holds
+the loader and the shared C header. The kernels are optional: a machine without a C
+compiler still installs, and the package runs on its numpy reference paths
+(``franka_sim_gym.native.describe()`` says which are loaded).
 """
 
 from pathlib import Path
@@ -13,16 +15,18 @@ from setuptools import Extension, setup
 # -ffp-contract=off: no fused multiply-adds, so that each kernel's elementwise arithmetic
 # rounds exactly as the numpy reference it replaces (bit-identical, tested).
 FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-std=c99"]
+HEADERS = sorted(p.as_posix() for p in Path("franka_sim_gym").glob("*/_*.h"))
 
 KERNELS = [
     Extension(
-        f"franka_sim_gym.native.{source.stem}",
+        ".".join(source.with_suffix("").parts),
         [source.as_posix()],
-        depends=["franka_sim_gym/native/_arrays.h"],
+        include_dirs=["franka_sim_gym/native", "franka_sim_gym/fci"],
+        depends=HEADERS,
         extra_compile_args=FLAGS,
         optional=True,
     )
-    for source in sorted(Path("franka_sim_gym/native").glob("_*.c"))
+    for source in sorted(Path("franka_sim_gym").glob("*/_*.c"))
 ]
 
 setup(ext_modules=KERNELS)

@@ -1,4 +1,5 @@
-"""native/_cartesian.c against its numpy references: each kernel on random and worst-case
+"""The Cartesian generators' rules in C (fci/_cartesian_rules.c) and their IK
+(sim/_ik.c) against their numpy references: each kernel on random and worst-case
 inputs (bit for bit where the reference is elementwise, to rounding and with the same
 verdicts where it reduces), and whole controllers streaming Cartesian poses and twists
 (lost cycles, a violation) with the kernels and through the reference paths."""
@@ -21,9 +22,10 @@ from franka_sim_gym.sim.world import HOME_Q
 
 from .fci_helpers import IMP, make_controller
 
-K = native.load("_cartesian")
-if K is None:  # not built (or FRANKA_SIM_GYM_NATIVE=0): the reference paths run alone
-    pytest.skip("native._cartesian is not built or turned off", allow_module_level=True)
+K = native.load("fci._cartesian_rules")
+IK = native.load("sim._ik")
+if K is None or IK is None:  # not built (or FRANKA_SIM_GYM_NATIVE=0): the references alone
+    pytest.skip("the Cartesian kernels are not built or turned off", allow_module_level=True)
 
 H = DELTA_T
 CP = MoveMotionGeneratorMode.kCartesianPosition
@@ -309,26 +311,26 @@ def test_kernels_refuse_bad_shapes():
     n = 2
     q = np.zeros((n, 7))
     with pytest.raises(ValueError, match="cached_q"):
-        K.ik_begin(q, q.copy(), np.zeros((n, 6)), q.copy(), None, None)
+        IK.ik_begin(q, q.copy(), np.zeros((n, 6)), q.copy(), None, None)
     with pytest.raises(ValueError, match="active"):
-        K.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n + 1, dtype=bool))
+        IK.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n + 1, dtype=bool))
     with pytest.raises(ValueError, match="active"):
-        K.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n))
+        IK.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n))
     with pytest.raises(ValueError, match="q"):
-        K.ik_begin(q.astype(np.float32), q.copy(), q.copy(), q.copy(), None, None)
+        IK.ik_begin(q.astype(np.float32), q.copy(), q.copy(), q.copy(), None, None)
     args = [
         q.copy(), q.copy(), q.copy(), np.zeros((n, 3)), np.zeros((n, 3, 3)),
         np.zeros((n, 7, 3)), np.zeros((n, 7, 3)), np.zeros((n, 3)), np.zeros((n, 4, 4)),
         None, None, None, np.zeros((2, n)), np.zeros(n, dtype=bool), 1e-8, 1e-14, 0.5, False,
     ]  # fmt: skip
-    assert K.ik_step(*args) == 0
+    assert IK.ik_step(*args) == 0
     for k, bad in ((4, np.zeros((n, 9))), (8, np.zeros((n, 3, 4))), (12, np.zeros(n))):
         broken = list(args)
         broken[k] = bad
         with pytest.raises(ValueError):
-            K.ik_step(*broken)
+            IK.ik_step(*broken)
     with pytest.raises(TypeError):
-        K.ik_step(*args[:-1])
+        IK.ik_step(*args[:-1])
     T = np.tile(np.eye(4), (n, 1, 1))
     good = [T, T.copy(), np.zeros((n, 2, 6)), np.zeros((n, 3, 6)), q, np.zeros((n, 3, 7))]
     good += [np.zeros((n, 3, 7)), H, _limits()]

@@ -1,9 +1,12 @@
-"""The env client's Cartesian velocity kernel (native/_client.c) against its numpy
-reference, bit for bit: libfranka's low-pass filter and twist rate limiter.
+"""The env client's libfranka filters in C (envs/_client_filters.c) against their numpy
+references, bit for bit: the low-pass filter with the joint rate limiter, and with the
+twist rate limiter.
 
-States sweep the corners of the norm limiter: at rest (no jerk, no acceleration),
+Joint states sweep the ranges and head into the stops with the band binding; twist
+states sweep the corners of the norm limiter: at rest (no jerk, no acceleration),
 inside the velocity ball, at its surface and outside it (the square root's negative
-argument), and jerks far past the limit, on both halves of the twist.
+argument), and jerks far past the limit, on both halves of the twist. End to end,
+random-action episodes are the same bit for bit with and without the kernels.
 """
 
 from __future__ import annotations
@@ -11,16 +14,53 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import franka_sim_gym.envs.commands as commands_module
-import franka_sim_gym.fci.engine as engine_module
-import franka_sim_gym.fci.tables as tables_module
 from franka_sim_gym import native
 from franka_sim_gym.envs.commands import CommandGenerator
+from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
-from tests.test_native_joint import _rollout, same_bits
+from tests.native_helpers import joint_and_client_kernels_off, joint_samples, rollout, same_bits
 
-kernel = native.load("_client")
-pytestmark = pytest.mark.skipif(kernel is None, reason="native/_client.c not built")
+kernel = native.load("envs._client_filters")
+pytestmark = pytest.mark.skipif(kernel is None, reason="envs/_client_filters.c not built")
+
+
+def _random_state(rng, n: int, near_band: bool) -> np.ndarray:
+    """A wire state (float32 fields, packed records) with q_d, dq_d, ddq_d: anywhere, or
+    heading into a stop with the band binding."""
+    s = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
+    q = joint_samples(rng, n)
+    dq = rng.normal(0, 1.0, (n, 7))
+    if near_band:
+        q = FR3.q_upper - rng.random((n, 7)) * 0.05
+        dq = rng.random((n, 7)) * 1.0
+    s["q_d"] = q
+    s["dq_d"] = dq
+    s["ddq_d"] = rng.normal(0, 6.0, (n, 7))
+    s["tau_J_d"] = rng.normal(0, 5.0, (n, 7))
+    return s
+
+
+@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
+@pytest.mark.parametrize("n", [1, 16])
+def test_rate_limiter_kernel_is_libfrankas_filter_bit_for_bit(interface, n):
+    gen = CommandGenerator(interface, "limit_rate", 40, n=n)
+    assert gen._kernel is not None
+    rng = np.random.default_rng(11 + n)
+    for trial in range(300):
+        state = _random_state(rng, n, near_band=trial % 3 == 0)
+        gen.reset()
+        gen.begin_step(rng.uniform(-1, 1, (n, 7)), state)
+        if trial % 2:
+            gen._first[: n // 2 + 1] = False  # a mix of first commands and filtered ones
+            gen._n_first = int(np.count_nonzero(gen._first))
+        else:
+            gen._first[...] = False
+            gen._n_first = 0
+        fast = gen._filtered(state).copy()
+        kernel_fn, gen._kernel = gen._kernel, None
+        reference = gen._filtered(state)
+        gen._kernel = kernel_fn
+        assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
 
 
 def _twist_state(rng, n: int, regime: str) -> np.ndarray:
@@ -100,12 +140,13 @@ def test_the_kernel_names_a_bad_argument():
         )
 
 
-def test_a_cartesian_velocity_episode_is_the_same_with_and_without_the_kernels(monkeypatch):
-    fast = _rollout("cartesian_velocity", "limit_rate")
-    monkeypatch.setattr(commands_module, "CLIENT_KERNEL", None)
-    for module in (tables_module, engine_module, commands_module):
-        monkeypatch.setattr(module, "JOINT_KERNEL", None)
-    reference = _rollout("cartesian_velocity", "limit_rate")
+@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity", "cartesian_velocity"])
+def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypatch):
+    """End to end, random actions through libfranka's limiters (reflexes included): the
+    joint rules' and the client's kernels change no bit of what a policy sees."""
+    fast = rollout(interface, "limit_rate")
+    joint_and_client_kernels_off(monkeypatch)
+    reference = rollout(interface, "limit_rate")
     assert len(fast) == len(reference)
     for a, b in zip(fast, reference, strict=True):
         assert same_bits(a, b)

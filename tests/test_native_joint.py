@@ -1,44 +1,30 @@
-"""The joint-side C kernels (native/_joint.c) against their numpy references, bit for bit.
+"""The robot's joint-side rules in C (fci/_joint_rules.c) against their numpy references,
+bit for bit.
 
 Each kernel fuses elementwise numpy arithmetic in the same order of operations, built
 without fused multiply-adds, so its results must be the reference's very bits: the
-velocity envelope, the mid-motion q_c check, the safety controller's screening row and
-libfranka's joint low-pass + rate limiter in the env's client. Inputs sweep the joint
-ranges past the stops, speeds past the limits and states near the band, so both
-verdicts and every clamp of the limiter are exercised.
+velocity envelope, the mid-motion q_c check and the safety controller's screening row.
+Inputs sweep the joint ranges past the stops and speeds past the limits, so both
+verdicts are exercised.
 """
 
 from __future__ import annotations
 
 import shutil
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
-import franka_sim_gym.envs.commands as commands_module
 import franka_sim_gym.fci.engine as engine_module
 import franka_sim_gym.fci.tables as tables_module
 from franka_sim_gym import native
 from franka_sim_gym.envs.commands import CommandGenerator
 from franka_sim_gym.fci.tables import FER, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
-from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
 from tests.fci_helpers import make_controller
+from tests.native_helpers import joint_samples, same_bits
 
-kernel = native.load("_joint")
-needs_kernel = pytest.mark.skipif(kernel is None, reason="native/_joint.c not built")
-
-
-def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
-    a, b = np.ascontiguousarray(a, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64)
-    return a.shape == b.shape and bool(np.array_equal(a.view(np.uint64), b.view(np.uint64)))
-
-
-def joint_samples(rng: np.random.Generator, n: int, table=FR3, past: float = 0.05) -> np.ndarray:
-    """(n, 7) joint positions over the ranges and ``past`` of the span beyond either stop
-    (negative: that far inside)."""
-    span = table.q_upper - table.q_lower
-    return table.q_lower - past * span + rng.random((n, 7)) * (1.0 + 2.0 * past) * span
+kernel = native.load("fci._joint_rules")
+needs_kernel = pytest.mark.skipif(kernel is None, reason="fci/_joint_rules.c not built")
 
 
 def test_kernels_are_built_where_a_compiler_is():
@@ -80,7 +66,7 @@ def test_envelope_kernel_is_the_numpy_envelope_bit_for_bit(n, monkeypatch):
 
 
 @needs_kernel
-def test_envelope_kernel_is_exact_at_the_stops_and_the_offsets_edge():
+def test_envelope_kernel_is_exact_at_the_stops_and_the_offsets_edge(monkeypatch):
     """The clamps' edges: at a stop the distance is 0 (sqrt(0) under the offset), just
     inside and outside it, and where sqrt(2 a d) equals the offset."""
     two_a, bound, offset, _ = FR3._envelope_constants
@@ -95,13 +81,8 @@ def test_envelope_kernel_is_exact_at_the_stops_and_the_offsets_edge():
     ]
     q = np.array(rows)
     fast = FR3.velocity_envelope_halves(q)
-    tables_module_kernel = tables_module.JOINT_KERNEL
-    try:
-        tables_module.JOINT_KERNEL = None
-        reference = FR3.velocity_envelope_halves(q)
-    finally:
-        tables_module.JOINT_KERNEL = tables_module_kernel
-    assert same_bits(fast, reference)
+    monkeypatch.setattr(tables_module, "JOINT_KERNEL", None)
+    assert same_bits(fast, FR3.velocity_envelope_halves(q))
 
 
 @needs_kernel
@@ -189,46 +170,6 @@ def test_measured_screen_kernel_gives_the_reference_row_and_verdict(n):
     assert verdicts == {True, False}
 
 
-def _random_state(rng, n: int, near_band: bool) -> np.ndarray:
-    """A wire state (float32 fields, packed records) with q_d, dq_d, ddq_d: anywhere, or
-    heading into a stop with the band binding."""
-    s = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
-    q = joint_samples(rng, n)
-    dq = rng.normal(0, 1.0, (n, 7))
-    if near_band:
-        q = FR3.q_upper - rng.random((n, 7)) * 0.05
-        dq = rng.random((n, 7)) * 1.0
-    s["q_d"] = q
-    s["dq_d"] = dq
-    s["ddq_d"] = rng.normal(0, 6.0, (n, 7))
-    s["tau_J_d"] = rng.normal(0, 5.0, (n, 7))
-    return s
-
-
-@needs_kernel
-@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
-@pytest.mark.parametrize("n", [1, 16])
-def test_rate_limiter_kernel_is_libfrankas_filter_bit_for_bit(interface, n):
-    gen = CommandGenerator(interface, "limit_rate", 40, n=n)
-    assert gen._kernel is not None
-    rng = np.random.default_rng(11 + n)
-    for trial in range(300):
-        state = _random_state(rng, n, near_band=trial % 3 == 0)
-        gen.reset()
-        gen.begin_step(rng.uniform(-1, 1, (n, 7)), state)
-        if trial % 2:
-            gen._first[: n // 2 + 1] = False  # a mix of first commands and filtered ones
-            gen._n_first = int(np.count_nonzero(gen._first))
-        else:
-            gen._first[...] = False
-            gen._n_first = 0
-        fast = gen._filtered(state).copy()
-        kernel_fn, gen._kernel = gen._kernel, None
-        reference = gen._filtered(state)
-        gen._kernel = kernel_fn
-        assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
-
-
 @needs_kernel
 def test_the_fer_keeps_its_numpy_paths():
     """The FER's envelope is constant: no kernel table, the numpy paths decide."""
@@ -237,34 +178,3 @@ def test_the_fer_keeps_its_numpy_paths():
     assert gen._kernel is None
     ctrl = make_controller(1, robot="fer")
     assert ctrl.engine._q_c_kernel is None
-
-
-def _rollout(interface: str, action_filter: str, steps: int = 25):
-    env = gym.make("FrankaFCI-v0", action_interface=interface, action_filter=action_filter)
-    obs, _ = env.reset(seed=5)
-    rng = np.random.default_rng(5)
-    out = [obs["observation"].copy()]
-    for _ in range(steps):
-        obs, reward, terminated, truncated, info = env.step(
-            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
-        )
-        out.append(obs["observation"].copy())
-        out.append(np.array([reward, info["cycles"], len(info["errors"])], dtype=np.float64))
-        if terminated or truncated:
-            obs, _ = env.reset()
-    env.close()
-    return out
-
-
-@needs_kernel
-@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
-def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypatch):
-    """End to end, random actions through libfranka's limiter (reflexes included): the
-    kernels change no bit of what a policy sees."""
-    fast = _rollout(interface, "limit_rate")
-    for module in (tables_module, engine_module, commands_module):
-        monkeypatch.setattr(module, "JOINT_KERNEL", None)
-    reference = _rollout(interface, "limit_rate")
-    assert len(fast) == len(reference)
-    for a, b in zip(fast, reference, strict=True):
-        assert same_bits(a, b)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import from_wire, to_wire
-from ..fci.tables import FR3, JOINT_KERNEL, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..native import load
 from ..sim.kinematics import rotation_exp, rotation_log
 from . import client_filters as cf
@@ -157,12 +157,13 @@ class CommandGenerator:
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
         self._far = cf.FarFromTheBand(table, self._ddq_max, self._dddq_max, m["dq"])
-        # The fused C copy of _filtered's joint path (native/_joint.c): for libfranka's
-        # rate limiter against a position-based envelope (the FER's is constant).
+        # The fused C copy of _filtered's joint path (envs/_client_filters.c): for
+        # libfranka's rate limiter against a position-based envelope (the FER's is
+        # constant).
         limited = action_filter == "limit_rate" and table.envelope_table is not None
-        self._kernel = JOINT_KERNEL if limited and isinstance(self._gain, float) else None
+        self._kernel = CLIENT_KERNEL if limited and isinstance(self._gain, float) else None
         self._out = np.zeros((n, 7))
-        # And of its Cartesian velocity path (native/_client.c).
+        # And of its Cartesian velocity path.
         twist_limited = action_filter == "limit_rate" and interface == "cartesian_velocity"
         self._twist_kernel = (
             CLIENT_KERNEL if twist_limited and isinstance(self._gain, float) else None
@@ -270,8 +271,8 @@ class CommandGenerator:
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         target, interface = self._target, self.interface
         if self._kernel is not None and interface in _JOINT_LIMITED:
-            # libfranka's low-pass and rate limiter in one fused C call (native/_joint.c):
-            # the same bits as the numpy below.
+            # libfranka's low-pass and rate limiter in one fused C call: the same bits as
+            # the numpy below.
             first = self._first if interface == "joint_position" and self._n_first else None
             out = self._out
             self._kernel.limit_rate(
@@ -292,7 +293,7 @@ class CommandGenerator:
             return out
         if self._twist_kernel is not None:
             # The low-pass and libfranka's twist limiter in one fused C call
-            # (native/_client.c), the same bits as below; False for a non-finite input,
+            # (envs/_client_filters.c), the same bits as below; False for a non-finite input,
             # which the numpy path below refuses with libfranka's message.
             fused = self._twist_kernel.limit_twist(
                 target,
@@ -335,8 +336,8 @@ class CommandGenerator:
         return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
 
 
-#: The env client's Cartesian velocity kernel (None: not built, or turned off).
-CLIENT_KERNEL = load("_client")
+#: The client's filters in C (envs/_client_filters.c; None: not built, or turned off).
+CLIENT_KERNEL = load("envs._client_filters")
 
 #: The interfaces whose commands libfranka's joint rate limiter shapes.
 _JOINT_LIMITED = ("joint_position", "joint_velocity")

@@ -117,12 +117,12 @@ def _until(ctrl: FciController, kind: EventKind, limit: int) -> int:
 
 
 def _settle(ctrl: FciController) -> int:
-    """Idle cycles until the arm stands still as AutomaticErrorRecovery judges it (the
-    controller's recovery thresholds), or its 0.7 s cap."""
+    """Idle cycles until the state's dq says the arm stands still by the thresholds
+    AutomaticErrorRecovery uses, or its 0.7 s cap (a client reads the state, as here)."""
     cfg = ctrl.config
     settled = 0
     for k in range(1, cfg.recovery_max_cycles + 1):
-        if float(np.abs(ctrl.physics.dq[0]).max()) < cfg.recovery_velocity_threshold:
+        if float(np.abs(ctrl.states["dq"][0]).max()) < cfg.recovery_velocity_threshold:
             settled += 1
             if settled >= cfg.recovery_settle_cycles:
                 return k

@@ -59,8 +59,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("franka_sim_gym.fci")
 _DT = DELTA_T
-#: the one-cycle differencing interval (limits/_common.interval(1): the same value)
-_H = float(1) * DELTA_T
 #: IK samples after a rebase before the joint side is judged: a solution, then its
 #: velocity; the acceleration (29) needs two and the jerk (30) three differences.
 _WARM_ACCELERATION = 1
@@ -148,8 +146,8 @@ class CartesianGenerators:
         zeros = np.zeros(n)
         zeros.setflags(write=False)
         self._no_elbow = rules.ElbowDerivatives(zeros, zeros, zeros)
-        #: the C kernels (native/_cartesian.c), or None: the numpy reference path only
-        self._kernel = native.load("_cartesian")
+        #: the rules in C (fci/_cartesian_rules.c), or None: the numpy reference path only
+        self._kernel = native.load("fci._cartesian_rules")
 
     @property
     def q_ik(self) -> np.ndarray:
@@ -317,13 +315,13 @@ class CartesianGenerators:
         limits = rules._quiet_limits(c.table, c.config.joint_discontinuity_scale)
         if self.c.modes.n_cartesian_position:
             stack = self._pose_stack
-            quiet = k.pose_step(T_cand, h.T, h.history, stack, q, h.joint, differences, _H, limits)
+            quiet = k.pose_step(T_cand, h.T, h.history, stack, q, h.joint, differences, _DT, limits)
             if quiet < 0:
                 rules.pose_derivatives(T_cand, h.T, h.history, 1, out=stack)
                 rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
             return rules.PoseDerivatives(stack), None, quiet > 0
         stack = self._twist_stack
-        quiet = k.twist_step(twist, h.twist, h.dtwist, stack, q, h.joint, differences, _H, limits)
+        quiet = k.twist_step(twist, h.twist, h.dtwist, stack, q, h.joint, differences, _DT, limits)
         return None, stack, quiet
 
     def _twist_target(self, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
@@ -542,39 +540,15 @@ class CartesianGenerators:
         any_lost = step.pose_ex is not None
         any_first = count_nonzero(first) > 0
         x = extrapolate[:, None] if any_lost else None
-        if self._kernel is not None and every_real and not (any_lost or any_first):
-            # Every robot recorded a command that arrived, none opens its motion, one
-            # generator for all (the common case): the copies and the reported twist in
-            # one kernel call, the same values as below.
-            k = self._kernel
-            if m.n_cartesian_position == n:
-                k.record_pose(
-                    step.T,
-                    d.stacked,
-                    h.T,
-                    h.history,
-                    h.acceleration_frozen,
-                    h.reported,
-                    h.dreported,
-                )
-            elif m.n_cartesian_velocity == n:
-                k.record_twist(
-                    step.T,
-                    step.twist,
-                    step.twist_stack,
-                    h.T,
-                    h.twist,
-                    h.dtwist,
-                    h.dtwist_frozen,
-                    h.reported,
-                    h.dreported,
-                )
-            else:
-                k = None
-            if k is not None:
-                self._record_elbow(step, real, apply, extrapolate)
-                self._record_joint_side(step, apply, first, True)
-                return
+        if (
+            self._kernel is not None
+            and every_real
+            and not (any_lost or any_first)
+            and self._record_plain(step)
+        ):
+            self._record_elbow(step, real, apply, extrapolate)
+            self._record_joint_side(step, apply, first, True)
+            return
         put_rows(h.T, step.T, apply, every)
         if d is not None:
             if any_lost or any_first:
@@ -607,6 +581,25 @@ class CartesianGenerators:
         self._record_reported(apply, first, every and not any_first)
         self._record_elbow(step, real, apply, extrapolate)
         self._record_joint_side(step, apply, first, every and not any_first)
+
+    def _record_plain(self, step: _Step) -> bool:
+        """_record's copies and _record_reported in one kernel call, when every robot
+        recorded a command that arrived, none opens its motion and all run one generator
+        (the common case; the same values as the numpy path); False otherwise."""
+        m, h, n = self.c.modes, self.reference, self.c.n
+        if m.n_cartesian_position == n:
+            self._kernel.record_pose(
+                step.T, step.d.stacked, h.T, h.history, h.acceleration_frozen, h.reported,
+                h.dreported,
+            )  # fmt: skip
+            return True
+        if m.n_cartesian_velocity == n:
+            self._kernel.record_twist(
+                step.T, step.twist, step.twist_stack, h.T, h.twist, h.dtwist, h.dtwist_frozen,
+                h.reported, h.dreported,
+            )  # fmt: skip
+            return True
+        return False
 
     def _record_reported(self, apply: np.ndarray, first: np.ndarray, plain: bool) -> None:
         """What the state reports as the commanded twist and its rate. A twist motion: its

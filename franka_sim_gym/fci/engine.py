@@ -79,7 +79,7 @@ class MotionLimitEngine:
         )
         self._upper = self._upper_interior[:, :28].copy()
         self._lower = self._lower_interior[:, :28].copy()
-        # The fused C copies of these checks (native/_joint.c), where built; the
+        # The fused C copies of these checks (fci/_joint_rules.c), where built; the
         # q_c check needs a position-based envelope (the FER's is constant).
         self._kernel = JOINT_KERNEL
         self._q_c_kernel = JOINT_KERNEL if t.envelope_table is not None else None

@@ -7,8 +7,8 @@ import numpy as np
 from .. import native
 from ._fast import count_nonzero
 
-#: native/_cartesian.c (its homogeneous_quick), or None: the numpy quick test
-_KERNEL = native.load("_cartesian")
+#: fci/_cartesian_rules.c (its homogeneous_quick), or None: the numpy quick test
+_KERNEL = native.load("fci._cartesian_rules")
 
 IDENTITY16 = np.eye(4).reshape(16)
 IDENTITY16.setflags(write=False)

@@ -95,7 +95,7 @@ class RobotTable:
     @cached_property
     def envelope_table(self) -> np.ndarray | None:
         """(4, 14) the envelope's constants as the C kernels take them (rows 2 a_dec, bound,
-        v_off, v_max; native/_joint.c); None for a constant envelope."""
+        v_off, v_max; fci/_envelope.h); None for a constant envelope."""
         if self.dq_offset is None:
             return None
         return _ro(np.stack(self._envelope_constants))
@@ -129,7 +129,7 @@ class RobotTable:
             and q.dtype == _F64
             and (type(shift) is float or np.shape(shift)[-1:] == (14,))
         ):
-            # One fused C call (native/_joint.c), the same bits as the numpy below.
+            # One fused C call (fci/_joint_rules.c), the same bits as the numpy below.
             out = q if doubled else np.empty((len(q), 14))
             JOINT_KERNEL.envelope(q, self.envelope_table, shift, out)
             return out
@@ -176,8 +176,8 @@ class RobotTable:
 
 _F64 = np.dtype(np.float64)
 
-#: The joint-side C kernels (native/_joint.c; None: not built, or turned off).
-JOINT_KERNEL = load("_joint")
+#: The joint-side rules in C (fci/_joint_rules.c; None: not built, or turned off).
+JOINT_KERNEL = load("fci._joint_rules")
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
 _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))

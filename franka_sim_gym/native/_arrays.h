@@ -1,6 +1,8 @@
-/* float64 array arguments of the kernels: numpy arrays through the buffer protocol,
- * strided (views of structured state fields and of stacked scratch rows are fine),
- * with their shape checked before a single element is read or written. */
+/* What every C kernel shares (franka_sim_gym/<layer>/_<name>.c, built by setup.py):
+ * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
+ * state fields and of stacked scratch rows are fine), with their shape checked before a
+ * single element is read or written; the argument count; numpy's minimum / maximum; the
+ * module with its cycle. No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 
@@ -131,6 +133,29 @@ static inline double np_maximum(double a, double b) { return a >= b ? a : b; }
 static inline void f64_release_all(F64 *arrays, int count)
 {
     for (int k = 0; k < count; k++) f64_release(&arrays[k]);
+}
+
+/* A kernel's argument count. */
+static inline int check_nargs(Py_ssize_t nargs, Py_ssize_t expected, const char *name)
+{
+    if (nargs == expected) return 0;
+    PyErr_Format(PyExc_TypeError, "%s() takes %zd arguments (%zd given)", name, expected, nargs);
+    return -1;
+}
+
+/* The length of the first axis of the array ``obj`` (the others' shapes follow it). */
+static inline Py_ssize_t leading(PyObject *obj, const char *name)
+{
+    Py_buffer view;
+    if (PyObject_GetBuffer(obj, &view, PyBUF_RECORDS_RO) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: expected an array", name);
+        return -1;
+    }
+    Py_ssize_t n = view.ndim >= 1 ? view.shape[0] : -1;
+    PyBuffer_Release(&view);
+    if (n < 0) PyErr_Format(PyExc_ValueError, "%s: expected an array of 1 or more axes", name);
+    return n;
 }
 
 #endif

@@ -201,7 +201,7 @@ class ArmKinematics:
             A Gauss-Newton residual is smooth along a smooth trajectory (it scales
             with the square of the per-cycle step), so the joint-side checks, which
             difference solutions three times over 1 ms, do not see it.
-        kernel: solve through the C kernel (native/_cartesian.c) where it is built and the
+        kernel: solve through the C kernel (sim/_ik.c) where it is built and the
             arms' rows are views (the controller's 1 kHz path); False: the numpy
             reference, bit for bit (the kernel agrees with it to rounding).
 
@@ -272,8 +272,8 @@ class ArmKinematics:
         # MjData's rows are at _cached_q / _cached_F (the evaluation buffers above may not
         # be: the kernel's solve reads the rows directly).
         self._rows_valid = False
-        # The C kernel's solve (native/_cartesian.c), where built and the rows are views.
-        self._kernel = native.load("_cartesian") if kernel else None
+        # The C kernel's solve (sim/_ik.c), where built and the rows are views.
+        self._kernel = native.load("sim._ik") if kernel else None
         self._converged = np.empty(n, dtype=bool)  # the kernel's verdicts and errors
         self._errors = np.empty((2, n))
 

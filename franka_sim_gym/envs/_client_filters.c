@@ -1,5 +1,10 @@
-/* The env client's Cartesian velocity path, a fused copy of its numpy reference:
+/* The env's libfranka client filters (envs/commands.py _filtered), each a fused copy
+ * of its numpy reference:
  *
+ *   limit_rate(positions, target, ref, first, gain, q_d, dq_d, ddq_d, constants, shift,
+ *              a_max, j_max, out)
+ *       joint positions and velocities: libfranka's low-pass filter, then its rate
+ *       limiter against the envelope at q_d (client_filters.limit_*_core).
  *   limit_twist(target, ref, dref, gain, limits, out) -> bool
  *       envs/commands.py CommandGenerator._filtered for "cartesian_velocity" with
  *       libfranka's rate limiter: the low-pass filter toward the state's O_dP_EE_c,
@@ -7,14 +12,15 @@
  *       of src/rate_limiting.cpp on each half of the twist).
  *
  * Elementwise arithmetic in the reference's order, built without fused multiply-adds
- * (setup.py); the 3-vector dot products sum as numpy's einsum sums three products,
- * (x0 y0 + x2 y2) + x1 y1, so the result is the reference's bits
- * (tests/test_native_client.py). */
+ * (setup.py); the twist limiter's 3-vector dot products sum as numpy's einsum sums
+ * three products, (x0 y0 + x2 y2) + x1 y1, so the result is the reference's bits
+ * (tests/test_native_client.py, tests/test_native_joint.py). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
 
 #include "_arrays.h"
+#include "_envelope.h"
 
 #define DELTA_T KERNEL_DT
 
@@ -111,7 +117,91 @@ done:
     return result;
 }
 
+/* limit_rate(positions, target, ref, first, gain, q_d, dq_d, ddq_d, constants, shift,
+ *            a_max, j_max, out)
+ *
+ * One cycle of libfranka's joint command path (envs/commands.py _filtered):
+ *   x    = gain * target + (1 - gain) * ref      (ref = target where first[i])
+ *   band = (envelope(q_d) - tolerance) - margin, as [upper | -lower]: ``shift`` is the
+ *          tuple (tolerance, margin), subtracted in the reference's two steps
+ *   positions: v_c = (x - q_d) / dt, limited, re-integrated q_d + v dt
+ *   velocities: the limiter on x directly.
+ * ref, q_d, dq_d, ddq_d may be float32 (the wire state's fields); out is float64 (the
+ * command's field, any alignment). first: None or a (n,) bool array. */
+static PyObject *limit_rate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 13) {
+        PyErr_SetString(PyExc_TypeError,
+                        "limit_rate(positions, target, ref, first, gain, q_d, dq_d, ddq_d, "
+                        "constants, shift, a_max, j_max, out)");
+        return NULL;
+    }
+    enum { TARGET, REF, QD, DQD, DDQD, C, AMAX, JMAX, OUT, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    Py_buffer first = {0};
+    PyObject *result = NULL;
+    int positions = PyObject_IsTrue(args[0]);
+    if (positions < 0) goto done;
+    Py_ssize_t any7[2] = {-1, 7};
+    if (f64_get(args[1], &a[TARGET], 2, any7, 0, "target") < 0) goto done;
+    Py_ssize_t n = a[TARGET].shape[0];
+    Py_ssize_t s7[2] = {n, 7}, j7[1] = {7};
+    if (num_get(args[2], &a[REF], 2, s7, 0, "ref") < 0) goto done;
+    if (args[3] != Py_None) {
+        if (PyObject_GetBuffer(args[3], &first, PyBUF_SIMPLE) < 0) goto done;
+        if (first.len != n) {
+            PyErr_Format(PyExc_ValueError, "first: expected %zd bools, got %zd bytes", n,
+                         first.len);
+            goto done;
+        }
+    }
+    double gain = PyFloat_AsDouble(args[4]);
+    if (gain == -1.0 && PyErr_Occurred()) goto done;
+    if (num_get(args[5], &a[QD], 2, s7, 0, "q_d") < 0) goto done;
+    if (num_get(args[6], &a[DQD], 2, s7, 0, "dq_d") < 0) goto done;
+    if (num_get(args[7], &a[DDQD], 2, s7, 0, "ddq_d") < 0) goto done;
+    if (f64_get(args[8], &a[C], 2, CONSTANTS_SHAPE, 0, "constants") < 0) goto done;
+    double tolerance, margin;
+    if (!PyArg_ParseTuple(args[9], "dd", &tolerance, &margin)) goto done;
+    if (f64_get(args[10], &a[AMAX], 1, j7, 0, "a_max") < 0) goto done;
+    if (f64_get(args[11], &a[JMAX], 1, j7, 0, "j_max") < 0) goto done;
+    if (f64_get(args[12], &a[OUT], 2, s7, 1, "out") < 0) goto done;
+    const unsigned char *is_first = first.buf;
+    const double dt = DELTA_T, gain_ref = 1.0 - gain;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int j = 0; j < 7; j++) {
+            double target = AT2(a[TARGET], i, j);
+            double ref = is_first && is_first[i] ? target : num2(&a[REF], i, j);
+            double x = gain * target + gain_ref * ref;
+            double q_last = num2(&a[QD], i, j), v_last = num2(&a[DQD], i, j);
+            double a_last = num2(&a[DDQD], i, j);
+            double upper = envelope_entry(&a[C], j, q_last, tolerance) - margin;
+            double lower = -(envelope_entry(&a[C], j + 7, q_last, tolerance) - margin);
+            double a_max = AT1(a[AMAX], j), j_max = AT1(a[JMAX], j);
+            /* client_filters.limit_velocities_core */
+            double v_c = positions ? (x - q_last) / dt : x;
+            double jerk = (((v_c - v_last) / dt) - a_last) / dt;
+            double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
+            double ratio = j_max / a_max;
+            double safe_max = np_minimum(ratio * (upper - v_last), a_max);
+            double safe_min = np_maximum(ratio * (lower - v_last), -a_max);
+            double v = v_last + np_maximum(np_minimum(acc, safe_max), safe_min) * dt;
+            put2(&a[OUT], i, j, positions ? q_last + v * dt : v);
+        }
+    }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release_all(a, COUNT);
+    if (first.obj) PyBuffer_Release(&first);
+    return result;
+}
+
 static PyMethodDef METHODS[] = {
+    {"limit_rate", (PyCFunction)(void (*)(void))limit_rate, METH_FASTCALL,
+     "limit_rate(positions, target, ref, first, gain, q_d, dq_d, ddq_d, constants, "
+     "(tolerance, margin), a_max, j_max, out): libfranka's joint low-pass and rate limiter."},
     {"limit_twist", (PyCFunction)(void (*)(void))limit_twist, METH_FASTCALL,
      "limit_twist(target, ref, dref, gain, limits, out) -> bool: libfranka's low-pass "
      "filter and Cartesian velocity rate limiter (False: a non-finite input, nothing done)."},
@@ -119,9 +209,9 @@ static PyMethodDef METHODS[] = {
 };
 
 static struct PyModuleDef MODULE = {
-    PyModuleDef_HEAD_INIT, "_client",
+    PyModuleDef_HEAD_INIT, "_client_filters",
     "The env client's libfranka filters (fused copies of numpy reference code).", -1,
     METHODS, NULL, NULL, NULL, NULL,
 };
 
-PyMODINIT_FUNC PyInit__client(void) { return kernel_module(&MODULE); }
+PyMODINIT_FUNC PyInit__client_filters(void) { return kernel_module(&MODULE); }
