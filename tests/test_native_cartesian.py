@@ -324,12 +324,13 @@ def test_kernels_refuse_bad_shapes():
         None, None, None, np.zeros((2, n)), np.zeros(n, dtype=bool), 1e-8, 1e-14, 0.5, False,
     ]  # fmt: skip
     assert IK.ik_step(*args) == 0
+    names = {4: "site_mat", 8: "target", 12: "errors"}
     for k, bad in ((4, np.zeros((n, 9))), (8, np.zeros((n, 3, 4))), (12, np.zeros(n))):
         broken = list(args)
         broken[k] = bad
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=names[k]):
             IK.ik_step(*broken)
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match=r"ik_step\(\) takes 18 arguments \(17 given\)"):
         IK.ik_step(*args[:-1])
     T = np.tile(np.eye(4), (n, 1, 1))
     good = [T, T.copy(), np.zeros((n, 2, 6)), np.zeros((n, 3, 6)), q, np.zeros((n, 3, 7))]

@@ -102,7 +102,7 @@ def test_kernels_name_a_bad_argument_instead_of_reading_past_it():
         kernel.envelope(np.zeros((2, 7)), table, 0.0, ro)
     with pytest.raises(ValueError, match="shift"):
         kernel.envelope(np.zeros((2, 7)), table, np.zeros(3), np.zeros((2, 14)))
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match=r"envelope\(\) takes 4 arguments \(2 given\)"):
         kernel.envelope(np.zeros((2, 7)), table)
 
 

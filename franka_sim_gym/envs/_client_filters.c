@@ -70,10 +70,7 @@ static void limit_norm(const double *v_c, const double *v_last, const double *a_
 static PyObject *limit_twist(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError, "limit_twist(target, ref, dref, gain, limits, out)");
-        return NULL;
-    }
+    if (check_nargs(nargs, 6, "limit_twist") < 0) return NULL;
     enum { TARGET, REF, DREF, LIMITS, OUT, COUNT };
     F64 a[COUNT];
     memset(a, 0, sizeof(a));
@@ -131,12 +128,7 @@ done:
 static PyObject *limit_rate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 13) {
-        PyErr_SetString(PyExc_TypeError,
-                        "limit_rate(positions, target, ref, first, gain, q_d, dq_d, ddq_d, "
-                        "constants, shift, a_max, j_max, out)");
-        return NULL;
-    }
+    if (check_nargs(nargs, 13, "limit_rate") < 0) return NULL;
     enum { TARGET, REF, QD, DQD, DDQD, C, AMAX, JMAX, OUT, COUNT };
     F64 a[COUNT];
     memset(a, 0, sizeof(a));
@@ -208,10 +200,5 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef MODULE = {
-    PyModuleDef_HEAD_INIT, "_client_filters",
-    "The env client's libfranka filters (fused copies of numpy reference code).", -1,
-    METHODS, NULL, NULL, NULL, NULL,
-};
-
-PyMODINIT_FUNC PyInit__client_filters(void) { return kernel_module(&MODULE); }
+KERNEL_MODULE(_client_filters,
+              "The env client's libfranka filters (fused copies of numpy reference code).")

@@ -408,10 +408,5 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef MODULE = {
-    PyModuleDef_HEAD_INIT, "_cartesian_rules",
-    "The Cartesian generators' per-cycle rules (fused copies of numpy reference code).", -1,
-    METHODS, NULL, NULL, NULL, NULL,
-};
-
-PyMODINIT_FUNC PyInit__cartesian_rules(void) { return kernel_module(&MODULE); }
+KERNEL_MODULE(_cartesian_rules,
+              "The Cartesian generators' per-cycle rules (fused copies of numpy reference code).")

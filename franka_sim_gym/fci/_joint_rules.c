@@ -63,10 +63,7 @@ static inline double shift_at(const Shift *s, Py_ssize_t i, int k)
 static PyObject *envelope(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "envelope(q, constants, shift, out)");
-        return NULL;
-    }
+    if (check_nargs(nargs, 4, "envelope") < 0) return NULL;
     F64 a[3];
     Shift s;
     memset(a, 0, sizeof(a));
@@ -107,12 +104,7 @@ done:
 static PyObject *positions_inside(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 9) {
-        PyErr_SetString(PyExc_TypeError,
-                        "positions_inside(q_c, q, dq, ddq, stacked, upper, lower, constants, "
-                        "shift)");
-        return NULL;
-    }
+    if (check_nargs(nargs, 9, "positions_inside") < 0) return NULL;
     enum { QC, Q, DQ, DDQ, X, UP, LO, C, COUNT };
     F64 a[COUNT];
     memset(a, 0, sizeof(a));
@@ -176,11 +168,7 @@ done:
 static PyObject *measured_inside(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError,
-                        "measured_inside(dq, q, O_T_EE, ee_prev, measured, bounds)");
-        return NULL;
-    }
+    if (check_nargs(nargs, 6, "measured_inside") < 0) return NULL;
     enum { DQ, Q, T, PREV, X, B, COUNT };
     F64 a[COUNT];
     memset(a, 0, sizeof(a));
@@ -229,10 +217,5 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef MODULE = {
-    PyModuleDef_HEAD_INIT, "_joint_rules",
-    "The robot's joint-side rules of the 1 kHz cycle (fused copies of numpy code).", -1,
-    METHODS, NULL, NULL, NULL, NULL,
-};
-
-PyMODINIT_FUNC PyInit__joint_rules(void) { return kernel_module(&MODULE); }
+KERNEL_MODULE(_joint_rules,
+              "The robot's joint-side rules of the 1 kHz cycle (fused copies of numpy code).")

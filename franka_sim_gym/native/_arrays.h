@@ -125,6 +125,13 @@ static inline PyObject *kernel_module(PyModuleDef *def)
     return m;
 }
 
+/* The definition and the init function of kernel module ``name`` (an identifier such as
+ * _joint_rules: PyInit__joint_rules) with its ``doc`` and METHODS table. */
+#define KERNEL_MODULE(name, doc)                                                         \
+    static struct PyModuleDef name##_definition = {                                      \
+        PyModuleDef_HEAD_INIT, #name, doc, -1, METHODS, NULL, NULL, NULL, NULL};        \
+    PyMODINIT_FUNC PyInit_##name(void) { return kernel_module(&name##_definition); }
+
 /* numpy's minimum / maximum on non-NaN values (the kernels' inputs are finite). */
 static inline double np_minimum(double a, double b) { return a <= b ? a : b; }
 static inline double np_maximum(double a, double b) { return a >= b ? a : b; }

@@ -369,10 +369,5 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef MODULE = {
-    PyModuleDef_HEAD_INIT, "_ik",
-    "The Cartesian generators' damped differential IK (a fused copy of numpy code).", -1,
-    METHODS, NULL, NULL, NULL, NULL,
-};
-
-PyMODINIT_FUNC PyInit__ik(void) { return kernel_module(&MODULE); }
+KERNEL_MODULE(_ik,
+              "The Cartesian generators' damped differential IK (a fused copy of numpy code).")
