@@ -16,8 +16,7 @@ never skips physics).
 
 from __future__ import annotations
 
-#: The robot's cycle [s] (1 kHz).
-CYCLE_S = 0.001
+from ..fci.tables import DELTA_T as CYCLE_S  # the robot's cycle [s] (1 kHz), one definition
 
 #: The shortest time [s] a state is given to be answered before the next cycle
 #: receives commands. A Python readOnce/writeOnce client needs ~0.1-0.25 ms of work
