@@ -48,21 +48,31 @@ def make_model(
     batch_size: int = 256,
     sde: bool = False,
     tensorboard: bool = False,
+    buffer_size: int = 1_000_000,
+    ent_coef: str = "auto_0.02",
+    threads: int | None = None,
 ):
     import torch
-    from stable_baselines3 import PPO, SAC, TD3, HerReplayBuffer
+    from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.logger import configure
+
+    from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer
 
     # SB3 alternates collecting and learning, so the gradient steps have every core to
     # themselves: 2 threads on this 2-core machine cut a step from ~5.1 to ~3.9 ms.
-    torch.set_num_threads(max(1, os.cpu_count() or 1))
+    torch.set_num_threads(threads or max(1, os.cpu_count() or 1))
     common = dict(policy="MultiInputPolicy", env=env, seed=seed, verbose=0)
-    # Off-policy learners relabel goals with HER (the env's vectorised compute_reward).
+    # Off-policy learners relabel goals with HER (the env's vectorised compute_reward),
+    # keeping each step's reflex charge so that a relabelled reflex is no success.
     off_policy = dict(
-        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_class=ReflexChargedHerReplayBuffer,
         replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
         # HER samples whole episodes: learning waits for every arm's first one to end.
         learning_starts=learning_starts,
+        # HER scans every slot for finished episodes at each gradient step: a buffer
+        # that just holds the run samples the same transitions as SB3's million-slot
+        # default, without the scan of the empty slots.
+        buffer_size=buffer_size,
         batch_size=batch_size,
         gamma=0.95,
         learning_rate=1e-3,
@@ -74,7 +84,11 @@ def make_model(
     if algo == "sac":
         # gSDE: exploration noise that is smooth in time, which a rate-limited robot
         # does not average away between steps.
-        model = SAC(**common, **off_policy, use_sde=sde)
+        # ent_coef "auto_0.02": tuned as SB3's "auto", but from 0.02 instead of 1. With
+        # rewards of -1 a step, an entropy weight of 1 outweighs the task: in the default
+        # run it took ~5,500 samples to fall to the ~0.015 where it settles, and nothing
+        # was learnt before (docs/env.md).
+        model = SAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
     elif algo == "td3":
         model = TD3(**common, **off_policy)
     elif algo == "ppo":
@@ -169,6 +183,14 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=256)
     parser.add_argument("--sde", action="store_true", help="SAC: state-dependent exploration")
     parser.add_argument(
+        "--ent-coef",
+        default="auto_0.02",
+        help="SAC's entropy coefficient: a number, or auto_<initial value> to tune it",
+    )
+    parser.add_argument(
+        "--threads", type=int, default=None, help="torch threads (default: one per core)"
+    )
+    parser.add_argument(
         "--env-kwargs",
         default="{}",
         help=f"JSON, merged over the defaults {json.dumps(DEFAULT_ENV_KWARGS)}",
@@ -194,6 +216,11 @@ def main() -> None:
         kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
     )
     learning_starts = max(300, args.num_envs * (episode_steps + 1))
+    chunk = max(1, args.steps // args.evals)
+    # SB3 collects whole vector steps: each learn call's samples round up to the arms.
+    chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
+    arms = max(1, args.num_envs)
+    collected = sum(-(-n // arms) * arms for n in chunks)
     model = make_model(
         args.algo,
         env,
@@ -205,14 +232,13 @@ def main() -> None:
         args.batch_size,
         args.sde,
         args.tensorboard,
+        buffer_size=min(1_000_000, collected + arms),  # the whole run, one spare step
+        ent_coef=args.ent_coef,
+        threads=args.threads,
     )
     start = time.perf_counter()
     rows = []
-    chunk = max(1, args.steps // args.evals)
-    # SB3 collects whole vector steps: each learn call's samples round up to the arms.
-    chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
-    arms = max(1, args.num_envs)
-    bar = progress_bar(sum(-(-n // arms) * arms for n in chunks), enabled=not args.no_progress)
+    bar = progress_bar(collected, enabled=not args.no_progress)
     done = 0
     while done < args.steps:
         n = min(chunk, args.steps - done)

@@ -14,6 +14,8 @@ from .conftest import ROOT, run_python
 
 sb3 = pytest.importorskip("stable_baselines3")
 
+from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer  # noqa: E402
+
 
 @pytest.mark.parametrize("env_id", list(IDS))
 def test_sb3_check_env_passes_for_every_id(env_id):
@@ -54,6 +56,10 @@ def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, ar
     assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
     env = gym.make(config["env_id"], **config["env_kwargs"])
     model = sb3.SAC.load(out / "model.zip", env=env)  # HER needs the env
+    # HER keeps the reflex charge (envs/sb3_her.py); the buffer holds the run, no more
+    assert model.replay_buffer_class is ReflexChargedHerReplayBuffer
+    assert model.buffer_size == (401 if arms else 416)  # 400 samples and a spare step
+    assert model.ent_coef == "auto_0.02"
     obs, _ = env.reset(seed=0)
     action, _ = model.predict(obs, deterministic=True)
     assert env.action_space.contains(action) and action.shape == (3,)

@@ -38,9 +38,10 @@ class Reach:
     def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
         """Vectorised over a leading batch axis, as SB3's HER calls it.
 
-        ``info`` is one step's info dict or a sequence of them (HER passes the stored
-        ones); their ``reflex_penalty`` is added, so a step's own transition gives the
-        step's reward and a relabelled reflex step stays charged.
+        ``info`` is one step's info dict, a sequence of them (HER passes the stored
+        ones), or a numeric array of their ``reflex_penalty`` values (what
+        ``envs/sb3_her.py`` stores). The charge is added, so a step's own transition gives
+        the step's reward and a relabelled reflex step stays charged.
         """
         d = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
         if self.reward_type == "sparse":
@@ -65,11 +66,14 @@ class Reach:
 
 
 def _penalty(info) -> np.ndarray | float | None:
-    """The reflex_penalty of one info dict or of a sequence of them (None: no infos)."""
+    """The reflex_penalty of one info dict, of a sequence of them, or the penalties
+    themselves as a numeric array (None: no infos)."""
     if info is None:
         return None
     if isinstance(info, dict):
         return np.asarray(info.get("reflex_penalty", 0.0), dtype=np.float64)
+    if isinstance(info, np.ndarray) and info.dtype.kind in "fiu":
+        return info.astype(np.float64)
     rows = list(info)
     if not rows or not isinstance(rows[0], dict):
         return None
