@@ -6,7 +6,9 @@
 
 The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientation held,
 10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env), one
-gradient step per sample, 12,000 samples. Every cycle runs the full FCI at 1 kHz: the
+gradient step per sample, 12,000 samples, HER through franka_sim_gym's buffer that keeps
+the reflex charge of relabelled steps (envs/sb3_her.py), SAC's entropy weight tuned from
+0.02. Every cycle runs the full FCI at 1 kHz: the
 libfranka client's filters, every motion-limit check including the IK joint side, the
 safety controller. Reflexes terminate episodes, as on the robot.
 
