@@ -15,9 +15,10 @@ from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
 HER = dict(n_sampled_goal=4, goal_selection_strategy="future")
 
 
-def collect(buffer_class, steps: int = 48):
+def collect(buffer_class, steps: int = 48) -> SAC:
     """SAC's own collection (uniform random actions before learning starts) on arms whose
-    unfiltered joint-position actions trip reflexes: the transitions HER stores."""
+    unfiltered joint-position actions trip reflexes: the model, its buffer holding the
+    transitions HER stores."""
     env = FrankaFCISB3VecEnv(4, action_filter="none", max_episode_steps=6)
     model = SAC(
         "MultiInputPolicy",
@@ -30,7 +31,7 @@ def collect(buffer_class, steps: int = 48):
         seed=3,
     )
     model.learn(total_timesteps=steps)
-    return model.replay_buffer
+    return model
 
 
 def reflex_steps(buffer) -> tuple[np.ndarray, np.ndarray]:
@@ -46,7 +47,7 @@ def reflex_steps(buffer) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_relabelled_reflex_steps_keep_their_charge():
-    buffer = collect(ReflexChargedHerReplayBuffer)
+    buffer = collect(ReflexChargedHerReplayBuffer).replay_buffer
     rows, arms = reflex_steps(buffer)
     # "future" relabels an episode's last step with the goal it reached itself:
     # distance 0, so only the charge is left, the reward the env gave minus its -1.
@@ -63,7 +64,7 @@ def test_relabelled_reflex_steps_keep_their_charge():
 def test_sb3s_own_buffer_would_relabel_a_reflex_as_a_success():
     """Why the buffer exists: without the infos, HER's relabelled reflex step is a
     terminal transition of reward 0, the best a transition can get."""
-    buffer = collect(HerReplayBuffer)
+    buffer = collect(HerReplayBuffer).replay_buffer
     rows, arms = reflex_steps(buffer)
     virtual = buffer._get_virtual_samples(rows, arms)
     assert np.all(virtual.rewards.numpy() == 0.0)
@@ -71,18 +72,16 @@ def test_sb3s_own_buffer_would_relabel_a_reflex_as_a_success():
 
 
 def test_the_charges_survive_saving_the_replay_buffer(tmp_path):
-    buffer = collect(ReflexChargedHerReplayBuffer, steps=24)
-    env = FrankaFCISB3VecEnv(4, action_filter="none", max_episode_steps=6)
-    model = SAC("MultiInputPolicy", env, replay_buffer_class=ReflexChargedHerReplayBuffer,
-                replay_buffer_kwargs=HER, buffer_size=1000, policy_kwargs=dict(net_arch=[16]))
-    model.replay_buffer = buffer
+    model = collect(ReflexChargedHerReplayBuffer, steps=24)
+    buffer = model.replay_buffer
     model.save_replay_buffer(tmp_path / "buffer.pkl")
     model.load_replay_buffer(tmp_path / "buffer.pkl")
     loaded = model.replay_buffer
     assert loaded is not buffer
     assert np.array_equal(loaded.infos.penalty, buffer.infos.penalty)
     rows, arms = reflex_steps(loaded)
-    assert np.all(loaded._get_virtual_samples(rows, arms).rewards.numpy() < -1.0)
+    virtual = loaded._get_virtual_samples(rows, arms).rewards.numpy().ravel()
+    assert np.array_equal(virtual, buffer.rewards[rows, arms] + 1.0)
 
 
 def test_copy_info_dict_is_refused_with_the_reason():
