@@ -8,9 +8,10 @@ The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientatio
 10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env), one
 gradient step per sample, 12,000 samples, HER through franka_sim_gym's buffer that keeps
 the reflex charge of relabelled steps (envs/sb3_her.py), SAC's entropy weight tuned from
-0.02. Every cycle runs the full FCI at 1 kHz: the
-libfranka client's filters, every motion-limit check including the IK joint side, the
-safety controller. Reflexes terminate episodes, as on the robot.
+0.02, SAC's gradient steps taken by LeanSAC (envs/sb3_sac.py: SB3's, bit for bit, with
+fewer torch calls). Every cycle runs the full FCI at 1 kHz: the libfranka client's
+filters, every motion-limit check including the IK joint side, the safety controller.
+Reflexes terminate episodes, as on the robot.
 
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
 examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger;
