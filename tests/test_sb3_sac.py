@@ -8,6 +8,7 @@ import pytest
 sb3 = pytest.importorskip("stable_baselines3")
 import torch as th  # noqa: E402
 from stable_baselines3 import SAC  # noqa: E402
+from stable_baselines3.common.torch_layers import CombinedExtractor  # noqa: E402
 
 from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer  # noqa: E402
 from franka_sim_gym.envs.sb3_sac import LeanSAC  # noqa: E402
@@ -85,7 +86,18 @@ def test_the_step_leaves_torch_as_it_found_it():
     assert all(p.requires_grad for p in model.actor.parameters())
 
 
-@pytest.mark.parametrize("kwargs", [dict(use_sde=True), dict(target_update_interval=2)])
+class TaggedExtractor(CombinedExtractor):
+    """A user's extractor: LeanSAC cannot know that its calls agree."""
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(use_sde=True),
+        dict(target_update_interval=2),
+        dict(policy_kwargs=dict(net_arch=[32, 32], features_extractor_class=TaggedExtractor)),
+    ],
+)
 def test_other_configurations_take_sb3s_own_step(kwargs):
     lean = trained(LeanSAC, steps=60, **kwargs)
     assert not lean.lean_step_applies()

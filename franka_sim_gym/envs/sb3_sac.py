@@ -9,8 +9,8 @@ few microseconds of dispatch, and ``examples/train_sb3.py`` takes one step per s
 ``LeanSAC.train`` does the step of ``SAC.train`` with fewer of them:
 
 * the observation features are built once per batch and shared by the actor, the
-  critic and the target critic (SB3 builds them five times). This needs feature
-  extractors without parameters (SB3's default ``FlattenExtractor`` and
+  critic and the target critic (SB3 builds them five times). This needs SB3's own
+  flattening extractors without parameters (the default ``FlattenExtractor``, and
   ``CombinedExtractor`` over vectors), for which every copy is the same tensor;
 * the critic's parameters are frozen while the actor's loss goes through it: SB3
   computes their gradients there and then discards them (the critic's optimizer
@@ -27,7 +27,7 @@ Nothing else changes: the same replay samples, random draws and floating-point
 operations in the same order, so the parameters after training are SB3's exactly
 (``tests/test_sb3_sac.py`` compares them). Models save and load as SB3 SAC models
 (``SAC.load`` reads them). Configurations outside the above (gSDE, a target update
-interval other than 1, batch-norm statistics, extractors with parameters) take SB3's
+interval other than 1, batch-norm statistics, other feature extractors) take SB3's
 own ``SAC.train``.
 """
 
@@ -37,11 +37,17 @@ import numpy as np
 import torch as th
 import torch.nn.functional as F
 from stable_baselines3 import SAC
+from stable_baselines3.common.torch_layers import CombinedExtractor, FlattenExtractor
 from stable_baselines3.sac.policies import LOG_STD_MAX, LOG_STD_MIN
 
 
-def _parameter_free(module: th.nn.Module) -> bool:
-    return next(module.parameters(), None) is None
+def _plain_extractor(module: th.nn.Module) -> bool:
+    """SB3's own flattening extractors without parameters: each call on a batch returns
+    the same tensor (a subclass, or one with parameters, may not)."""
+    return (
+        type(module) in (FlattenExtractor, CombinedExtractor)
+        and next(module.parameters(), None) is None
+    )
 
 
 class LeanSAC(SAC):
@@ -62,7 +68,7 @@ class LeanSAC(SAC):
             not self.use_sde
             and self.target_update_interval == 1
             and not self.batch_norm_stats
-            and all(_parameter_free(e) for e in extractors)
+            and all(_plain_extractor(e) for e in extractors)
             and len({type(e) for e in extractors}) == 1
         )
 
