@@ -44,6 +44,127 @@ def test_fast_path_agrees_with_check_joint_position(joint, q_offset, velocity, a
     assert fast == (rule[0] == limits.NO_ERROR)
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    joint=st.integers(0, 6),
+    q_offset=st.floats(-3.2, 3.2),
+    velocity=st.floats(-3.0, 3.0),
+    acceleration=st.floats(-12.0, 12.0),
+    jerk=st.floats(-6000.0, 6000.0),
+)
+def test_velocity_fast_path_agrees_with_check_joint_velocity(
+    joint, q_offset, velocity, acceleration, jerk
+):
+    dt = 1e-3
+    ref = CTRL.reference
+    ref.q[0] = (TABLE.q_lower + TABLE.q_upper) / 2
+    ref.q[0, joint] = np.clip(q_offset, TABLE.q_lower[joint] - 0.05, TABLE.q_upper[joint] + 0.05)
+    ref.dq[0] = 0.0
+    ref.ddq[0] = 0.0
+    ref.dq[0, joint] = velocity - acceleration * dt
+    ref.ddq[0, joint] = acceleration - jerk * dt
+    dq_c = ref.dq.copy()
+    dq_c[0, joint] = velocity
+    fast = ENGINE._velocities_inside_limits(dq_c)
+    rule = limits.check_joint_velocity(dq_c, ref.q, ref.dq, ref.ddq, False, ref.dq, 1, TABLE, 0.1)
+    assert fast == (rule.error[0] == limits.NO_ERROR)
+    # the acceleration it leaves is the one the general path records
+    assert np.array_equal(ENGINE._velocity_ddq, rule.ddq)
+
+
+@pytest.mark.parametrize("factor", [0.999, 1.0 - 1e-9, 1.0 + 1e-9, 1.005])
+@pytest.mark.parametrize("row", ["acceleration", "jerk", "envelope"])
+def test_velocity_fast_path_at_each_limits_edge(row, factor):
+    """Just inside and just past each row's limit, the fast path decides as the rule."""
+    dt = 1e-3
+    ref = CTRL.reference
+    ref.q[0] = (TABLE.q_lower + TABLE.q_upper) / 2
+    ref.dq[0] = 0.0
+    ref.ddq[0] = 0.0
+    dq_c = ref.dq.copy()
+    if row == "acceleration":  # ddq at the limit, no jerk
+        ref.ddq[0, 3] = TABLE.ddq_max[3] * factor
+        ref.dq[0, 3] = 0.2
+        dq_c[0, 3] = 0.2 + ref.ddq[0, 3] * dt
+    elif row == "jerk":  # dddq at the limit, from rest
+        dq_c[0, 3] = TABLE.dddq_max[3] * factor * dt * dt
+    else:  # dq_c at the envelope's upper edge at q_d, reached at a small acceleration
+        upper, _ = TABLE.velocity_envelope(ref.q)
+        dq_c[0, 3] = upper[0, 3] * factor
+        ref.dq[0, 3] = dq_c[0, 3] - 1e-3 * dt
+        ref.ddq[0, 3] = -1e-3
+    fast = ENGINE._velocities_inside_limits(dq_c)
+    rule = limits.check_joint_velocity(dq_c, ref.q, ref.dq, ref.ddq, False, ref.dq, 1, TABLE, 0.1)
+    assert fast == (rule.error[0] == limits.NO_ERROR)
+    if factor > 1.001:
+        assert not fast
+    if factor < 0.9999:
+        assert fast
+
+
+def _joint_velocity_rollout(action_filter: str, amplitude: float, seed: int) -> list:
+    import gymnasium as gym
+
+    import franka_sim_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make(
+        "FrankaFCI-v0",
+        action_interface="joint_velocity",
+        action_filter=action_filter,
+        max_episode_steps=30,
+    )
+    rng = np.random.default_rng(seed)
+    out = [env.reset(seed=seed)]
+    ref = env.unwrapped.controller.reference
+    for _ in range(90):
+        step = env.step(rng.uniform(-amplitude, amplitude, size=7).astype(np.float32))
+        out.append(step)
+        # the robot's own history too: what the next cycles are differenced against
+        history = ("q", "dq", "ddq", "ddq_frozen", "run")
+        out.append(("reference", {k: getattr(ref, k).copy() for k in history}))
+        if step[2] or step[3]:
+            out.append(env.reset())
+    env.close()
+    return out
+
+
+@pytest.mark.parametrize(
+    "action_filter, amplitude, fast_cycles",
+    # unfiltered: steps small enough to start a motion (0.1 rad/s), then each change of
+    # step trips an acceleration discontinuity mid-motion
+    [("limit_rate", 1.0, 3000), ("none", 0.05, 100)],
+)
+def test_joint_velocity_episodes_are_the_general_paths_bit_for_bit(
+    action_filter, amplitude, fast_cycles, monkeypatch
+):
+    """Whole episodes (reflexes and resets included) through the fast path equal the
+    same episodes with every cycle sent down the rule functions' general path."""
+    from franka_sim_gym.fci.engine import MotionLimitEngine
+
+    fast_path = MotionLimitEngine._velocities_inside_limits
+    passed = []
+
+    def counted(self, dq_c):
+        passed.append(fast_path(self, dq_c))
+        return passed[-1]
+
+    monkeypatch.setattr(MotionLimitEngine, "_velocities_inside_limits", counted)
+    fast = _joint_velocity_rollout(action_filter, amplitude, seed=4)
+    assert sum(passed) > fast_cycles  # the fast path decided most cycles
+    if action_filter == "none":  # the jumps it refused went down the general path
+        assert not all(passed)
+        assert any(x[2] and x[4]["reflex_reason"] for x in fast if len(x) == 5)
+    monkeypatch.setattr(MotionLimitEngine, "_velocities_inside_limits", lambda self, dq_c: False)
+    general = _joint_velocity_rollout(action_filter, amplitude, seed=4)
+    assert len(fast) == len(general)
+    for a, b in zip(fast, general, strict=True):
+        assert repr(a) == repr(b)
+        for x, y in zip(a, b, strict=True):
+            if isinstance(x, dict):
+                for key in x:
+                    assert np.array_equal(np.asarray(x[key]), np.asarray(y[key])), key
+
+
 @settings(max_examples=100, deadline=None)
 @given(answers=st.lists(st.booleans(), min_size=1, max_size=260))
 def test_one_robot_accounting_matches_the_batched_arithmetic(answers):

@@ -69,6 +69,9 @@ class MotionLimitEngine:
         # (tables.interior_bounds); outside it, the exact envelope is filled in.
         self._stacked = np.zeros((n, 35))
         self._derivatives = [self._stacked[:, 7 * k : 7 * k + 7] for k in range(5)]
+        # The joint-velocity fast path's implied acceleration and jerk.
+        self._velocity_ddq = np.zeros((n, 7))
+        self._velocity_dddq = np.zeros((n, 7))
         inside = t.interior_bounds(INTERIOR_SPEED, tol)
         self._upper_interior = np.tile(
             np.concatenate([t.q_upper, inside[:7], t.ddq_max, t.dddq_max, inside[7:14]]), (n, 1)
@@ -112,12 +115,47 @@ class MotionLimitEngine:
                     ref.record_positions(self.c._q_c, d[1], d[2], self.c.writer.message_id)
                 else:  # the rule functions name the violation (and its precedence)
                     self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
+            elif (
+                m.n_joint_velocity == n
+                and count_nonzero(have) == n
+                and not count_nonzero(self.c._first)
+            ):
+                dq_c = self.c._dq_c
+                if self._velocities_inside_limits(dq_c):
+                    # What the general path records for an applied dq_c: q_d advances
+                    # by dq_c over the cycle, the implied acceleration is frozen.
+                    q = ref.q + dq_c * DELTA_T
+                    ref.record_positions(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
+                else:  # the rule functions name the violation (and its precedence)
+                    self._advance_joints(started, have, self.c._q_c, dq_c)
             else:
                 self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
         if m.n_cartesian and count_nonzero(started):
             self.cartesian.advance(started)
         if m.n_external and count_nonzero(self.c._have):
             self._advance_torques()
+
+    def _velocities_inside_limits(self, dq_c: np.ndarray) -> bool:
+        """Every robot's dq_c passes every mid-motion dq_c row (15 acceleration, 15 jerk,
+        13 envelope at q_d): the joint-velocity fast path.
+
+        The arithmetic of ``limits.check_joint_velocity`` over one cycle against the
+        reference, without its masks; leaves the implied acceleration in
+        ``_velocity_ddq``. Non-finite commands never get here (refused on arrival).
+        """
+        ref, t = self.c.reference, self.c.table
+        ddq, dddq = self._velocity_ddq, self._velocity_dddq
+        np.subtract(dq_c, ref.dq, out=ddq)
+        ddq /= DELTA_T  # divided, as the rule function does: bit-identical to the general path
+        np.subtract(ddq, ref.ddq, out=dddq)
+        dddq /= DELTA_T
+        upper, lower = t.velocity_envelope(ref.q)
+        return not (
+            count_nonzero(np.abs(ddq) > t.ddq_max)
+            or count_nonzero(np.abs(dddq) > t.dddq_max)
+            or count_nonzero(dq_c > upper)
+            or count_nonzero(dq_c < lower)
+        )
 
     def _positions_inside_limits(self, q_c: np.ndarray) -> bool:
         """Every robot's q_c passes every mid-motion q_c row (12, 14, 13, 15): the fast path.

@@ -92,7 +92,8 @@ class JointReference:
     def record_positions(
         self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray, echo: np.ndarray
     ) -> None:
-        """Every robot applied a fresh q_c this cycle, with its judged derivatives (no masks)."""
+        """Every robot applied a fresh command this cycle (q_c, or q_d + dq_c dt), with
+        its judged derivatives (no masks)."""
         self.q[...] = q_c
         self.dq[...] = dq
         self.ddq[...] = ddq
