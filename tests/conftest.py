@@ -26,6 +26,14 @@ from franka_sim_gym.fci.tables import MAX_LOST_CYCLES
 
 ROOT = Path(__file__).resolve().parent.parent
 
+# The servers are stopped with Ctrl-C (SIGINT) and must exit cleanly. A shell starts a
+# background job (`make test &`, nohup) with SIGINT ignored, and an ignored signal stays
+# ignored in every child: each server would then sit out stop()'s 10 s and be killed.
+# A handled signal is reset to its default in the children, where Python turns it into
+# KeyboardInterrupt again.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 def load_example(name: str):
     """examples/NAME.py as a module (the examples import each other as siblings, so
