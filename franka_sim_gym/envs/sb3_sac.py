@@ -110,7 +110,9 @@ class LeanSAC(SAC):
         ent_coef_losses, ent_coefs, actor_losses, critic_losses = [], [], [], []
         for _ in range(gradient_steps):
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            discounts = data.discounts if data.discounts is not None else self.gamma
+            # n-step replay buffers carry their own discounts (absent in older SB3)
+            discounts = getattr(data, "discounts", None)
+            discounts = self.gamma if discounts is None else discounts
             obs_features = features(data.observations)
 
             actions_pi, log_prob = pi(obs_features)

@@ -112,7 +112,7 @@ class MotionLimitEngine:
             ):
                 if self._positions_inside_limits(self.c._q_c):
                     d = self._derivatives
-                    ref.record_positions(self.c._q_c, d[1], d[2], self.c.writer.message_id)
+                    ref.record_applied(self.c._q_c, d[1], d[2], self.c.writer.message_id)
                 else:  # the rule functions name the violation (and its precedence)
                     self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
             elif (
@@ -125,7 +125,7 @@ class MotionLimitEngine:
                     # What the general path records for an applied dq_c: q_d advances
                     # by dq_c over the cycle, the implied acceleration is frozen.
                     q = ref.q + dq_c * DELTA_T
-                    ref.record_positions(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
+                    ref.record_applied(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
                 else:  # the rule functions name the violation (and its precedence)
                     self._advance_joints(started, have, self.c._q_c, dq_c)
             else:

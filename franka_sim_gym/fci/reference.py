@@ -89,7 +89,7 @@ class JointReference:
         np.copyto(self.ddq, self._real_ddq, where=r)
         self.run[rows] = 0
 
-    def record_positions(
+    def record_applied(
         self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray, echo: np.ndarray
     ) -> None:
         """Every robot applied a fresh command this cycle (q_c, or q_d + dq_c dt), with
