@@ -63,7 +63,7 @@ def make_model(
     from franka_sim_gym.envs.sb3_sac import LeanSAC
 
     # SB3 alternates collecting and learning, so the gradient steps have every core to
-    # themselves: 2 threads on this 2-core machine cut a step from ~5.1 to ~3.9 ms.
+    # themselves: 2 threads on this 2-core machine cut an SB3 SAC step from ~4.4 to ~3.7 ms.
     torch.set_num_threads(threads or max(1, os.cpu_count() or 1))
     common = dict(policy="MultiInputPolicy", env=env, seed=seed, verbose=0)
     # Off-policy learners relabel goals with HER (the env's vectorised compute_reward),
