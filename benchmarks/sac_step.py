@@ -22,7 +22,6 @@ import time
 from pathlib import Path
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
@@ -32,24 +31,13 @@ import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.sb3_sac import LeanSAC
 from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv
 from franka_sim_gym.native import describe
-from franka_sim_gym.sim.arm import ArmPhysics
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
-sys.path.insert(0, str(EXAMPLES))
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent / "examples"), str(HERE)]
 import train_sb3  # noqa: E402  (examples/train_sb3.py: the default run's model)
+from env_rate import bare_rate  # noqa: E402  (benchmarks/env_rate.py, beside this one)
 
 ARMS = 16
-
-
-def bare_step_ms(seconds: float = 1.0) -> float:
-    """ms per mj_step of the 16-arm world."""
-    physics = ArmPhysics(n_arms=ARMS)
-    calls, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        for _ in range(50):
-            mujoco.mj_step(physics.model, physics.data)
-        calls += 50
-    return (time.perf_counter() - start) / calls * 1e3
 
 
 def snapshot(directory: Path, env, threads: int) -> None:
@@ -93,7 +81,7 @@ def main() -> None:
     threads = args.threads or max(1, os.cpu_count() or 1)
     spec = gym.spec("FrankaFCICartesianVelocity-v0")
     env = FrankaFCISB3VecEnv(ARMS, **{**spec.kwargs, **train_sb3.DEFAULT_ENV_KWARGS})
-    bare = bare_step_ms()
+    bare = 1e3 / bare_rate(ARMS, 1.0)  # ms per mj_step of the 16-arm world
     best: dict[str, float] = {}
     params: dict[str, th.Tensor] = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -18,23 +18,39 @@ ENGINE = CTRL.engine
 TABLE = CTRL.table
 
 
-@settings(max_examples=300, deadline=None)
-@given(
+#: One joint's motion around mid-range: its q, and the velocity, acceleration and jerk
+#: its next command implies (past every limit at the ends of each range).
+JOINT_MOTION = dict(
     joint=st.integers(0, 6),
     q_offset=st.floats(-3.2, 3.2),
     velocity=st.floats(-3.0, 3.0),
     acceleration=st.floats(-12.0, 12.0),
     jerk=st.floats(-6000.0, 6000.0),
 )
-def test_fast_path_agrees_with_check_joint_position(joint, q_offset, velocity, acceleration, jerk):
+
+
+def _reference(joint=None, q_offset=0.0, velocity=0.0, acceleration=0.0, jerk=0.0):
+    """Robot 0's reference at mid-range and at rest, but for ``joint``: at ``q_offset``
+    (clipped to 5 cm past its stops), with the history from which a command at
+    ``velocity`` implies ``acceleration`` and ``jerk``."""
     dt = 1e-3
     ref = CTRL.reference
     ref.q[0] = np.clip(TABLE.q_lower + (TABLE.q_upper - TABLE.q_lower) / 2 + 0.0, -3, 4)
-    ref.q[0, joint] = np.clip(q_offset, TABLE.q_lower[joint] - 0.05, TABLE.q_upper[joint] + 0.05)
     ref.dq[0] = 0.0
     ref.ddq[0] = 0.0
-    ref.dq[0, joint] = velocity - acceleration * dt
-    ref.ddq[0, joint] = acceleration - jerk * dt
+    if joint is not None:
+        lo, hi = TABLE.q_lower[joint] - 0.05, TABLE.q_upper[joint] + 0.05
+        ref.q[0, joint] = np.clip(q_offset, lo, hi)
+        ref.dq[0, joint] = velocity - acceleration * dt
+        ref.ddq[0, joint] = acceleration - jerk * dt
+    return ref
+
+
+@settings(max_examples=300, deadline=None)
+@given(**JOINT_MOTION)
+def test_fast_path_agrees_with_check_joint_position(joint, q_offset, velocity, acceleration, jerk):
+    dt = 1e-3
+    ref = _reference(joint, q_offset, velocity, acceleration, jerk)
     q_c = ref.q.copy()
     q_c[0, joint] += velocity * dt
     fast = ENGINE._positions_inside_limits(q_c)
@@ -45,24 +61,11 @@ def test_fast_path_agrees_with_check_joint_position(joint, q_offset, velocity, a
 
 
 @settings(max_examples=300, deadline=None)
-@given(
-    joint=st.integers(0, 6),
-    q_offset=st.floats(-3.2, 3.2),
-    velocity=st.floats(-3.0, 3.0),
-    acceleration=st.floats(-12.0, 12.0),
-    jerk=st.floats(-6000.0, 6000.0),
-)
+@given(**JOINT_MOTION)
 def test_velocity_fast_path_agrees_with_check_joint_velocity(
     joint, q_offset, velocity, acceleration, jerk
 ):
-    dt = 1e-3
-    ref = CTRL.reference
-    ref.q[0] = (TABLE.q_lower + TABLE.q_upper) / 2
-    ref.q[0, joint] = np.clip(q_offset, TABLE.q_lower[joint] - 0.05, TABLE.q_upper[joint] + 0.05)
-    ref.dq[0] = 0.0
-    ref.ddq[0] = 0.0
-    ref.dq[0, joint] = velocity - acceleration * dt
-    ref.ddq[0, joint] = acceleration - jerk * dt
+    ref = _reference(joint, q_offset, velocity, acceleration, jerk)
     dq_c = ref.dq.copy()
     dq_c[0, joint] = velocity
     fast = ENGINE._velocities_inside_limits(dq_c)
@@ -77,10 +80,7 @@ def test_velocity_fast_path_agrees_with_check_joint_velocity(
 def test_velocity_fast_path_at_each_limits_edge(row, factor):
     """Just inside and just past each row's limit, the fast path decides as the rule."""
     dt = 1e-3
-    ref = CTRL.reference
-    ref.q[0] = (TABLE.q_lower + TABLE.q_upper) / 2
-    ref.dq[0] = 0.0
-    ref.ddq[0] = 0.0
+    ref = _reference()
     dq_c = ref.dq.copy()
     if row == "acceleration":  # ddq at the limit, no jerk
         ref.ddq[0, 3] = TABLE.ddq_max[3] * factor
