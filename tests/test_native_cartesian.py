@@ -507,18 +507,27 @@ def test_record_kernels_copy_and_report_as_cartesian_record_does(n: int):
 
 
 @pytest.mark.parametrize("n", [1, 16])
-def test_twist_target_kernel_moves_the_target_as_the_reference(n: int):
+@pytest.mark.parametrize("omega", [0.0, 1e-6, 0.3, 1000.0])
+def test_twist_target_kernel_moves_the_target_as_the_reference(n: int, omega: float):
+    """fci/cartesian.py _twist_target's numpy: the translation bit for bit; the rotation
+    exp(omega dt) @ R to rounding (3x3 products: numpy's go through BLAS), and exactly R
+    where a robot's twist does not turn. omega (rad/s): none, the Rodrigues series' range
+    (below 1e-8 rad a cycle), a hand's turn, a whole radian a cycle."""
     rng = np.random.default_rng(3 + n)
     T, _ = _poses(rng, n, 0.1)
-    for turning in (False, True):
-        twist = rng.normal(0, 0.3, (n, 6))
-        if not turning:
-            twist[:, 3:] = 0.0
-        else:
-            twist[:, 3:] = 0.0
-            twist[n - 1, 4] = 1e-300  # one robot barely turning is turning
-        out = np.full((n, 4, 4), np.nan)
-        assert K.twist_target(T, twist, out) is turning
-        ref = T.copy()
-        ref[:, :3, 3] += twist[:, :3] * DELTA_T
-        assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))
+    twist = rng.normal(0, 0.3, (n, 6))
+    twist[:, 3:] = rng.normal(0, omega, (n, 3))
+    still = np.arange(n) % 3 == 1  # some robots do not turn
+    twist[still, 3:] = 0.0
+    if n > 1:
+        twist[-1, 3:] = (0.0, 1e-300, 0.0)  # barely turning is turning
+    out = np.full((n, 4, 4), np.nan)
+    assert K.twist_target(T, twist, out) is None
+    ref = T.copy()
+    ref[:, :3, 3] += twist[:, :3] * DELTA_T
+    ref[:, :3, :3] = rotation_exp(twist[:, 3:] * DELTA_T) @ T[:, :3, :3]
+    assert np.array_equal(out[:, :, 3].view(np.uint64), ref[:, :, 3].view(np.uint64))
+    assert np.array_equal(out[:, 3].view(np.uint64), ref[:, 3].view(np.uint64))
+    np.testing.assert_allclose(out[:, :3, :3], ref[:, :3, :3], rtol=0, atol=1e-15)
+    kept = still | ~np.any(twist[:, 3:], axis=1)
+    assert np.array_equal(out[kept, :3, :3].view(np.uint64), T[kept, :3, :3].view(np.uint64))

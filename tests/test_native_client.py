@@ -15,10 +15,16 @@ import numpy as np
 import pytest
 
 from franka_sim_gym import native
+from franka_sim_gym.envs import client_filters as cf
 from franka_sim_gym.envs.commands import CommandGenerator
+from franka_sim_gym.fci.frames import from_wire, is_homogeneous, to_wire
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
+from franka_sim_gym.sim.kinematics import rotation_exp
 from tests.native_helpers import joint_and_client_kernels_off, joint_samples, rollout, same_bits
+from tests.test_client_filters_cartesian import LIBFRANKA_LOWPASS_CASES as LOWPASS_CASES
+from tests.test_client_filters_cartesian import LIBFRANKA_POSE_LIMITER_CASES as POSE_LIMITER_CASES
+from tests.test_client_filters_cartesian import LIMITS as LIBFRANKA_LIMITS
 
 kernel = native.load("envs._client_filters")
 pytestmark = pytest.mark.skipif(kernel is None, reason="envs/_client_filters.c not built")
@@ -150,3 +156,155 @@ def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypa
     assert len(fast) == len(reference)
     for a, b in zip(fast, reference, strict=True):
         assert same_bits(a, b)
+
+
+# -- the Cartesian pose path: to rounding (libm's trigonometry, an iterated polar factor) ----
+
+#: How far the pose kernel may be from its numpy reference and from libfranka: rounding
+#: (its acos, atan2, sin, cos are libm's, as Eigen's are; numpy's SIMD ones may differ by
+#: an ulp; its 3x3 products sum in another order than BLAS's).
+POSE_ATOL = 1e-13
+
+
+def _pose_state(rng, n: int, regime: str) -> np.ndarray:
+    """A wire state at poses of every orientation (all four branches of Shepperd's method),
+    with the last twist and its rate in a regime of the norm limiter."""
+    s = _twist_state(rng, n, regime)
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = rotation_exp(rng.normal(size=(n, 3)) * rng.uniform(0.0, 3.1, (n, 1)))
+    T[:, :3, 3] = rng.normal(0, 0.4, (n, 3))
+    s["O_T_EE_c"] = to_wire(T)
+    return s
+
+
+def _moved(rng, state: np.ndarray, step: float) -> np.ndarray:
+    """The state with O_T_EE_c moved by up to ``step`` (m, rad): the motion under way."""
+    s = state.copy()
+    n = len(s)
+    T = from_wire(s["O_T_EE_c"])
+    T[:, :3, 3] += rng.normal(0, step, (n, 3))
+    T[:, :3, :3] = rotation_exp(rng.normal(0, step, (n, 3))) @ T[:, :3, :3]
+    s["O_T_EE_c"] = to_wire(T)
+    return s
+
+
+@pytest.mark.parametrize("action_filter", ["lowpass", "limit_rate"])
+@pytest.mark.parametrize("n", [1, 16])
+@pytest.mark.parametrize("regime", ["rest", "inside", "surface", "outside"])
+def test_pose_kernel_is_libfrankas_filter_to_rounding(action_filter, n, regime):
+    gen = CommandGenerator("cartesian_pose", action_filter, 40, n=n)
+    assert gen._pose_kernel is not None
+    rng = np.random.default_rng(7 * n + len(regime))
+    for trial in range(150):
+        state = _pose_state(rng, n, regime)
+        action = rng.uniform(-1, 1, (n, 6)) * (0.0 if trial % 5 == 0 else 1.0)
+        gen.begin_step(action, state)
+        # the step's first cycle (the state where the step began), then a motion under way
+        for now in (state, _moved(rng, state, 1e-3 if trial % 2 else 0.05)):
+            fast = gen._pose_wire(now, 0)
+            assert fast is gen._pose_out  # the kernel's answer, not the fallback's
+            fast = fast.copy()
+            reference = to_wire(gen._pose_command(now, 0))
+            np.testing.assert_allclose(fast, reference, rtol=0, atol=POSE_ATOL, err_msg=trial)
+            assert is_homogeneous(from_wire(fast)).all()
+
+
+def _kernel_pose(T_c, T_ref, twist, dtwist, gain: float, rate_limit: bool) -> np.ndarray:
+    out = np.full((1, 16), np.nan)
+    limits = np.array(LIBFRANKA_LIMITS)
+    ok = kernel.limit_pose(
+        T_c[None], to_wire(T_ref[None]), np.array([twist], dtype=float),
+        np.array([dtwist], dtype=float), gain, limits, rate_limit, out,
+    )  # fmt: skip
+    assert ok is True
+    return from_wire(out)[0]
+
+
+@pytest.mark.parametrize(("T_c", "T_last", "twist", "dtwist", "expected"), POSE_LIMITER_CASES)
+def test_pose_kernel_limits_as_libfranka_does(T_c, T_last, twist, dtwist, expected):
+    """Gain 1 (no low-pass): libfranka 0.21.2's limitRate values, computed with Eigen."""
+    out = _kernel_pose(T_c, T_last, twist, dtwist, 1.0, True)
+    np.testing.assert_allclose(out, expected, rtol=0, atol=POSE_ATOL)
+
+
+@pytest.mark.parametrize(("T_c", "T_ref", "cutoff", "expected"), LOWPASS_CASES)
+def test_pose_kernel_filters_as_libfranka_does(T_c, T_ref, cutoff, expected):
+    """No rate limiter: libfranka 0.21.2's cartesianLowpassFilter values."""
+    out = _kernel_pose(T_c, T_ref, [0.0] * 6, [0.0] * 6, cf.lowpass_gain(cutoff), False)
+    np.testing.assert_allclose(out, expected, rtol=0, atol=POSE_ATOL)
+
+
+@pytest.mark.parametrize(
+    ("field", "index", "message"),
+    [
+        ("O_T_EE_c", 13, "T_ref: Cartesian lowpass-filter: current or past input value"),
+        ("O_dP_EE_c", 2, "twist_last"),
+        ("O_ddP_EE_c", 5, "dtwist_last"),
+    ],
+)
+def test_a_non_finite_pose_input_takes_the_reference_path_and_its_error(field, index, message):
+    gen = CommandGenerator("cartesian_pose", "limit_rate", 40)
+    state = _pose_state(np.random.default_rng(1), 1, "inside")
+    gen.begin_step(np.zeros((1, 6)), state)
+    state[field][0, index] = np.inf
+    out = np.full((1, 16), 7.0)
+    args = (gen._target, state["O_T_EE_c"], state["O_dP_EE_c"], state["O_ddP_EE_c"])
+    assert kernel.limit_pose(*args, gen._gain, gen._twist_limits, True, out) is False
+    with pytest.raises(ValueError, match=message):
+        gen._pose_wire(state, 0)
+
+
+def test_a_reference_far_from_a_rotation_is_left_to_the_svd():
+    """A state whose rotation is 30 % off orthonormal: Newton-Schulz has not converged in
+    its three passes, the kernel declines, and the numpy path (SVD) gives the command."""
+    gen = CommandGenerator("cartesian_pose", "limit_rate", 40)
+    state = _pose_state(np.random.default_rng(2), 1, "inside")
+    gen.begin_step(np.full((1, 6), 0.5), state)
+    T = from_wire(state["O_T_EE_c"])
+    T[:, :3, :3] *= 1.3
+    state["O_T_EE_c"] = to_wire(T)
+    args = (gen._target, state["O_T_EE_c"], state["O_dP_EE_c"], state["O_ddP_EE_c"])
+    assert kernel.limit_pose(*args, gen._gain, gen._twist_limits, True, np.zeros((1, 16))) is False
+    assert same_bits(gen._pose_wire(state, 0), to_wire(gen._pose_command(state, 0)))
+
+
+def test_the_pose_kernel_names_a_bad_argument():
+    T, wire, six, limits = (
+        np.tile(np.eye(4), (2, 1, 1)),
+        np.zeros((2, 16)),
+        np.zeros((2, 6)),
+        np.ones(6),
+    )
+    with pytest.raises(ValueError, match="ref: axis 0 has length 1, expected 2"):
+        kernel.limit_pose(T, wire[:1], six, six, 1.0, limits, True, np.zeros((2, 16)))
+    with pytest.raises(ValueError, match="ddref: axis 1 has length 5, expected 6"):
+        kernel.limit_pose(T, wire, six, six[:, :5], 1.0, limits, True, np.zeros((2, 16)))
+    with pytest.raises(ValueError, match="out: expected a 2-D float64 array"):
+        kernel.limit_pose(T, wire, six, six, 1.0, limits, True, np.zeros((2, 16), np.float32))
+    with pytest.raises(TypeError, match=r"limit_pose\(\) takes 8 arguments \(7 given\)"):
+        kernel.limit_pose(T, wire, six, six, 1.0, limits, True)
+
+
+@pytest.mark.parametrize("action_filter", ["lowpass", "limit_rate"])
+def test_a_pose_episode_with_the_kernel_ends_as_the_reference_does(action_filter, monkeypatch):
+    """End to end, 60 steps of random pose actions: the same rewards, cycles and errors
+    step by step, and the end effector where the reference puts it.
+
+    Not the same bits: the kernel's rounding differs from numpy's, and the limiter's
+    loop through the float32 state amplifies that (one float32 ulp of O_T_EE_c is 6e-8 m,
+    60 um/s once differentiated over 1 ms). The arm's null space is not commanded at all,
+    so its joints wander apart by up to ~1e-3 rad over the episode while the end effector
+    agrees to ~3e-7 m.
+    """
+    fast = rollout("cartesian_pose", action_filter, steps=60)
+    joint_and_client_kernels_off(monkeypatch)
+    reference = rollout("cartesian_pose", action_filter, steps=60)
+    assert len(fast) == len(reference)
+    np.testing.assert_array_equal(fast[2::2], reference[2::2])  # reward, cycles, errors
+    ee = slice(14, 17)  # observation: q, dq, then O_T_EE's position
+    for a, b in zip(fast[1::2], reference[1::2], strict=True):
+        np.testing.assert_allclose(a[ee], b[ee], rtol=0, atol=1e-5)
+    if action_filter == "lowpass":  # a naive stream: every episode ends in a reflex
+        assert all(info[2] > 0 for info in fast[2::2])
+    else:
+        assert not any(info[2] for info in fast[2::2])  # the limiter keeps it clean

@@ -170,6 +170,12 @@ class CommandGenerator:
         )
         self._twist_limits = np.array(self.cartesian_limits, dtype=np.float64)
         self._twist_out = np.zeros((n, 6))
+        # And of its Cartesian pose path (to rounding: see _pose_wire).
+        pose_filtered = interface == "cartesian_pose" and action_filter in ("lowpass", "limit_rate")
+        self._pose_kernel = (
+            CLIENT_KERNEL if pose_filtered and isinstance(self._gain, float) else None
+        )
+        self._pose_out = np.zeros((n, 16))
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
@@ -214,7 +220,7 @@ class CommandGenerator:
         a robot's first-command status ends only with a command sent.
         """
         if self.interface == "cartesian_pose":
-            out = to_wire(self._pose_command(state, k))
+            out = self._pose_wire(state, k)
         elif self.action_filter == "none":
             out = self._target
         elif self.action_filter == "interpolate":
@@ -244,6 +250,27 @@ class CommandGenerator:
         self._start, self._target = T, target
         if self.action_filter == "interpolate":  # the step's rotation, interpolated per cycle
             self._turn = rotation_log(target[:, :3, :3] @ T[:, :3, :3].transpose(0, 2, 1))
+
+    def _pose_wire(self, state: np.ndarray, k: int) -> np.ndarray:
+        """Cycle k's O_T_EE_c in the wire's column-major layout, (n, 16)."""
+        kernel = self._pose_kernel
+        if kernel is not None and kernel.limit_pose(
+            self._target,
+            state["O_T_EE_c"],
+            state["O_dP_EE_c"],
+            state["O_ddP_EE_c"],
+            self._gain,
+            self._twist_limits,
+            self.action_filter == "limit_rate",
+            self._pose_out,
+        ):
+            # _pose_command's low-pass and rate limiter in one C call
+            # (envs/_client_filters.c). Not bit for bit: the kernel takes libm's
+            # trigonometry (as libfranka's Eigen does) where numpy's SIMD versions may
+            # round an ulp apart, so the two agree to ~1e-15 (tests/test_native_client.py).
+            # False where the numpy path below raises libfranka's error, or decides.
+            return self._pose_out
+        return to_wire(self._pose_command(state, k))
 
     def _pose_command(self, state: np.ndarray, k: int) -> np.ndarray:
         """Cycle k's O_T_EE_c as (n, 4, 4) matrices."""

@@ -9,10 +9,9 @@
  *       -> bool: fci/cartesian.py _twist_derivatives, joint_side and the _quiet screen.
  *   homogeneous_quick(values, lo, hi) -> bool
  *       fci/frames.py is_homogeneous_wire's quick test (True: every pose passes).
- *   twist_target(T, twist, T_tw) -> bool
- *       fci/cartesian.py _twist_target's translation: T_tw = T moved by the twist's
- *       translation over one cycle; True when some twist turns (its rotation is then
- *       composed in numpy).
+ *   twist_target(T, twist, T_tw)
+ *       fci/cartesian.py _twist_target: T_tw = T moved by the twist over one cycle (the
+ *       translation the reference's bits, the rotation to rounding).
  *   record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported)
  *   record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported,
  *                dreported)
@@ -22,7 +21,8 @@
  *
  * Elementwise chains (the translations, every backward difference, the joint side)
  * follow the reference's order of operations and are built without fused multiply-adds
- * (setup.py): the reference's bits. Reductions (the rotation's trace and norm, the IK's
+ * (setup.py): the reference's bits. The twist target's rotation (exp(omega dt) @ R: 3x3 products,
+ * which numpy hands to BLAS) agrees with the reference to rounding. Reductions (the rotation's trace and norm, the IK's
  * products and its 6x6 solve) may differ from numpy's in the last bits, so every
  * comparison that uses one is a screen with a margin: a pass means the reference passes
  * too, anything near an edge is left to the reference's exact rows.
@@ -267,8 +267,40 @@ static inline void report(const F64 *reported, const F64 *dreported, Py_ssize_t 
     }
 }
 
-/* twist_target(T, twist, T_tw) -> bool: T_tw = T, its translation += twist[:3] * dt
- * (numpy's order: the product first); whether any twist has a rotation. */
+/* sim/kinematics.py rotation_exp of rv = omega dt (Rodrigues; the series below 1e-8 rad)
+ * composed on the left of the row-major 3x3 R: out = exp(rv) @ R. */
+static void turn_left(const double rv[3], const double *R, double *out)
+{
+    double angle = sqrt((rv[0] * rv[0] + rv[1] * rv[1]) + rv[2] * rv[2]);
+    double a, b, a2 = angle * angle;
+    if (angle < 1e-8) {
+        a = 1.0 - a2 / 6.0;
+        b = 0.5 - a2 / 24.0;
+    } else {
+        a = sin(angle) / angle;
+        b = (1.0 - cos(angle)) / a2;
+    }
+    const double K[9] = {0.0, -rv[2], rv[1], rv[2], 0.0, -rv[0], -rv[1], rv[0], 0.0};
+    double E[9];
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) {
+            double KK = 0.0;
+            for (int k = 0; k < 3; k++) KK += K[3 * r + k] * K[3 * k + c];
+            E[3 * r + c] = ((r == c ? 1.0 : 0.0) + a * K[3 * r + c]) + b * KK;
+        }
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) {
+            double v = 0.0;
+            for (int k = 0; k < 3; k++) v += E[3 * r + k] * R[3 * k + c];
+            out[3 * r + c] = v;
+        }
+}
+
+/* twist_target(T, twist, T_tw): _twist_target. T_tw = T, its translation +=
+ * twist[:3] * dt (numpy's order: the product first: the reference's bits) and, where
+ * the twist turns, its rotation exp(twist[3:] dt) @ R: the 3x3 products (numpy's go
+ * through BLAS) agree with the reference's to rounding. A twist without rotation keeps R
+ * exactly, as the reference does. */
 static PyObject *twist_target(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
@@ -283,16 +315,24 @@ static PyObject *twist_target(PyObject *self, PyObject *const *args, Py_ssize_t 
     if (f64_get(args[0], &a[T], 3, s44, 0, "T") < 0) goto done;
     if (f64_get(args[1], &a[TW], 2, s6, 0, "twist") < 0) goto done;
     if (f64_get(args[2], &a[OUT], 3, s44, 1, "T_tw") < 0) goto done;
-    int turning = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
+        double R[9], rv[3], turned[9];
         for (int r = 0; r < 4; r++)
             for (int c = 0; c < 4; c++) AT3(a[OUT], i, r, c) = AT3(a[T], i, r, c);
+        int turning = 0;
         for (int k = 0; k < 3; k++) {
             AT3(a[OUT], i, k, 3) += AT2(a[TW], i, k) * CYCLE_DT;
+            rv[k] = AT2(a[TW], i, 3 + k) * CYCLE_DT;
             if (AT2(a[TW], i, 3 + k) != 0.0) turning = 1;
         }
+        if (!turning) continue;
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) R[3 * r + c] = AT3(a[T], i, r, c);
+        turn_left(rv, R, turned);
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) AT3(a[OUT], i, r, c) = turned[3 * r + c];
     }
-    result = PyBool_FromLong(turning);
+    result = Py_NewRef(Py_None);
 done:
     f64_release_all(a, COUNT);
     return result;
@@ -397,8 +437,7 @@ static PyMethodDef METHODS[] = {
     {"homogeneous_quick", (PyCFunction)(void (*)(void))homogeneous_quick, METH_FASTCALL,
      "homogeneous_quick(values, lo, hi) -> bool: is_homogeneous_wire's quick test."},
     {"twist_target", (PyCFunction)(void (*)(void))twist_target, METH_FASTCALL,
-     "twist_target(T, twist, T_tw) -> bool: _twist_target's translation; True when some "
-     "twist turns."},
+     "twist_target(T, twist, T_tw): _twist_target, T moved by the twist over one cycle."},
     {"record_pose", (PyCFunction)(void (*)(void))record_pose, METH_FASTCALL,
      "record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported): "
      "_record of a pose cycle every robot recorded."},

@@ -329,13 +329,14 @@ class CartesianGenerators:
         1 ms (translation in the base frame, rotation composed on the left: base-frame
         omega)."""
         T_tw, p_tw, R_tw = self._T_twist
-        if self._kernel is not None:  # the copy and the translation in one call
-            turning = self._kernel.twist_target(T, twist, T_tw)
-        else:
-            T_tw[...] = T
-            p_tw += twist[:, :3] * _DT
-            turning = count_nonzero(twist[:, 3:])
-        if turning:  # (a zero rotation leaves R exactly as it is)
+        if self._kernel is not None:
+            # In one call: the translation the same bits, the rotation to rounding (its
+            # 3x3 products; numpy's go through BLAS).
+            self._kernel.twist_target(T, twist, T_tw)
+            return T_tw
+        T_tw[...] = T
+        p_tw += twist[:, :3] * _DT
+        if count_nonzero(twist[:, 3:]):  # (a zero rotation leaves R exactly as it is)
             np.matmul(rotation_exp(twist[:, 3:] * _DT), T[:, :3, :3], out=R_tw)
         return T_tw
 
