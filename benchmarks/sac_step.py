@@ -1,6 +1,6 @@
 """SAC gradient-step time of the default training: SB3's SAC.train against LeanSAC.
 
-    python benchmarks/sac_step.py [--steps N] [--repeats R] [--threads T]
+    python benchmarks/sac_step.py [--steps N] [--repeats R] [--threads T] [--busy]
 
 The model of examples/train_sb3.py's default run (16 arms of the batched env, HER
 through the reflex-charged buffer, [128, 128] networks, batches of 256) collects and
@@ -10,12 +10,18 @@ Prints ms per step (best of R: a shared host's noise only ever adds time), the r
 to bare mj_step of the 16-arm world in the same run, and whether both ended with the
 same parameters bit for bit (they must: envs/sb3_sac.py). A gradient step includes
 HER's sampling, as in training.
+
+On a machine of several cores a third row takes LeanSAC's steps with one torch thread
+(the other choice of envs/sb3_threads.py's ThreadTuner; the same bits too), and
+``--busy`` keeps one other process spinning on a core during the timings: what a shared
+machine does to a step's parallel regions.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -58,9 +64,11 @@ def snapshot(directory: Path, env, threads: int) -> None:
     model.save_replay_buffer(directory / "buffer.pkl")
 
 
-def timed(algo, directory: Path, env, steps: int) -> tuple[float, th.Tensor]:
-    """ms per gradient step of ``algo.train`` from the snapshot, and the parameters after."""
+def timed(algo, directory: Path, env, steps: int, threads: int) -> tuple[float, th.Tensor]:
+    """ms per gradient step of ``algo.train`` from the snapshot with ``threads`` torch
+    threads, and the parameters after."""
     model = algo.load(directory / "model.zip", env=env, device="cpu")
+    th.set_num_threads(threads)
     # as saved: the arms' unfinished episodes are not sampled (HER needs their ends)
     model.load_replay_buffer(directory / "buffer.pkl", truncate_last_traj=False)
     model.set_logger(configure(str(directory), []))  # train() records its losses
@@ -77,29 +85,43 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300, help="gradient steps per timing")
     parser.add_argument("--repeats", type=int, default=6)
     parser.add_argument("--threads", type=int, default=None, help="torch threads")
+    parser.add_argument(
+        "--busy", action="store_true", help="one other process spins on a core meanwhile"
+    )
     args = parser.parse_args()
     threads = args.threads or max(1, os.cpu_count() or 1)
     spec = gym.spec("FrankaFCICartesianVelocity-v0")
     env = FrankaFCISB3VecEnv(ARMS, **{**spec.kwargs, **train_sb3.DEFAULT_ENV_KWARGS})
     bare = 1e3 / bare_rate(ARMS, 1.0)  # ms per mj_step of the 16-arm world
+    rows = [("SB3 SAC.train", SAC, threads), ("LeanSAC.train", LeanSAC, threads)]
+    if threads > 1:
+        rows.append(("LeanSAC.train, 1 thread", LeanSAC, 1))
     best: dict[str, float] = {}
     params: dict[str, th.Tensor] = {}
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp)
         snapshot(directory, env, threads)
-        for _ in range(args.repeats):
-            for name, algo in (("SB3 SAC.train", SAC), ("LeanSAC.train", LeanSAC)):
-                ms, params[name] = timed(algo, directory, env, args.steps)
-                best[name] = min(ms, best.get(name, ms))
-    same = th.equal(params["SB3 SAC.train"], params["LeanSAC.train"])
+        busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
+        try:
+            for _ in range(args.repeats):
+                for name, algo, count in rows:
+                    ms, params[name] = timed(algo, directory, env, args.steps, count)
+                    best[name] = min(ms, best.get(name, ms))
+        finally:
+            if busy is not None:
+                busy.kill()
+                busy.wait()
+    first = params["SB3 SAC.train"]
+    same = all(th.equal(first, p) for p in params.values())
     print(describe())
-    print(f"torch {th.__version__}, {th.get_num_threads()} threads, {args.steps} steps")
-    print(f"{'row':<24}{'ms/step':>10}{'vs mj_step':>12}{'vs SB3':>9}")
-    print(f"{f'bare mj_step, N={ARMS}':<24}{bare:>10.3f}{1.0:>12.1f}{'':>9}")
+    beside = ", beside a busy process" if args.busy else ""
+    print(f"torch {th.__version__}, {threads} threads, {args.steps} steps{beside}")
+    print(f"{'row':<26}{'ms/step':>10}{'vs mj_step':>12}{'vs SB3':>9}")
+    print(f"{f'bare mj_step, N={ARMS}':<26}{bare:>10.3f}{1.0:>12.1f}{'':>9}")
     sb3 = best["SB3 SAC.train"]
     for name, ms in best.items():
-        print(f"{name:<24}{ms:>10.3f}{ms / bare:>12.1f}{sb3 / ms:>9.2f}")
-    print(f"same parameters after both: {'yes, bit for bit' if same else 'NO'}")
+        print(f"{name:<26}{ms:>10.3f}{ms / bare:>12.1f}{sb3 / ms:>9.2f}")
+    print(f"same parameters after every row: {'yes, bit for bit' if same else 'NO'}")
     print(
         f"summary: sb3_step_ms={sb3:.3f} lean_step_ms={best['LeanSAC.train']:.3f} "
         f"speedup={sb3 / best['LeanSAC.train']:.2f} same_bits={int(same)}"

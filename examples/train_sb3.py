@@ -63,7 +63,10 @@ def make_model(
     from franka_sim_gym.envs.sb3_sac import LeanSAC
 
     # SB3 alternates collecting and learning, so the gradient steps have every core to
-    # themselves: 2 threads on this 2-core machine cut an SB3 SAC step from ~4.4 to ~3.7 ms.
+    # themselves: on an idle 2-core machine 2 threads take a LeanSAC step in 3.3 ms, 1 in
+    # 4.0 ms; with another process busy, 2 threads take 13.0 ms and 1 4.1 ms
+    # (benchmarks/sac_step.py). By default (threads None) main() times both as it goes
+    # (envs/sb3_threads.py ThreadTuner).
     torch.set_num_threads(threads or max(1, os.cpu_count() or 1))
     common = dict(policy="MultiInputPolicy", env=env, seed=seed, verbose=0)
     # Off-policy learners relabel goals with HER (the env's vectorised compute_reward),
@@ -194,7 +197,11 @@ def main() -> None:
         help="SAC's entropy coefficient: a number, or auto_<initial value> to tune it",
     )
     parser.add_argument(
-        "--threads", type=int, default=None, help="torch threads (default: one per core)"
+        "--threads",
+        type=int,
+        default=None,
+        help="torch threads for the gradient steps (default, SAC and TD3: one per core or 1, "
+        "whichever is timed faster as the run goes; PPO: one per core)",
     )
     parser.add_argument(
         "--env-kwargs",
@@ -245,10 +252,16 @@ def main() -> None:
     start = time.perf_counter()
     rows = []
     bar = progress_bar(collected, enabled=not args.no_progress)
+    tuner = None
+    if args.threads is None and args.algo in ("sac", "td3"):
+        from franka_sim_gym.envs.sb3_threads import ThreadTuner
+
+        tuner = ThreadTuner()  # the same bits whatever it picks (envs/sb3_threads.py)
+    callbacks = [c for c in (bar, tuner) if c is not None] or None
     done = 0
     while done < args.steps:
         n = min(chunk, args.steps - done)
-        model.learn(total_timesteps=n, reset_num_timesteps=False, callback=bar)
+        model.learn(total_timesteps=n, reset_num_timesteps=False, callback=callbacks)
         done += n
         result = evaluate(model, args.env_id, kwargs, args.eval_episodes, seed=10_000)
         rows.append(
@@ -268,6 +281,8 @@ def main() -> None:
         writer.writerows(rows)
     plot(args.out, rows)
     final = rows[-1]
+    if tuner is not None:
+        print(f"torch threads: {tuner.describe()}")
     print(
         f"eval: success_rate={final['success_rate']:.3f} "
         f"reflex_rate={final['reflex_rate']:.3f} wall_s={wall:.1f}"

@@ -15,7 +15,7 @@ from franka_sim_gym.envs.sb3_sac import LeanSAC  # noqa: E402
 from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
 
 
-def trained(algo, steps: int = 160, **kwargs) -> SAC:
+def trained(algo, steps: int = 160, callback=None, **kwargs) -> SAC:
     """``algo`` trained like examples/train_sb3.py's default, small: HER on the batched
     env, one gradient step per sample, learning from step 40 (the collection then
     follows the policy, so any difference in training shows in the samples too)."""
@@ -37,7 +37,7 @@ def trained(algo, steps: int = 160, **kwargs) -> SAC:
         seed=5,
     )
     model = algo("MultiInputPolicy", env, **{**options, **kwargs})
-    model.learn(total_timesteps=steps)
+    model.learn(total_timesteps=steps, callback=callback)
     return model
 
 
