@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import gymnasium as gym
 import pytest
@@ -51,6 +52,9 @@ def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, ar
     assert (out / "progress.csv").is_file()
     assert list(out.glob("events.out.tfevents.*")), "no TensorBoard events were written"
     assert "training: 100%" in proc.stderr and "400/400" in proc.stderr  # the progress bar
+    # beside it, the thread tuner timed every gradient phase (envs/sb3_threads.py)
+    phases = re.search(r"torch threads: \d+ at the end, (\d+) gradient phases", proc.stdout)
+    assert phases and int(phases.group(1)) > 0, proc.stdout[-2000:]
     config = json.loads((out / "train_config.json").read_text())
     assert config["env_id"] == "FrankaFCICartesianVelocity-v0"
     assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
