@@ -132,3 +132,15 @@ def test_no_timing_before_learning_starts():
 def test_bad_settings_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ThreadTuner(**kwargs)
+
+
+def test_an_on_policy_learner_is_timed_too():
+    """PPO has no learning_starts: each rollout is followed by its gradient phase."""
+    tuner = ThreadTuner(choices=(2, 1))
+    tuner.model = SimpleNamespace(num_timesteps=2048, n_steps=2048)  # (PPO's attributes)
+    tuner._on_training_start()
+    for _ in range(3):
+        tuner._on_rollout_start()
+        tuner._on_rollout_end()
+    tuner._on_training_end()
+    assert tuner.phases == 3
