@@ -402,6 +402,32 @@ def test_interpolate_rejects_unknown_kind_and_alpha_out_of_range():
             cf.interpolate(z, z, alpha)
 
 
+def test_interpolate_core_is_interpolates_arithmetic_bit_for_bit():
+    """The env's per-cycle call: every phase of a 40-cycle step, wide-ranging ends."""
+    rng = np.random.default_rng(4)
+    q0, q1 = rng.normal(0, 10, (16, 7)), rng.normal(0, 10, (16, 7))
+    for k in range(40):
+        s = (k + 1) / 40
+        core, public = cf.interpolate_core(q0, q1, s), cf.interpolate(q0, q1, s)
+        assert np.array_equal(core.view(np.uint64), public.view(np.uint64)), k
+    assert np.array_equal(cf.interpolate_core(q0, q1, 1.0), q1)
+
+
+@pytest.mark.parametrize("interface", ["joint_position", "torque", "cartesian_velocity"])
+def test_an_interpolated_step_checks_its_ends_once_at_its_start(interface):
+    """The client validates a step's ends in begin_step (then interpolates unchecked):
+    a non-finite state is refused there, with interpolate's error."""
+    from franka_sim_gym.envs.commands import CommandGenerator
+    from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
+
+    gen = CommandGenerator(interface, "interpolate", 40)
+    state = np.zeros(1, dtype=ROBOT_STATE_DTYPE)
+    field = {"joint_position": "q_d", "torque": "tau_J_d"}.get(interface, "O_dP_EE_c")
+    state[field][0, 2] = np.nan
+    with pytest.raises(ValueError, match="q_from"):
+        gen.begin_step(np.zeros((1, gen.action_dim)), state)
+
+
 @settings(max_examples=400, deadline=None)
 @given(
     joint=st.integers(0, 6),

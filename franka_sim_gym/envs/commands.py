@@ -210,6 +210,13 @@ class CommandGenerator:
         else:
             self._start = state["tau_J_d"].astype(np.float64)
             self._target = a * np.asarray(self.scale.torque)
+        if self.action_filter == "interpolate":
+            # The step's ends, checked once as interpolate checks them (a non-finite
+            # state raises its error here); every cycle then takes interpolate_core.
+            if self.interface == "cartesian_pose":
+                cf.interpolate(self._start[:, :3, 3], self._target[:, :3, 3], 1.0)
+            else:
+                cf.interpolate(self._start, self._target, 1.0)
 
     def command(self, state: np.ndarray, k: int, sent: np.ndarray | None = None) -> np.ndarray:
         """Cycle ``k``'s (0-based) command (valid until the next call), given the newest
@@ -223,8 +230,8 @@ class CommandGenerator:
             out = self._pose_wire(state, k)
         elif self.action_filter == "none":
             out = self._target
-        elif self.action_filter == "interpolate":
-            out = cf.interpolate(self._start, self._target, (k + 1) / self.cycles_per_step)
+        elif self.action_filter == "interpolate":  # (its ends checked in begin_step)
+            out = cf.interpolate_core(self._start, self._target, (k + 1) / self.cycles_per_step)
         else:
             out = self._filtered(state)
         if self._n_first:
@@ -280,7 +287,7 @@ class CommandGenerator:
         if self.action_filter == "interpolate":
             s = (k + 1) / self.cycles_per_step
             out = target.copy()
-            out[:, :3, 3] = cf.interpolate(start[:, :3, 3], target[:, :3, 3], s)
+            out[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], target[:, :3, 3], s)
             out[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
             return out
         ref = _reference_pose(state)
