@@ -102,26 +102,77 @@ def test_velocity_fast_path_at_each_limits_edge(row, factor):
         assert fast
 
 
-def _joint_velocity_rollout(action_filter: str, amplitude: float, seed: int) -> list:
+@settings(max_examples=300, deadline=None)
+@given(
+    joint=st.integers(0, 6),
+    tau_prev=st.floats(-100.0, 100.0),
+    rate=st.floats(-1200.0, 1200.0),
+)
+def test_torque_fast_path_agrees_with_check_torque(joint, tau_prev, rate):
+    """Rows 34 (|tau| past the joint's effort limit at the ends) and 32 (the rate)."""
+    tau_J_d = CTRL.tau_J_d
+    kept = tau_J_d.copy()
+    try:
+        tau_J_d[...] = 0.0
+        tau_J_d[0, joint] = tau_prev
+        tau_c = tau_J_d.copy()
+        tau_c[0, joint] = tau_prev + rate * 1e-3
+        fast = ENGINE._torques_inside_limits(tau_c)
+        rule = limits.check_torque(tau_c, tau_J_d.copy(), np.zeros(1, bool), 1, TABLE)
+        assert fast == (rule[0] == limits.NO_ERROR)
+    finally:
+        tau_J_d[...] = kept
+
+
+@pytest.mark.parametrize("factor", [0.999, 1.0 - 1e-9, 1.0 + 1e-9, 1.005])
+@pytest.mark.parametrize("row", ["range", "rate"])
+def test_torque_fast_path_at_each_limits_edge(row, factor):
+    tau_J_d = CTRL.tau_J_d
+    kept = tau_J_d.copy()
+    try:
+        tau_J_d[...] = 0.0
+        tau_c = np.zeros_like(tau_J_d)
+        if row == "range":  # at the effort limit, reached at a small rate
+            tau_c[0, 5] = TABLE.tau_max[5] * factor
+            tau_J_d[0, 5] = tau_c[0, 5] - 0.1
+        else:  # from zero at the rate limit
+            tau_c[0, 5] = TABLE.dtau_max * factor * 1e-3
+        fast = ENGINE._torques_inside_limits(tau_c)
+        rule = limits.check_torque(tau_c, tau_J_d.copy(), np.zeros(1, bool), 1, TABLE)
+        assert fast == (rule[0] == limits.NO_ERROR)
+        if factor > 1.001:
+            assert not fast
+        if factor < 0.9999:
+            assert fast
+    finally:
+        tau_J_d[...] = kept
+
+
+def _rollout(interface: str, action_filter: str, amplitude: float, seed: int) -> list:
+    """Steps, resets and the robot's own history after each step (what the next cycles
+    are judged against): the joint reference, or for torques the applied tau_J_d."""
     import gymnasium as gym
 
     import franka_sim_gym  # noqa: F401  (registers the ids)
 
     env = gym.make(
         "FrankaFCI-v0",
-        action_interface="joint_velocity",
+        action_interface=interface,
         action_filter=action_filter,
         max_episode_steps=30,
     )
     rng = np.random.default_rng(seed)
     out = [env.reset(seed=seed)]
-    ref = env.unwrapped.controller.reference
+    ctrl = env.unwrapped.controller
+    ref = ctrl.reference
     for _ in range(90):
         step = env.step(rng.uniform(-amplitude, amplitude, size=7).astype(np.float32))
         out.append(step)
-        # the robot's own history too: what the next cycles are differenced against
-        history = ("q", "dq", "ddq", "ddq_frozen", "run")
-        out.append(("reference", {k: getattr(ref, k).copy() for k in history}))
+        if interface == "torque":
+            out.append(("tau_J_d", {"tau_J_d": ctrl.tau_J_d.copy()}))
+        else:
+            history = ("q", "dq", "ddq", "ddq_frozen", "run")
+            out.append(("reference", {k: getattr(ref, k).copy() for k in history}))
         if step[2] or step[3]:
             out.append(env.reset())
     env.close()
@@ -129,33 +180,38 @@ def _joint_velocity_rollout(action_filter: str, amplitude: float, seed: int) -> 
 
 
 @pytest.mark.parametrize(
-    "action_filter, amplitude, fast_cycles",
-    # unfiltered: steps small enough to start a motion (0.1 rad/s), then each change of
-    # step trips an acceleration discontinuity mid-motion
-    [("limit_rate", 1.0, 3000), ("none", 0.05, 100)],
+    "interface, fast_path_name, action_filter, amplitude, fast_cycles",
+    # unfiltered: steps small enough to start a motion (0.1 rad/s; 1 Nm), then each change
+    # of step trips a discontinuity mid-motion (joint acceleration; torque rate, 32)
+    [
+        ("joint_velocity", "_velocities_inside_limits", "limit_rate", 1.0, 3000),
+        ("joint_velocity", "_velocities_inside_limits", "none", 0.05, 100),
+        ("torque", "_torques_inside_limits", "limit_rate", 1.0, 3000),
+        ("torque", "_torques_inside_limits", "none", 0.05, 30),
+    ],
 )
-def test_joint_velocity_episodes_are_the_general_paths_bit_for_bit(
-    action_filter, amplitude, fast_cycles, monkeypatch
+def test_fast_path_episodes_are_the_general_paths_bit_for_bit(
+    interface, fast_path_name, action_filter, amplitude, fast_cycles, monkeypatch
 ):
-    """Whole episodes (reflexes and resets included) through the fast path equal the
-    same episodes with every cycle sent down the rule functions' general path."""
+    """Whole episodes (reflexes and resets included) through a fast path equal the same
+    episodes with every cycle sent down the rule functions' general path."""
     from franka_sim_gym.fci.engine import MotionLimitEngine
 
-    fast_path = MotionLimitEngine._velocities_inside_limits
+    fast_path = getattr(MotionLimitEngine, fast_path_name)
     passed = []
 
-    def counted(self, dq_c):
-        passed.append(fast_path(self, dq_c))
+    def counted(self, command):
+        passed.append(fast_path(self, command))
         return passed[-1]
 
-    monkeypatch.setattr(MotionLimitEngine, "_velocities_inside_limits", counted)
-    fast = _joint_velocity_rollout(action_filter, amplitude, seed=4)
+    monkeypatch.setattr(MotionLimitEngine, fast_path_name, counted)
+    fast = _rollout(interface, action_filter, amplitude, seed=4)
     assert sum(passed) > fast_cycles  # the fast path decided most cycles
     if action_filter == "none":  # the jumps it refused went down the general path
         assert not all(passed)
         assert any(x[2] and x[4]["reflex_reason"] for x in fast if len(x) == 5)
-    monkeypatch.setattr(MotionLimitEngine, "_velocities_inside_limits", lambda self, dq_c: False)
-    general = _joint_velocity_rollout(action_filter, amplitude, seed=4)
+    monkeypatch.setattr(MotionLimitEngine, fast_path_name, lambda self, command: False)
+    general = _rollout(interface, action_filter, amplitude, seed=4)
     assert len(fast) == len(general)
     for a, b in zip(fast, general, strict=True):
         assert repr(a) == repr(b)

@@ -69,6 +69,39 @@ def test_rate_limiter_kernel_is_libfrankas_filter_bit_for_bit(interface, n):
         assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
 
 
+@pytest.mark.parametrize("n", [1, 16])
+def test_torque_limiter_kernel_is_libfrankas_filter_bit_for_bit(n):
+    """Torque commands within the rate bound, far past it either way, and at rest."""
+    gen = CommandGenerator("torque", "limit_rate", 40, n=n)
+    assert gen._torque_kernel is not None
+    rng = np.random.default_rng(21 + n)
+    for trial in range(300):
+        state = _random_state(rng, n, near_band=False)
+        state["tau_J_d"] = rng.normal(0, 20.0, (n, 7)) * (trial % 4 != 0)
+        gen.begin_step(rng.uniform(-1, 1, (n, 7)) * (trial % 5 != 0), state)
+        fast = gen._filtered(state).copy()
+        kernel_fn, gen._torque_kernel = gen._torque_kernel, None
+        reference = gen._filtered(state)
+        gen._torque_kernel = kernel_fn
+        assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
+        if trial % 4 == 0:  # from rest, a full action asks ~20 Nm at once: rate-limited
+            steps = np.abs(fast - state["tau_J_d"]) / gen._dtau_max / 1e-3
+            assert np.all(steps <= 1.0 + 1e-9)
+
+
+def test_a_non_finite_torque_takes_the_reference_path():
+    gen = CommandGenerator("torque", "limit_rate", 40)
+    state = np.zeros(1, dtype=ROBOT_STATE_DTYPE)
+    gen.begin_step(np.zeros((1, 7)), state)
+    target = gen._target.copy()
+    target[0, 3] = np.nan
+    out = np.full((1, 7), 7.0)
+    assert kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0, out) is False
+    assert np.all(out == 7.0)  # untouched
+    with pytest.raises(TypeError, match=r"limit_torques\(\) takes 5 arguments"):
+        kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0)
+
+
 def _twist_state(rng, n: int, regime: str) -> np.ndarray:
     s = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
     if regime == "rest":
@@ -146,7 +179,9 @@ def test_the_kernel_names_a_bad_argument():
         )
 
 
-@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity", "cartesian_velocity"])
+@pytest.mark.parametrize(
+    "interface", ["joint_position", "joint_velocity", "cartesian_velocity", "torque"]
+)
 def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypatch):
     """End to end, random actions through libfranka's limiters (reflexes included): the
     joint rules' and the client's kernels change no bit of what a policy sees."""

@@ -10,6 +10,10 @@
  *       libfranka's rate limiter: the low-pass filter toward the state's O_dP_EE_c,
  *       then client_filters.limit_rate_cartesian_velocity (the 3-vector norm limiter
  *       of src/rate_limiting.cpp on each half of the twist).
+ *   limit_torques(target, ref, gain, dtau_max, out) -> bool
+ *       envs/commands.py CommandGenerator._filtered for "torque" with libfranka's rate
+ *       limiter: the low-pass filter toward the state's tau_J_d, then
+ *       client_filters.limit_torques_core.
  *   limit_pose(target, ref, dref, ddref, gain, limits, rate_limit, out) -> bool
  *       envs/commands.py CommandGenerator._pose_command for "lowpass" and "limit_rate":
  *       the state's O_T_EE_c orthonormalised (_reference_pose), libfranka's Cartesian
@@ -199,6 +203,52 @@ static PyObject *limit_rate(PyObject *self, PyObject *const *args, Py_ssize_t na
 done:
     f64_release_all(a, COUNT);
     if (first.obj) PyBuffer_Release(&first);
+    return result;
+}
+
+/* limit_torques(target, ref, gain, dtau_max, out) -> bool
+ *
+ * target (n, 7) float64, ref (n, 7) the state's tau_J_d (float32 or float64), gain the
+ * low-pass gain, dtau_max the limiter's rate bound [Nm/s], out (n, 7) float64:
+ *   x   = gain * target + (1 - gain) * ref             (client_filters.lowpass_core)
+ *   out = ref + clip((x - ref) / dt, -dtau_max, dtau_max) * dt   (limit_torques_core)
+ * False, with out untouched, when an input is not finite (numpy's minimum and maximum
+ * propagate a NaN, which the numpy path then does). */
+static PyObject *limit_torques(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 5, "limit_torques") < 0) return NULL;
+    enum { TARGET, REF, OUT, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t any7[2] = {-1, 7};
+    if (f64_get(args[0], &a[TARGET], 2, any7, 0, "target") < 0) goto done;
+    Py_ssize_t n = a[TARGET].shape[0];
+    Py_ssize_t s7[2] = {n, 7};
+    if (num_get(args[1], &a[REF], 2, s7, 0, "ref") < 0) goto done;
+    double gain = PyFloat_AsDouble(args[2]);
+    if (gain == -1.0 && PyErr_Occurred()) goto done;
+    double d_max = PyFloat_AsDouble(args[3]);
+    if (d_max == -1.0 && PyErr_Occurred()) goto done;
+    if (f64_get(args[4], &a[OUT], 2, s7, 1, "out") < 0) goto done;
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (int j = 0; j < 7; j++)
+            if (!isfinite(AT2(a[TARGET], i, j)) || !isfinite(num2(&a[REF], i, j))) {
+                result = Py_NewRef(Py_False);
+                goto done;
+            }
+    const double dt = DELTA_T, gain_ref = 1.0 - gain;
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (int j = 0; j < 7; j++) {
+            double ref = num2(&a[REF], i, j);
+            double x = gain * AT2(a[TARGET], i, j) + gain_ref * ref;
+            double rate = (x - ref) / dt;
+            put2(&a[OUT], i, j, ref + np_maximum(np_minimum(rate, d_max), -d_max) * dt);
+        }
+    result = Py_NewRef(Py_True);
+done:
+    f64_release_all(a, COUNT);
     return result;
 }
 
@@ -514,6 +564,9 @@ static PyMethodDef METHODS[] = {
     {"limit_twist", (PyCFunction)(void (*)(void))limit_twist, METH_FASTCALL,
      "limit_twist(target, ref, dref, gain, limits, out) -> bool: libfranka's low-pass "
      "filter and Cartesian velocity rate limiter (False: a non-finite input, nothing done)."},
+    {"limit_torques", (PyCFunction)(void (*)(void))limit_torques, METH_FASTCALL,
+     "limit_torques(target, ref, gain, dtau_max, out) -> bool: libfranka's low-pass filter "
+     "and torque rate limiter (False: a non-finite input, nothing done)."},
     {"limit_pose", (PyCFunction)(void (*)(void))limit_pose, METH_FASTCALL,
      "limit_pose(target, ref, dref, ddref, gain, limits, rate_limit, out) -> bool: libfranka's "
      "Cartesian low-pass filter and pose rate limiter (False: the numpy path decides)."},

@@ -170,6 +170,11 @@ class CommandGenerator:
         )
         self._twist_limits = np.array(self.cartesian_limits, dtype=np.float64)
         self._twist_out = np.zeros((n, 6))
+        # And of its torque path.
+        torque_limited = action_filter == "limit_rate" and interface == "torque"
+        self._torque_kernel = (
+            CLIENT_KERNEL if torque_limited and isinstance(self._gain, float) else None
+        )
         # And of its Cartesian pose path (to rounding: see _pose_wire).
         pose_filtered = interface == "cartesian_pose" and action_filter in ("lowpass", "limit_rate")
         self._pose_kernel = (
@@ -339,6 +344,12 @@ class CommandGenerator:
             )
             if fused:
                 return self._twist_out
+        if self._torque_kernel is not None and self._torque_kernel.limit_torques(
+            target, state["tau_J_d"], self._gain, self._dtau_max, self._out
+        ):
+            # The low-pass and libfranka's torque limiter in one fused C call, the same
+            # bits as below (False for a non-finite input: the numpy path below).
+            return self._out
         # The reference the filters run against, read off the state once.
         ref = state[_REFERENCE[interface]].astype(np.float64)
         if interface == "joint_position" and self._n_first:

@@ -72,6 +72,8 @@ class MotionLimitEngine:
         # The joint-velocity fast path's implied acceleration and jerk.
         self._velocity_ddq = np.zeros((n, 7))
         self._velocity_dddq = np.zeros((n, 7))
+        #: the torque fast path's commanded rate (_torques_inside_limits)
+        self._torque_rate = np.zeros((n, 7))
         inside = t.interior_bounds(INTERIOR_SPEED, tol)
         self._upper_interior = np.tile(
             np.concatenate([t.q_upper, inside[:7], t.ddq_max, t.dddq_max, inside[7:14]]), (n, 1)
@@ -133,7 +135,31 @@ class MotionLimitEngine:
         if m.n_cartesian and count_nonzero(started):
             self.cartesian.advance(started)
         if m.n_external and count_nonzero(self.c._have):
-            self._advance_torques()
+            if (
+                m.n_external == n
+                and count_nonzero(self.c._have) == n
+                and self._torques_inside_limits(self.c._tau_c)
+            ):
+                # What _advance_torques does for torques that pass: applied, and the
+                # opening command's status ends for torque-only motions.
+                self.c.tau_J_d[...] = self.c._tau_c
+                if count_nonzero(self.c._first):
+                    self.c._first &= ~m.torque_only
+            else:  # the rule functions name the violation (and its precedence)
+                self._advance_torques()
+
+    def _torques_inside_limits(self, tau_c: np.ndarray) -> bool:
+        """Every robot's tau_c passes rows 34 (range) and 32 (rate against the applied
+        tau_J_d over one cycle): the torque fast path, with the arithmetic of
+        ``limits.check_torque`` and none of its masks. Non-finite commands never get
+        here (refused on arrival)."""
+        t, rate = self.c.table, self._torque_rate
+        np.subtract(tau_c, self.c.tau_J_d, out=rate)
+        rate /= DELTA_T  # check_torque's interval(1): the same division, the same bits
+        return not (
+            count_nonzero(~(np.abs(tau_c) <= t.tau_max))
+            or count_nonzero(np.abs(rate) > t.dtau_max)
+        )
 
     def _velocities_inside_limits(self, dq_c: np.ndarray) -> bool:
         """Every robot's dq_c passes every mid-motion dq_c row (15 acceleration, 15 jerk,
