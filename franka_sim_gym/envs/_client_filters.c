@@ -49,6 +49,15 @@ static inline double dot3(const double *x, const double *y)
     return (x[0] * y[0] + x[2] * y[2]) + x[1] * y[1];
 }
 
+/* Whether every entry of an (n, cols) array (float64 or float32) is finite. */
+static int all_finite(const F64 *a, Py_ssize_t n, int cols)
+{
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (int k = 0; k < cols; k++)
+            if (!isfinite(num2(a, i, k))) return 0;
+    return 1;
+}
+
 /* client_filters._limit_norm on one 3-vector: v_c the command, v_last / a_last the last
  * commanded velocity and acceleration, (v_max, a_max, j_max) the limits. */
 static void limit_norm(const double *v_c, const double *v_last, const double *a_last,
@@ -102,14 +111,10 @@ static PyObject *limit_twist(PyObject *self, PyObject *const *args, Py_ssize_t n
     if (f64_get(args[4], &a[LIMITS], 1, l6, 0, "limits") < 0) goto done;
     if (f64_get(args[5], &a[OUT], 2, s6, 1, "out") < 0) goto done;
     const double gain_ref = 1.0 - gain;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        for (int k = 0; k < 6; k++) {
-            if (!isfinite(AT2(a[TARGET], i, k)) || !isfinite(num2(&a[REF], i, k)) ||
-                !isfinite(num2(&a[DREF], i, k))) {
-                result = Py_NewRef(Py_False);
-                goto done;
-            }
-        }
+    if (!all_finite(&a[TARGET], n, 6) || !all_finite(&a[REF], n, 6) ||
+        !all_finite(&a[DREF], n, 6)) {
+        result = Py_NewRef(Py_False);
+        goto done;
     }
     for (Py_ssize_t i = 0; i < n; i++) {
         double x[6], last[6], dlast[6], limited[6];
@@ -232,12 +237,10 @@ static PyObject *limit_torques(PyObject *self, PyObject *const *args, Py_ssize_t
     double d_max = PyFloat_AsDouble(args[3]);
     if (d_max == -1.0 && PyErr_Occurred()) goto done;
     if (f64_get(args[4], &a[OUT], 2, s7, 1, "out") < 0) goto done;
-    for (Py_ssize_t i = 0; i < n; i++)
-        for (int j = 0; j < 7; j++)
-            if (!isfinite(AT2(a[TARGET], i, j)) || !isfinite(num2(&a[REF], i, j))) {
-                result = Py_NewRef(Py_False);
-                goto done;
-            }
+    if (!all_finite(&a[TARGET], n, 7) || !all_finite(&a[REF], n, 7)) {
+        result = Py_NewRef(Py_False);
+        goto done;
+    }
     const double dt = DELTA_T, gain_ref = 1.0 - gain;
     for (Py_ssize_t i = 0; i < n; i++)
         for (int j = 0; j < 7; j++) {
