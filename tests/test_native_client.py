@@ -98,6 +98,16 @@ def test_a_non_finite_torque_takes_the_reference_path():
     out = np.full((1, 7), 7.0)
     assert kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0, out) is False
     assert np.all(out == 7.0)  # untouched
+    # The generator then answers with numpy's path: the NaN on joint 3 alone, as numpy's
+    # minimum and maximum propagate it, the other joints filtered as ever.
+    gen._target = target
+    answered = gen._filtered(state)
+    assert answered is not gen._out
+    kernel_fn, gen._torque_kernel = gen._torque_kernel, None
+    reference = gen._filtered(state)
+    gen._torque_kernel = kernel_fn
+    assert np.isnan(answered[0, 3]) and np.isfinite(np.delete(answered[0], 3)).all()
+    assert np.array_equal(answered, reference, equal_nan=True)
     with pytest.raises(TypeError, match=r"limit_torques\(\) takes 5 arguments"):
         kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0)
 

@@ -37,6 +37,7 @@
 
 #include "_arrays.h"
 #include "_envelope.h"
+#include "_rotation.h"
 
 #define DELTA_T KERNEL_DT
 
@@ -268,18 +269,6 @@ static const double HOMOGENEOUS_SCREEN = 2e-6;
 /* A polar factor is accepted when R^T R is the identity this closely (rounding: 1e-16). */
 static const double ORTHONORMAL_SCREEN = 1e-13;
 
-/* out = a @ b, or a @ b^T with transpose_b, of row-major 3x3 matrices. */
-static void mat3_mul(const double *a, const double *b, int transpose_b, double *out)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            double s = 0.0;
-            for (int k = 0; k < 3; k++)
-                s += a[3 * r + k] * (transpose_b ? b[3 * c + k] : b[3 * k + c]);
-            out[3 * r + c] = s;
-        }
-}
-
 /* out = R^T R of a row-major 3x3 matrix. */
 static void gram3(const double *R, double *out)
 {
@@ -471,15 +460,9 @@ static int pose_cycle(const double *T_c, const double *T_ref, const double *twis
     double w_norm = sqrt(dot3(w, w));
     double R_out[9];
     if (w_norm > NORM_EPS) {
-        double axis[3], K[9], KK[9], step[9];
+        double axis[3], theta = dt * w_norm;
         for (int k = 0; k < 3; k++) axis[k] = w[k] / w_norm;
-        double theta = dt * w_norm, s = sin(theta), c1 = 1.0 - cos(theta);
-        K[0] = 0.0, K[1] = -axis[2], K[2] = axis[1];
-        K[3] = axis[2], K[4] = 0.0, K[5] = -axis[0];
-        K[6] = -axis[1], K[7] = axis[0], K[8] = 0.0;
-        mat3_mul(K, K, 0, KK);
-        for (int k = 0; k < 9; k++) step[k] = ((k % 4 == 0 ? 1.0 : 0.0) + s * K[k]) + c1 * KK[k];
-        mat3_mul(step, R_ref, 0, R_out);
+        rotate_left(axis, sin(theta), 1.0 - cos(theta), R_ref, R_out);
     } else {
         memcpy(R_out, R_ref, sizeof(R_out));
     }

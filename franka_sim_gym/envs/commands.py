@@ -157,29 +157,21 @@ class CommandGenerator:
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
         self._far = cf.FarFromTheBand(table, self._ddq_max, self._dddq_max, m["dq"])
-        # The fused C copy of _filtered's joint path (envs/_client_filters.c): for
-        # libfranka's rate limiter against a position-based envelope (the FER's is
-        # constant).
-        limited = action_filter == "limit_rate" and table.envelope_table is not None
-        self._kernel = CLIENT_KERNEL if limited and isinstance(self._gain, float) else None
+        # The fused C copies of _filtered's and _pose_wire's filters
+        # (envs/_client_filters.c), for one cutoff for all robots (a per-robot cutoff
+        # takes numpy): the joint path needs a position-based envelope (the FER's is
+        # constant); the pose path serves the low-pass filter alone too.
+        fused = CLIENT_KERNEL if isinstance(self._gain, float) else None
+        limited = action_filter == "limit_rate"
+        joint = limited and table.envelope_table is not None
+        self._kernel = fused if joint else None
+        self._twist_kernel = fused if limited and interface == "cartesian_velocity" else None
+        self._torque_kernel = fused if limited and interface == "torque" else None
+        pose = interface == "cartesian_pose" and action_filter in ("lowpass", "limit_rate")
+        self._pose_kernel = fused if pose else None
         self._out = np.zeros((n, 7))
-        # And of its Cartesian velocity path.
-        twist_limited = action_filter == "limit_rate" and interface == "cartesian_velocity"
-        self._twist_kernel = (
-            CLIENT_KERNEL if twist_limited and isinstance(self._gain, float) else None
-        )
         self._twist_limits = np.array(self.cartesian_limits, dtype=np.float64)
         self._twist_out = np.zeros((n, 6))
-        # And of its torque path.
-        torque_limited = action_filter == "limit_rate" and interface == "torque"
-        self._torque_kernel = (
-            CLIENT_KERNEL if torque_limited and isinstance(self._gain, float) else None
-        )
-        # And of its Cartesian pose path (to rounding: see _pose_wire).
-        pose_filtered = interface == "cartesian_pose" and action_filter in ("lowpass", "limit_rate")
-        self._pose_kernel = (
-            CLIENT_KERNEL if pose_filtered and isinstance(self._gain, float) else None
-        )
         self._pose_out = np.zeros((n, 16))
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)

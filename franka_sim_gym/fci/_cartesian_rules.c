@@ -32,6 +32,7 @@
 #include <math.h>
 
 #include "_arrays.h"
+#include "_rotation.h"
 
 /* Squared norms (reductions) pass the quiet screen only this far inside their limits:
  * the reference's einsum may round a sum of three squares differently by a few ulp. */
@@ -272,28 +273,11 @@ static inline void report(const F64 *reported, const F64 *dreported, Py_ssize_t 
 static void turn_left(const double rv[3], const double *R, double *out)
 {
     double angle = sqrt((rv[0] * rv[0] + rv[1] * rv[1]) + rv[2] * rv[2]);
-    double a, b, a2 = angle * angle;
-    if (angle < 1e-8) {
-        a = 1.0 - a2 / 6.0;
-        b = 0.5 - a2 / 24.0;
-    } else {
-        a = sin(angle) / angle;
-        b = (1.0 - cos(angle)) / a2;
-    }
-    const double K[9] = {0.0, -rv[2], rv[1], rv[2], 0.0, -rv[0], -rv[1], rv[0], 0.0};
-    double E[9];
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            double KK = 0.0;
-            for (int k = 0; k < 3; k++) KK += K[3 * r + k] * K[3 * k + c];
-            E[3 * r + c] = ((r == c ? 1.0 : 0.0) + a * K[3 * r + c]) + b * KK;
-        }
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            double v = 0.0;
-            for (int k = 0; k < 3; k++) v += E[3 * r + k] * R[3 * k + c];
-            out[3 * r + c] = v;
-        }
+    double a2 = angle * angle;
+    if (angle < 1e-8)
+        rotate_left(rv, 1.0 - a2 / 6.0, 0.5 - a2 / 24.0, R, out);
+    else
+        rotate_left(rv, sin(angle) / angle, (1.0 - cos(angle)) / a2, R, out);
 }
 
 /* twist_target(T, twist, T_tw): _twist_target. T_tw = T, its translation +=

@@ -107,46 +107,30 @@ class MotionLimitEngine:
         started = self.c.accounting.started
         if m.n_tracking and count_nonzero(started):
             have = self.c._have
-            if (
-                m.n_joint_position == n
-                and count_nonzero(have) == n
-                and not count_nonzero(self.c._first)
-            ):
-                if self._positions_inside_limits(self.c._q_c):
-                    d = self._derivatives
-                    ref.record_applied(self.c._q_c, d[1], d[2], self.c.writer.message_id)
-                else:  # the rule functions name the violation (and its precedence)
-                    self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
-            elif (
-                m.n_joint_velocity == n
-                and count_nonzero(have) == n
-                and not count_nonzero(self.c._first)
-            ):
-                dq_c = self.c._dq_c
-                if self._velocities_inside_limits(dq_c):
-                    # What the general path records for an applied dq_c: q_d advances
-                    # by dq_c over the cycle, the implied acceleration is frozen.
-                    q = ref.q + dq_c * DELTA_T
-                    ref.record_applied(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
-                else:  # the rule functions name the violation (and its precedence)
-                    self._advance_joints(started, have, self.c._q_c, dq_c)
-            else:
-                self._advance_joints(started, have, self.c._q_c, self.c._dq_c)
+            q_c, dq_c = self.c._q_c, self.c._dq_c
+            # Every robot answered and none opens its motion: the fast paths' case.
+            plain = count_nonzero(have) == n and not count_nonzero(self.c._first)
+            if plain and m.n_joint_position == n and self._positions_inside_limits(q_c):
+                d = self._derivatives
+                ref.record_applied(q_c, d[1], d[2], self.c.writer.message_id)
+            elif plain and m.n_joint_velocity == n and self._velocities_inside_limits(dq_c):
+                # What the general path records for an applied dq_c: q_d advances by dq_c
+                # over the cycle, the implied acceleration is frozen.
+                q = ref.q + dq_c * DELTA_T
+                ref.record_applied(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
+            else:  # the rule functions name any violation (and its precedence)
+                self._advance_joints(started, have, q_c, dq_c)
         if m.n_cartesian and count_nonzero(started):
             self.cartesian.advance(started)
-        if m.n_external and count_nonzero(self.c._have):
-            if (
-                m.n_external == n
-                and count_nonzero(self.c._have) == n
-                and self._torques_inside_limits(self.c._tau_c)
-            ):
-                # What _advance_torques does for torques that pass: applied, and the
-                # opening command's status ends for torque-only motions.
-                self.c.tau_J_d[...] = self.c._tau_c
-                if count_nonzero(self.c._first):
-                    self.c._first &= ~m.torque_only
-            else:  # the rule functions name the violation (and its precedence)
-                self._advance_torques()
+        n_torques = count_nonzero(self.c._have) if m.n_external else 0
+        if n_torques == m.n_external == n and self._torques_inside_limits(self.c._tau_c):
+            # What _advance_torques does for torques that pass: applied, and the opening
+            # command's status ends for torque-only motions.
+            self.c.tau_J_d[...] = self.c._tau_c
+            if count_nonzero(self.c._first):
+                self.c._first &= ~m.torque_only
+        elif n_torques:  # the rule functions name any violation (and its precedence)
+            self._advance_torques()
 
     def _torques_inside_limits(self, tau_c: np.ndarray) -> bool:
         """Every robot's tau_c passes rows 34 (range) and 32 (rate against the applied
@@ -157,8 +141,7 @@ class MotionLimitEngine:
         np.subtract(tau_c, self.c.tau_J_d, out=rate)
         rate /= DELTA_T  # check_torque's interval(1): the same division, the same bits
         return not (
-            count_nonzero(~(np.abs(tau_c) <= t.tau_max))
-            or count_nonzero(np.abs(rate) > t.dtau_max)
+            count_nonzero(~(np.abs(tau_c) <= t.tau_max)) or count_nonzero(np.abs(rate) > t.dtau_max)
         )
 
     def _velocities_inside_limits(self, dq_c: np.ndarray) -> bool:
