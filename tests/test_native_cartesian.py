@@ -307,31 +307,57 @@ def test_ik_kernel_keeps_forward_and_the_cache_right():
     assert b.converged.all() and b.position_error.max() < 1e-12
 
 
+def _ik_solve_args(n: int) -> list:
+    fast, _ = _kinematics(n)
+    q = np.tile(HOME_Q, (n, 1))
+    target = fast.forward(q + 0.01)
+    cached, qpos, site_pos, R_site, axes, anchors, base, errors, converged = (
+        fast.native_solve[:9]
+    )
+    args = [
+        q, np.empty((n, 7)), cached, qpos, site_pos, R_site, axes, anchors, base, target,
+        None, None, None, errors, converged, 1e-8, 1e-14, 0.5, 8, False, fast._mj_kinematics,
+    ]  # fmt: skip
+    return args, fast
+
+
 def test_kernels_refuse_bad_shapes():
     n = 2
-    q = np.zeros((n, 7))
-    with pytest.raises(ValueError, match="cached_q"):
-        IK.ik_begin(q, q.copy(), np.zeros((n, 6)), q.copy(), None, None)
-    with pytest.raises(ValueError, match="active"):
-        IK.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n + 1, dtype=bool))
-    with pytest.raises(ValueError, match="active"):
-        IK.ik_begin(q, q.copy(), q.copy(), q.copy(), None, np.ones(n))
-    with pytest.raises(ValueError, match="q"):
-        IK.ik_begin(q.astype(np.float32), q.copy(), q.copy(), q.copy(), None, None)
-    args = [
-        q.copy(), q.copy(), q.copy(), np.zeros((n, 3)), np.zeros((n, 3, 3)),
-        np.zeros((n, 7, 3)), np.zeros((n, 7, 3)), np.zeros((n, 3)), np.zeros((n, 4, 4)),
-        None, None, None, np.zeros((2, n)), np.zeros(n, dtype=bool), 1e-8, 1e-14, 0.5, False,
-    ]  # fmt: skip
-    assert IK.ik_step(*args) == 0
-    names = {4: "site_mat", 8: "target", 12: "errors"}
-    for k, bad in ((4, np.zeros((n, 9))), (8, np.zeros((n, 3, 4))), (12, np.zeros(n))):
+    args, fast = _ik_solve_args(n)
+    assert IK.ik_solve(*args) is None and args[14].all()  # (converged)
+    names = {1: "q", 2: "cached_q", 5: "site_mat", 9: "target", 12: "active", 13: "errors"}
+    bad = {
+        1: np.zeros((n, 6)), 2: np.zeros((n, 6)), 5: np.zeros((n, 9)), 9: np.zeros((n, 3, 4)),
+        12: np.ones(n + 1, dtype=bool), 13: np.zeros(n),
+    }  # fmt: skip
+    for k, value in bad.items():
         broken = list(args)
-        broken[k] = bad
+        broken[k] = value
         with pytest.raises(ValueError, match=names[k]):
-            IK.ik_step(*broken)
-    with pytest.raises(TypeError, match=r"ik_step\(\) takes 18 arguments \(17 given\)"):
-        IK.ik_step(*args[:-1])
+            IK.ik_solve(*broken)
+    broken = list(args)
+    broken[12] = np.ones(n)  # a float mask
+    with pytest.raises(ValueError, match="active: expected a bool array"):
+        IK.ik_solve(*broken)
+    broken = list(args)
+    broken[0] = args[0].astype(np.float32)
+    with pytest.raises(ValueError, match="q_init"):
+        IK.ik_solve(*broken)
+    for kinematics, message in (
+        ((1, 2), "kinematics: expected a tuple"),
+        ((0, 1, 2), "kinematics: a null address"),
+    ):
+        broken = list(args)
+        broken[20] = kinematics
+        with pytest.raises(ValueError, match=message):
+            IK.ik_solve(*broken)
+    broken = list(args)
+    broken[18] = -1
+    with pytest.raises(ValueError, match="max_iterations"):
+        IK.ik_solve(*broken)
+    with pytest.raises(TypeError, match=r"ik_solve\(\) takes 21 arguments \(20 given\)"):
+        IK.ik_solve(*args[:-1])
+    q = np.zeros((n, 7))
     T = np.tile(np.eye(4), (n, 1, 1))
     good = [T, T.copy(), np.zeros((n, 2, 6)), np.zeros((n, 3, 6)), q, np.zeros((n, 3, 7))]
     good += [np.zeros((n, 3, 7)), H, _limits()]
@@ -357,19 +383,42 @@ def test_kernels_refuse_bad_shapes():
 def _reference_paths(ctrl, monkeypatch) -> None:
     """Send ``ctrl`` down the numpy reference paths (as FRANKA_SIM_GYM_NATIVE=0 would)."""
     cartesian = ctrl.engine.cartesian
-    cartesian._kernel = None
+    cartesian._kernel = cartesian._plain = None
     cartesian.kinematics._kernel = None
     monkeypatch.setattr(frames, "_quick_test", frames._quick_test_numpy)
 
 
-def _stream(generator, n: int, reference: bool, monkeypatch, enforce: bool):
+class _CountingPlainCycle:
+    """The plain-cycle kernel, counting what each call returned (True: it recorded)."""
+
+    def __init__(self, kernel) -> None:
+        self.kernel, self.results = kernel, []
+
+    def plain_cycle(self, *args):
+        recorded = self.kernel.plain_cycle(*args)
+        self.results.append(recorded)
+        return recorded
+
+
+def _stream(
+    generator, n: int, reference: bool, monkeypatch, enforce: bool, plain=True, keep=None
+):
     """Stream a Cartesian motion to n robots with rotation, lost cycles, a late datagram
     and a violation on robot 0 at cycle 300; returns the published states per cycle, the
-    events and the logged violations."""
+    events and the logged violations. ``plain``: False runs the general cycle only;
+    ``keep``: a list that receives the Cartesian generators (their plain-cycle kernel
+    counting what each call returned)."""
     monkeypatch.undo()
     ctrl = make_controller(n, enforce_motion_limits=enforce)
     if reference:
         _reference_paths(ctrl, monkeypatch)
+    cartesian = ctrl.engine.cartesian
+    if not plain:
+        cartesian._plain = None
+    if keep is not None:
+        if cartesian._plain is not None:
+            cartesian._plain = _CountingPlainCycle(cartesian._plain)
+        keep.append(cartesian)
     for i in range(n):
         ctrl.move(i, int(IMP), int(generator))
     for _ in range(2):
@@ -438,6 +487,31 @@ def test_a_controller_with_the_kernels_publishes_what_the_reference_does(
                 np.testing.assert_allclose(x, y, rtol=1e-5, atol=1e-6, err_msg=name)
             else:
                 np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+@pytest.mark.parametrize("generator", [CP, CV])
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("enforce", [False, True])
+def test_the_plain_cycle_is_the_general_cycle_bit_for_bit(generator, n, enforce, monkeypatch):
+    """plain_cycle (one kernel call for the whole cycle) against _cycle's kernels, on a
+    stream with lost cycles, a late datagram and a violation: every published state, event
+    and logged violation and the final history, bit for bit. The plain cycle recorded
+    most cycles and declined others to the general path (the violation's)."""
+    kept = []
+    states, events, seen = _stream(generator, n, False, monkeypatch, enforce, keep=kept)
+    general = _stream(generator, n, False, monkeypatch, enforce, plain=False, keep=kept)
+    monkeypatch.undo()
+    fast, slow = kept
+    assert slow._plain is None
+    assert events == general[1]
+    np.testing.assert_array_equal(seen, general[2])
+    assert seen[0].any()  # the violation was seen
+    for a, b in zip(states, general[0], strict=True):
+        assert a.tobytes() == b.tobytes()
+    assert fast.reference.buffer.tobytes() == slow.reference.buffer.tobytes()
+    calls = fast._plain.results
+    assert calls.count(True) > 200  # of 500 cycles, some lost (and the abort: none after)
+    assert calls.count(False) >= 1  # declined: the violation's cycle
 
 
 def _names(messages: list[str]) -> list[str]:

@@ -32,6 +32,7 @@
 #include <math.h>
 
 #include "_arrays.h"
+#include "_ik_core.h"
 #include "_rotation.h"
 
 /* Squared norms (reductions) pass the quiet screen only this far inside their limits:
@@ -104,6 +105,40 @@ static int rotation_velocity(const F64 *T_prev, const F64 *T_c, Py_ssize_t i, do
     return 1;
 }
 
+/* pose_derivatives over one arm: stack = [v | omega], [a | alpha], [jerk | zeta] of T_c
+ * against T_prev and history (omega: its rotation_velocity), each (x - previous) / h. */
+static void pose_derivatives_arm(const F64 *T_c, const F64 *T_prev, const F64 *history,
+                                 const F64 *stack, Py_ssize_t i, const double omega[3],
+                                 double h)
+{
+    double v[6], acc[6];
+    for (int k = 0; k < 3; k++) {
+        v[k] = AT3(*T_c, i, k, 3) - AT3(*T_prev, i, k, 3);
+        v[3 + k] = omega[k];
+    }
+    for (int k = 0; k < 6; k++) {
+        v[k] /= h;
+        acc[k] = (v[k] - AT3(*history, i, 0, k)) / h;
+        AT3(*stack, i, 0, k) = v[k];
+        AT3(*stack, i, 1, k) = acc[k];
+        AT3(*stack, i, 2, k) = (acc[k] - AT3(*history, i, 1, k)) / h;
+    }
+}
+
+/* _twist_derivatives over one arm: stack = [twist, dtwist, ddtwist]. */
+static void twist_derivatives_arm(const F64 *twist, const F64 *twist_prev,
+                                  const F64 *dtwist_prev, const F64 *stack, Py_ssize_t i,
+                                  double h)
+{
+    for (int k = 0; k < 6; k++) {
+        double v = AT2(*twist, i, k);
+        double dv = (v - AT2(*twist_prev, i, k)) / h;
+        AT3(*stack, i, 0, k) = v;
+        AT3(*stack, i, 1, k) = dv;
+        AT3(*stack, i, 2, k) = (dv - AT2(*dtwist_prev, i, k)) / h;
+    }
+}
+
 /* pose_step(T_c, T_prev, history, stack, q, joint, differences, h, limits) -> int
  *
  * pose_derivatives(T_c, T_prev, history, 1, out=stack), joint_side(q, joint[:, 0],
@@ -148,18 +183,7 @@ static PyObject *pose_step(PyObject *self, PyObject *const *args, Py_ssize_t nar
     }
     int quiet = 1;
     for (Py_ssize_t i = 0; i < n; i++) {
-        double v[6], acc[6];
-        for (int k = 0; k < 3; k++) {
-            v[k] = AT3(a[T_C], i, k, 3) - AT3(a[T_PREV], i, k, 3);
-            v[3 + k] = omega[3 * i + k];
-        }
-        for (int k = 0; k < 6; k++) {
-            v[k] /= h;
-            acc[k] = (v[k] - AT3(a[HISTORY], i, 0, k)) / h;
-            AT3(a[STACK], i, 0, k) = v[k];
-            AT3(a[STACK], i, 1, k) = acc[k];
-            AT3(a[STACK], i, 2, k) = (acc[k] - AT3(a[HISTORY], i, 1, k)) / h;
-        }
+        pose_derivatives_arm(&a[T_C], &a[T_PREV], &a[HISTORY], &a[STACK], i, &omega[3 * i], h);
         joint_differences(&a[Q], &a[JOINT], &a[DIFF], i, h);
         quiet = quiet && arm_quiet(&a[STACK], &a[DIFF], &a[LIMITS], i);
     }
@@ -200,13 +224,7 @@ static PyObject *twist_step(PyObject *self, PyObject *const *args, Py_ssize_t na
         goto done;
     int quiet = 1;
     for (Py_ssize_t i = 0; i < n; i++) {
-        for (int k = 0; k < 6; k++) {
-            double v = AT2(a[TWIST], i, k);
-            double dv = (v - AT2(a[TWIST_PREV], i, k)) / h;
-            AT3(a[STACK], i, 0, k) = v;
-            AT3(a[STACK], i, 1, k) = dv;
-            AT3(a[STACK], i, 2, k) = (dv - AT2(a[DTWIST_PREV], i, k)) / h;
-        }
+        twist_derivatives_arm(&a[TWIST], &a[TWIST_PREV], &a[DTWIST_PREV], &a[STACK], i, h);
         joint_differences(&a[Q], &a[JOINT], &a[DIFF], i, h);
         quiet = quiet && arm_quiet(&a[STACK], &a[DIFF], &a[LIMITS], i);
     }
@@ -280,6 +298,26 @@ static void turn_left(const double rv[3], const double *R, double *out)
         rotate_left(rv, sin(angle) / angle, (1.0 - cos(angle)) / a2, R, out);
 }
 
+/* twist_target over one arm (below). */
+static void twist_target_arm(const F64 *T, const F64 *twist, const F64 *out, Py_ssize_t i)
+{
+    double R[9], rv[3], turned[9];
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) AT3(*out, i, r, c) = AT3(*T, i, r, c);
+    int turning = 0;
+    for (int k = 0; k < 3; k++) {
+        AT3(*out, i, k, 3) += AT2(*twist, i, k) * CYCLE_DT;
+        rv[k] = AT2(*twist, i, 3 + k) * CYCLE_DT;
+        if (AT2(*twist, i, 3 + k) != 0.0) turning = 1;
+    }
+    if (!turning) return;
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) R[3 * r + c] = AT3(*T, i, r, c);
+    turn_left(rv, R, turned);
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) AT3(*out, i, r, c) = turned[3 * r + c];
+}
+
 /* twist_target(T, twist, T_tw): _twist_target. T_tw = T, its translation +=
  * twist[:3] * dt (numpy's order: the product first: the reference's bits) and, where
  * the twist turns, its rotation exp(twist[3:] dt) @ R: the 3x3 products (numpy's go
@@ -299,27 +337,33 @@ static PyObject *twist_target(PyObject *self, PyObject *const *args, Py_ssize_t 
     if (f64_get(args[0], &a[T], 3, s44, 0, "T") < 0) goto done;
     if (f64_get(args[1], &a[TW], 2, s6, 0, "twist") < 0) goto done;
     if (f64_get(args[2], &a[OUT], 3, s44, 1, "T_tw") < 0) goto done;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double R[9], rv[3], turned[9];
-        for (int r = 0; r < 4; r++)
-            for (int c = 0; c < 4; c++) AT3(a[OUT], i, r, c) = AT3(a[T], i, r, c);
-        int turning = 0;
-        for (int k = 0; k < 3; k++) {
-            AT3(a[OUT], i, k, 3) += AT2(a[TW], i, k) * CYCLE_DT;
-            rv[k] = AT2(a[TW], i, 3 + k) * CYCLE_DT;
-            if (AT2(a[TW], i, 3 + k) != 0.0) turning = 1;
-        }
-        if (!turning) continue;
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) R[3 * r + c] = AT3(a[T], i, r, c);
-        turn_left(rv, R, turned);
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) AT3(a[OUT], i, r, c) = turned[3 * r + c];
-    }
+    for (Py_ssize_t i = 0; i < n; i++) twist_target_arm(&a[T], &a[TW], &a[OUT], i);
     result = Py_NewRef(Py_None);
 done:
     f64_release_all(a, COUNT);
     return result;
+}
+
+/* record_pose over one arm (below). */
+static void record_pose_arm(const F64 *T_c, const F64 *stack, const F64 *T, const F64 *hist,
+                            const F64 *frozen, const F64 *reported, const F64 *dreported,
+                            Py_ssize_t i)
+{
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) AT3(*T, i, r, c) = AT3(*T_c, i, r, c);
+    for (int k = 0; k < 6; k++) {
+        AT3(*hist, i, 0, k) = AT3(*stack, i, 0, k);
+        AT3(*hist, i, 1, k) = AT3(*stack, i, 1, k);
+        AT2(*frozen, i, k) = AT3(*stack, i, 1, k);
+    }
+    double twist[6];
+    for (int k = 0; k < 3; k++) {
+        twist[k] = AT3(*hist, i, 0, k);
+        twist[3 + k] = (AT3(*T, i, k, 0) * AT3(*hist, i, 0, 3) +
+                        AT3(*T, i, k, 2) * AT3(*hist, i, 0, 5)) +
+                       AT3(*T, i, k, 1) * AT3(*hist, i, 0, 4);
+    }
+    report(reported, dreported, i, twist);
 }
 
 /* record_pose(T_c, stack, T, history, acceleration_frozen, reported, dreported)
@@ -346,27 +390,29 @@ static PyObject *record_pose(PyObject *self, PyObject *const *args, Py_ssize_t n
     if (f64_get(args[4], &a[FROZEN], 2, s6, 1, "acceleration_frozen") < 0) goto done;
     if (f64_get(args[5], &a[REP], 2, s6, 1, "reported") < 0) goto done;
     if (f64_get(args[6], &a[DREP], 2, s6, 1, "dreported") < 0) goto done;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        for (int r = 0; r < 4; r++)
-            for (int c = 0; c < 4; c++) AT3(a[T], i, r, c) = AT3(a[TC], i, r, c);
-        for (int k = 0; k < 6; k++) {
-            AT3(a[HIST], i, 0, k) = AT3(a[STACK], i, 0, k);
-            AT3(a[HIST], i, 1, k) = AT3(a[STACK], i, 1, k);
-            AT2(a[FROZEN], i, k) = AT3(a[STACK], i, 1, k);
-        }
-        double twist[6];
-        for (int k = 0; k < 3; k++) {
-            twist[k] = AT3(a[HIST], i, 0, k);
-            twist[3 + k] = (AT3(a[T], i, k, 0) * AT3(a[HIST], i, 0, 3) +
-                            AT3(a[T], i, k, 2) * AT3(a[HIST], i, 0, 5)) +
-                           AT3(a[T], i, k, 1) * AT3(a[HIST], i, 0, 4);
-        }
-        report(&a[REP], &a[DREP], i, twist);
-    }
+    for (Py_ssize_t i = 0; i < n; i++)
+        record_pose_arm(&a[TC], &a[STACK], &a[T], &a[HIST], &a[FROZEN], &a[REP], &a[DREP], i);
     result = Py_NewRef(Py_None);
 done:
     f64_release_all(a, COUNT);
     return result;
+}
+
+/* record_twist over one arm (below). */
+static void record_twist_arm(const F64 *T_c, const F64 *tw, const F64 *stack, const F64 *T,
+                             const F64 *h_twist, const F64 *dtwist, const F64 *frozen,
+                             const F64 *reported, const F64 *dreported, Py_ssize_t i)
+{
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) AT3(*T, i, r, c) = AT3(*T_c, i, r, c);
+    double twist[6];
+    for (int k = 0; k < 6; k++) {
+        twist[k] = AT2(*tw, i, k);
+        AT2(*h_twist, i, k) = twist[k];
+        AT2(*dtwist, i, k) = AT3(*stack, i, 1, k);
+        AT2(*frozen, i, k) = AT3(*stack, i, 1, k);
+    }
+    report(reported, dreported, i, twist);
 }
 
 /* record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported, dreported)
@@ -393,21 +439,221 @@ static PyObject *record_twist(PyObject *self, PyObject *const *args, Py_ssize_t 
     if (f64_get(args[6], &a[FROZEN], 2, s6, 1, "dtwist_frozen") < 0) goto done;
     if (f64_get(args[7], &a[REP], 2, s6, 1, "reported") < 0) goto done;
     if (f64_get(args[8], &a[DREP], 2, s6, 1, "dreported") < 0) goto done;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        for (int r = 0; r < 4; r++)
-            for (int c = 0; c < 4; c++) AT3(a[T], i, r, c) = AT3(a[TC], i, r, c);
-        double twist[6];
-        for (int k = 0; k < 6; k++) {
-            twist[k] = AT2(a[TW], i, k);
-            AT2(a[HTW], i, k) = twist[k];
-            AT2(a[DTW], i, k) = AT3(a[STACK], i, 1, k);
-            AT2(a[FROZEN], i, k) = AT3(a[STACK], i, 1, k);
-        }
-        report(&a[REP], &a[DREP], i, twist);
-    }
+    for (Py_ssize_t i = 0; i < n; i++)
+        record_twist_arm(&a[TC], &a[TW], &a[STACK], &a[T], &a[HTW], &a[DTW], &a[FROZEN], &a[REP],
+                         &a[DREP], i);
     result = Py_NewRef(Py_None);
 done:
     f64_release_all(a, COUNT);
+    return result;
+}
+
+
+/* ---- the plain cycle ------------------------------------------------------------------- */
+
+/* The columns of one robot's history row (fci/cartesian_reference.py CartesianHistory);
+ * history_columns() hands them to Python, which uses plain_cycle only where they agree. */
+enum {
+    COL_T = 0,                    /* (4, 4) */
+    COL_HISTORY = 16,             /* (2, 6): [v | omega], [a | alpha] */
+    COL_ACCELERATION_FROZEN = 28, /* (6,) */
+    COL_TWIST = 34,               /* (6,) */
+    COL_DTWIST = 40,              /* (6,) */
+    COL_DTWIST_FROZEN = 46,       /* (6,) */
+    COL_REPORTED = 52,            /* (6,) */
+    COL_DREPORTED = 58,           /* (6,) */
+    COL_JOINT = 70,               /* (3, 7): [q_ik, dq_ik, ddq_ik] */
+    COL_IK_WARM = 91,             /* () */
+    COL_WIDTH = 92
+};
+
+static PyObject *history_columns(PyObject *self, PyObject *unused)
+{
+    (void)self;
+    (void)unused;
+    return Py_BuildValue("{s:i,s:i,s:i,s:i,s:i,s:i,s:i,s:i,s:i,s:i,s:i}", "T", COL_T,
+                         "history", COL_HISTORY, "acceleration_frozen",
+                         COL_ACCELERATION_FROZEN, "twist", COL_TWIST, "dtwist", COL_DTWIST,
+                         "dtwist_frozen", COL_DTWIST_FROZEN, "reported", COL_REPORTED,
+                         "dreported", COL_DREPORTED, "joint", COL_JOINT, "ik_warm",
+                         COL_IK_WARM, "WIDTH", COL_WIDTH);
+}
+
+/* A view of columns [col, col + d1 * d2) of the (n, WIDTH) history as an (n, d1, d2)
+ * array (d2 = 0: (n, d1)); it borrows the history's buffer (nothing to release). */
+static F64 columns(const F64 *history, int col, int d1, int d2)
+{
+    F64 v;
+    memset(&v, 0, sizeof(v));
+    Py_ssize_t step = history->strides[1];
+    v.data = history->data + col * step;
+    v.kind = 'd';
+    v.shape[0] = history->shape[0];
+    v.strides[0] = history->strides[0];
+    v.shape[1] = d1;
+    if (d2) {
+        v.ndim = 3;
+        v.strides[1] = d2 * step;
+        v.shape[2] = d2;
+        v.strides[2] = step;
+    } else {
+        v.ndim = 2;
+        v.strides[1] = step;
+    }
+    return v;
+}
+
+/* A view of joint's (n, 4, 7) rows [from, from + count) as (n, count, 7), or row
+ * ``from`` as (n, 7) (count = 0). */
+static F64 joint_rows(const F64 *joint, int from, int count)
+{
+    F64 v = *joint;
+    memset(&v.view, 0, sizeof(v.view));
+    v.data = joint->data + from * joint->strides[1];
+    if (count) {
+        v.shape[1] = count;
+    } else {
+        v.ndim = 2;
+        v.shape[1] = 7;
+        v.strides[1] = joint->strides[2];
+    }
+    return v;
+}
+
+/* plain_cycle(pose, T_c, twist, history, T_tw, stack, joint, h, limits, F_T_EE, ik,
+ *             rows_valid) -> bool
+ *
+ * fci/cartesian.py _cycle for the plain cycle of a world whose robots all run one
+ * generator (``pose``: O_T_EE_c, T_c the commands; else O_dP_EE_c, twist the commands
+ * and T_tw the twist target's scratch), every robot's command arrived, none opens its
+ * motion and no elbow is streamed: the IK target (_twist_target), the IK (ik_solve from
+ * the history's q_ik into joint[:, 0]), the derivatives, the joint side and the quiet
+ * screen (pose_step / twist_step into stack and joint[:, 1:]) — then, where every solve
+ * converged, every joint history is warm and the screen is quiet (so _check judges
+ * nothing), the record: _record_plain, the joint history [q, dq, ddq] and ik_warm + 1.
+ * Returns True when it recorded; False having written only scratch (stack, joint, T_tw,
+ * the IK's cache and MjData): the caller runs the general path, which recomputes it all.
+ * ``ik``: (cached_q, qpos, site_pos, site_mat, axes, anchors, base, errors, converged,
+ * damping2, tol2, max_step, max_iterations, kinematics), sim/kinematics.py
+ * ArmKinematics.native_solve; ``history``: the (n, WIDTH) buffer of CartesianReference. */
+static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    enum { T_C, TWIST, HIST, T_TW, STACK, JOINT, LIMITS, F_EE, CACHED, QPOS, SITE_POS,
+           SITE_MAT, AXES, ANCHORS, BASE, ERRORS, COUNT };
+    F64 a[COUNT];
+    Mask converged, none;
+    Kinematics kin;
+    memset(a, 0, sizeof(a));
+    memset(&converged, 0, sizeof(converged));
+    memset(&none, 0, sizeof(none));
+    PyObject *result = NULL;
+    if (check_nargs(nargs, 12, "plain_cycle") < 0) return NULL;
+    int pose = PyObject_IsTrue(args[0]);
+    double h = PyFloat_AsDouble(args[7]);
+    int rows_valid = PyObject_IsTrue(args[11]);
+    if (pose < 0 || rows_valid < 0 || PyErr_Occurred()) return NULL;
+    PyObject *ik = args[10];
+    if (!PyTuple_Check(ik) || PyTuple_GET_SIZE(ik) != 14) {
+        PyErr_SetString(PyExc_ValueError, "ik: expected ArmKinematics.native_solve's tuple");
+        return NULL;
+    }
+    double damping2 = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 9));
+    double tol2 = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 10));
+    double max_step = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 11));
+    long max_iterations = PyLong_AsLong(PyTuple_GET_ITEM(ik, 12));
+    if (PyErr_Occurred()) return NULL;
+    if (max_iterations < 0 || max_iterations > 1000) {
+        PyErr_SetString(PyExc_ValueError, "ik: max_iterations expected 0 to 1000");
+        return NULL;
+    }
+    if (kinematics_get(PyTuple_GET_ITEM(ik, 13), &kin) < 0) return NULL;
+    Py_ssize_t n = leading(args[3], "history");
+    if (n < 0) return NULL;
+    Py_ssize_t s44[3] = {n, 4, 4}, s6[2] = {n, 6}, sH[2] = {n, COL_WIDTH}, s36[3] = {n, 3, 6};
+    Py_ssize_t s47[3] = {n, 4, 7}, s20[1] = {20}, s7[2] = {n, 7}, s3[2] = {n, 3};
+    Py_ssize_t s33[3] = {n, 3, 3}, s73[3] = {n, 7, 3}, s2n[2] = {2, n};
+    if ((pose ? f64_get(args[1], &a[T_C], 3, s44, 0, "T_c")
+              : f64_get(args[2], &a[TWIST], 2, s6, 0, "twist")) < 0 ||
+        f64_get(args[3], &a[HIST], 2, sH, 1, "history") < 0 ||
+        (!pose && f64_get(args[4], &a[T_TW], 3, s44, 1, "T_tw") < 0) ||
+        f64_get(args[5], &a[STACK], 3, s36, 1, "stack") < 0 ||
+        f64_get(args[6], &a[JOINT], 3, s47, 1, "joint") < 0 ||
+        f64_get(args[8], &a[LIMITS], 1, s20, 0, "limits") < 0 ||
+        (args[9] != Py_None && f64_get(args[9], &a[F_EE], 3, s44, 0, "F_T_EE") < 0) ||
+        f64_get(PyTuple_GET_ITEM(ik, 0), &a[CACHED], 2, s7, 1, "cached_q") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 1), &a[QPOS], 2, s7, 1, "qpos") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 2), &a[SITE_POS], 2, s3, 0, "site_pos") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 3), &a[SITE_MAT], 3, s33, 0, "site_mat") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 4), &a[AXES], 3, s73, 0, "axes") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 5), &a[ANCHORS], 3, s73, 0, "anchors") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 6), &a[BASE], 2, s3, 0, "base") < 0 ||
+        f64_get(PyTuple_GET_ITEM(ik, 7), &a[ERRORS], 2, s2n, 1, "errors") < 0 ||
+        mask_get(PyTuple_GET_ITEM(ik, 8), &converged, n, 1, "converged") < 0)
+        goto done;
+    if (!converged.data) {
+        PyErr_SetString(PyExc_ValueError, "converged: expected a bool array, not None");
+        goto done;
+    }
+    const F64 *hist = &a[HIST];
+    F64 T_prev = columns(hist, COL_T, 4, 4), history = columns(hist, COL_HISTORY, 2, 6);
+    F64 frozen = columns(hist, COL_ACCELERATION_FROZEN, 6, 0);
+    F64 twist_prev = columns(hist, COL_TWIST, 6, 0), dtwist = columns(hist, COL_DTWIST, 6, 0);
+    F64 dtwist_frozen = columns(hist, COL_DTWIST_FROZEN, 6, 0);
+    F64 reported = columns(hist, COL_REPORTED, 6, 0);
+    F64 dreported = columns(hist, COL_DREPORTED, 6, 0);
+    F64 joint_history = columns(hist, COL_JOINT, 3, 7), q_ik = columns(hist, COL_JOINT, 7, 0);
+    F64 q = joint_rows(&a[JOINT], 0, 0), differences = joint_rows(&a[JOINT], 1, 3);
+    F64 solution = joint_rows(&a[JOINT], 0, 3);
+    /* the IK target: the commanded pose, or the twist's integral */
+    const F64 *target = &a[T_C];
+    if (!pose) {
+        for (Py_ssize_t i = 0; i < n; i++) twist_target_arm(&T_prev, &a[TWIST], &a[T_TW], i);
+        target = &a[T_TW];
+    }
+    IkProblem problem = {
+        &q_ik, &q, &a[CACHED], &a[QPOS], &a[SITE_POS], &a[SITE_MAT], &a[AXES], &a[ANCHORS],
+        &a[BASE], target, &a[F_EE], NULL, &none, &a[ERRORS], (char *)converged.data,
+        converged.stride, damping2, tol2, max_step, (int)max_iterations,
+    };
+    if (ik_solve_core(&problem, &kin, n, rows_valid) < 0) goto done;
+    /* The derivatives, the joint side and the screen; plain only if every arm is. */
+    int plain = 1;
+    for (Py_ssize_t i = 0; i < n && plain; i++) {
+        double w[3];
+        if (pose) {
+            if (!rotation_velocity(&T_prev, &a[T_C], i, w)) {
+                plain = 0; /* a rotation the kernel leaves to the reference */
+                break;
+            }
+            pose_derivatives_arm(&a[T_C], &T_prev, &history, &a[STACK], i, w, h);
+        } else {
+            twist_derivatives_arm(&a[TWIST], &twist_prev, &dtwist, &a[STACK], i, h);
+        }
+        joint_differences(&q, &joint_history, &differences, i, h);
+        plain = converged.data[i * converged.stride] && AT2(*hist, i, COL_IK_WARM) >= 2.0 &&
+                arm_quiet(&a[STACK], &differences, &a[LIMITS], i);
+    }
+    if (!plain) {
+        result = Py_NewRef(Py_False);
+        goto done;
+    }
+    /* The record: _record_plain, _record_joint_side's plain copy, ik_warm + 1. */
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (pose)
+            record_pose_arm(&a[T_C], &a[STACK], &T_prev, &history, &frozen, &reported,
+                            &dreported, i);
+        else
+            record_twist_arm(&a[T_TW], &a[TWIST], &a[STACK], &T_prev, &twist_prev, &dtwist,
+                             &dtwist_frozen, &reported, &dreported, i);
+        for (int r = 0; r < 3; r++)
+            for (int j = 0; j < 7; j++) AT3(joint_history, i, r, j) = AT3(solution, i, r, j);
+        AT2(*hist, i, COL_IK_WARM) += 1.0;
+    }
+    result = Py_NewRef(Py_True);
+done:
+    f64_release_all(a, COUNT);
+    mask_release(&converged);
     return result;
 }
 
@@ -428,6 +674,11 @@ static PyMethodDef METHODS[] = {
     {"record_twist", (PyCFunction)(void (*)(void))record_twist, METH_FASTCALL,
      "record_twist(T_c, twist, stack, T, h_twist, dtwist, dtwist_frozen, reported, "
      "dreported): _record of a twist cycle every robot recorded."},
+    {"plain_cycle", (PyCFunction)(void (*)(void))plain_cycle, METH_FASTCALL,
+     "plain_cycle(pose, T_c, twist, history, T_tw, stack, joint, h, limits, F_T_EE, ik, "
+     "rows_valid) -> bool: _cycle's plain cycle in one call (True: recorded)."},
+    {"history_columns", history_columns, METH_NOARGS,
+     "history_columns() -> dict: the history row's columns plain_cycle reads and writes."},
     {NULL, NULL, 0, NULL},
 };
 

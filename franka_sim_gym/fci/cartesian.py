@@ -48,7 +48,7 @@ from ..sim.kinematics import (
 )
 from . import extrapolation
 from ._fast import count_nonzero, put_rows
-from .cartesian_reference import CartesianHistory, CartesianReference
+from .cartesian_reference import CartesianHistory, CartesianReference, columns
 from .errors import Error
 from .frames import from_wire, to_wire
 from .limits import cartesian as rules
@@ -148,6 +148,15 @@ class CartesianGenerators:
         self._no_elbow = rules.ElbowDerivatives(zeros, zeros, zeros)
         #: the rules in C (fci/_cartesian_rules.c), or None: the numpy reference path only
         self._kernel = native.load("fci._cartesian_rules")
+        #: the kernel's plain cycle (_plain_cycle), where the IK runs in C too and the
+        #: kernel's history columns are this history's
+        self._plain = (
+            self._kernel
+            if self._kernel is not None
+            and self.kinematics.native_solve is not None
+            and self._kernel.history_columns() == columns()
+            else None
+        )
 
     @property
     def q_ik(self) -> np.ndarray:
@@ -204,8 +213,40 @@ class CartesianGenerators:
         if not k:
             return
         have = c._have & rows
-        lost = self._none if count_nonzero(have) == k else rows & ~have
+        n_have = count_nonzero(have)
+        if n_have == c.n and self._plain is not None and self._plain_cycle(have):
+            return
+        lost = self._none if n_have == k else rows & ~have
         self._cycle(have, lost, self._cycle_candidates, c.writer.message_id)
+
+    def _plain_cycle(self, have: np.ndarray) -> bool:
+        """_cycle in one kernel call (fci/_cartesian_rules.c plain_cycle) for the common
+        cycle: every robot runs one generator and its command arrived, none opens its
+        motion, no elbow is streamed, and then — as the kernel finds — every IK solve
+        converged, every joint history is warm and the quiet screen passes, so that the
+        precedence tables have nothing to judge. The same values as _cycle's (the kernel
+        runs the same kernels' arithmetic); False, having recorded nothing, otherwise."""
+        c, m, h = self.c, self.c.modes, self.reference
+        n = c.n
+        pose = m.n_cartesian_position == n
+        if not (pose or m.n_cartesian_velocity == n):
+            return False
+        if count_nonzero(c._first) or count_nonzero(self.elbow_valid) or count_nonzero(
+            h.has_elbow
+        ):
+            return False
+        kin = self.kinematics
+        recorded = self._plain.plain_cycle(
+            pose, self.T_cmd, self.twist_cmd, h.buffer, self._T_twist[0],
+            self._pose_stack if pose else self._twist_stack, self._joint, _DT,
+            rules._quiet_limits(c.table, c.config.joint_discontinuity_scale),
+            c.writer.F_T_EE if c.writer._any_custom_ee else None, kin.native_solve,
+            kin.rows_valid,
+        )  # fmt: skip
+        kin.solved_natively()
+        if recorded:
+            h.record_real(have, c.writer.message_id)
+        return recorded
 
     def _cycle(
         self, have: np.ndarray, lost: np.ndarray, candidates: Candidates, echo: np.ndarray

@@ -90,6 +90,21 @@ class CartesianHistory:
         self.elbow_flag[...] = has_elbow
 
 
+def columns() -> dict[str, int]:
+    """Where each field of the plain cycle's kernel starts in a history row (the column
+    of its first value) and ``WIDTH``: what fci/_cartesian_rules.c history_columns()
+    must return for the kernel to be used."""
+    h = CartesianHistory(np.zeros((1, WIDTH)))
+    base = h.buffer.__array_interface__["data"][0]
+    names = ("T", "history", "acceleration_frozen", "twist", "dtwist", "dtwist_frozen")
+    names += ("reported", "dreported", "joint", "ik_warm")
+    found = {
+        name: (getattr(h, name).__array_interface__["data"][0] - base) // 8 for name in names
+    }
+    found["WIDTH"] = WIDTH
+    return found
+
+
 class CartesianReference(CartesianHistory):
     """The live Cartesian history of n robots, with what a late datagram is judged against.
 

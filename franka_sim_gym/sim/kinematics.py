@@ -15,6 +15,8 @@ once from MuJoCo's joint anchors and axes).
 
 from __future__ import annotations
 
+import ctypes
+from pathlib import Path
 from typing import NamedTuple
 
 import mujoco
@@ -188,6 +190,35 @@ USABLE_POSITION_ERROR = 1e-3
 USABLE_ROTATION_ERROR = 1e-2
 
 
+def _mujoco_kinematics(model: mujoco.MjModel, data: mujoco.MjData) -> tuple | None:
+    """(mj_kinematics, model, data) as addresses, for the IK kernel to call MuJoCo's own
+    forward kinematics from C; None where they cannot be had (the numpy loop then runs).
+
+    The function is looked up in the libmujoco the Python bindings ship and have loaded
+    (the same library, so the same code as ``mujoco.mj_kinematics``); the structs'
+    addresses are the bindings' ``_address`` (tested in MuJoCo's own bindings tests).
+    The caller keeps ``model`` and ``data`` alive as long as the addresses are used.
+    """
+    model_address = getattr(model, "_address", None)
+    data_address = getattr(data, "_address", None)
+    if not model_address or not data_address:
+        return None
+    package = Path(mujoco.__file__).parent
+    for library in sorted(package.glob("*mujoco*")):
+        if library.suffix not in {".so", ".dylib", ".dll"} and ".so." not in library.name:
+            continue
+        if library.name.startswith("_"):  # the bindings' own extension modules
+            continue
+        try:
+            function = ctypes.CDLL(str(library)).mj_kinematics
+        except (OSError, AttributeError):
+            continue
+        address = ctypes.cast(function, ctypes.c_void_p).value
+        if address:
+            return (address, int(model_address), int(data_address))
+    return None
+
+
 class ArmKinematics:
     """Kinematics of the n arms of a world, on a private MjData (physics is not touched).
 
@@ -272,10 +303,13 @@ class ArmKinematics:
         # MjData's rows are at _cached_q / _cached_F (the evaluation buffers above may not
         # be: the kernel's solve reads the rows directly).
         self._rows_valid = False
-        # The C kernel's solve (sim/_ik.c), where built and the rows are views.
-        self._kernel = native.load("sim._ik") if kernel else None
+        # The C kernel's solve (sim/_ik.c), where built, the rows are views and MuJoCo's
+        # mj_kinematics can be called from C (the addresses it needs).
+        self._mj_kinematics = _mujoco_kinematics(model, self.data) if kernel else None
+        self._kernel = native.load("sim._ik") if self._mj_kinematics is not None else None
         self._converged = np.empty(n, dtype=bool)  # the kernel's verdicts and errors
         self._errors = np.empty((2, n))
+        self._native_solve: tuple | None = None  # built on first use (native_solve)
 
     def _mjdata_rows(self) -> tuple | None:
         """Views of the private MjData's rows every evaluation reads and writes: qpos,
@@ -431,42 +465,63 @@ class ArmKinematics:
         return IkResult(q, converged, position_error, rotation_error)
 
     def _solve_native(self, target, q_init, F_T_EE, elbow, rows, out) -> IkResult:
-        """:meth:`solve` through the C kernel: per Gauss-Newton pass one ``ik_step`` (the
-        evaluation from MjData's rows, the error, the verdicts and the damped step) and,
-        where an arm stepped, one ``mj_kinematics``. The same passes, verdicts and
+        """:meth:`solve` in one ``ik_solve`` call (sim/_ik.c): the same passes, each the
+        evaluation from MjData's rows, the error, the verdicts and the damped step, with
+        MuJoCo's own ``mj_kinematics`` between them, called from C. The same verdicts and
         errors as the numpy loop; the solution agrees to rounding (a 6x6 elimination in
         place of LAPACK's)."""
-        k, n = self._kernel, self.n
+        n = self.n
         q = np.empty((n, 7)) if out is None else out
-        active = None if rows is None else np.asarray(rows, dtype=bool)
+        if rows is not None:
+            rows = np.asarray(rows, dtype=bool)
         if elbow is not None:
             elbow = np.asarray(elbow, dtype=np.float64)
         qpos, site_pos, _, R_site, axes, _, anchors = self._rows
         if type(q_init) is not np.ndarray or q_init.dtype != np.float64:  # (lists, float32)
             q_init = np.asarray(q_init, dtype=np.float64)
-        moved = k.ik_begin(q_init, q, self._cached_q, qpos, elbow, active)
-        if moved or not self._rows_valid or not self._same_frame(F_T_EE):
-            mujoco.mj_kinematics(self.model, self.data)
-            self._cached_F = None if F_T_EE is None else F_T_EE.copy()
-            self._rows_valid = True
-        self._cached = False  # the evaluation buffers are not at q any more
         converged, errors = self._converged, self._errors
-        tol2 = self.tolerance**2
-        for iteration in range(self.max_iterations + 1):
-            last = iteration == self.max_iterations
-            stepped = k.ik_step(
-                q, qpos, self._cached_q, site_pos, R_site, axes, anchors, self._base, target,
-                F_T_EE, elbow, active, errors, converged, self.damping**2, tol2, MAX_STEP, last,
-            )  # fmt: skip
-            if not stepped:
-                break
-            mujoco.mj_kinematics(self.model, self.data)
+        self._kernel.ik_solve(
+            q_init, q, self._cached_q, qpos, site_pos, R_site, axes, anchors, self._base,
+            target, F_T_EE, elbow, rows, errors, converged, self.damping**2,
+            self.tolerance**2, MAX_STEP, self.max_iterations, self._rows_valid,
+            self._mj_kinematics,
+        )  # fmt: skip
+        self.solved_natively()
         if count_nonzero(converged) == n:
             verdict = self._all
         else:
-            verdict = converged.copy() if active is None else converged | ~active
+            verdict = converged.copy() if rows is None else converged | ~rows
         position_error, rotation_error = errors.copy()  # (the next solve reuses errors)
         return IkResult(q, verdict, position_error, rotation_error)
+
+    @property
+    def native_solve(self) -> tuple | None:
+        """What a fused kernel needs to run :meth:`solve` in C on this object's MjData
+        (native/_ik_core.h; fci/_cartesian_rules.c plain_cycle): (cached_q, qpos,
+        site_pos, site_mat, axes, anchors, base, errors, converged, damping^2,
+        tolerance^2, MAX_STEP, max_iterations, the mj_kinematics addresses); None where
+        the kernel path is off. Call :meth:`solved_natively` after every such solve."""
+        if self._kernel is None or self._rows is None:
+            return None
+        if self._native_solve is None:
+            qpos, site_pos, _, R_site, axes, _, anchors = self._rows
+            self._native_solve = (
+                self._cached_q, qpos, site_pos, R_site, axes, anchors, self._base,
+                self._errors, self._converged, self.damping**2, self.tolerance**2, MAX_STEP,
+                self.max_iterations, self._mj_kinematics,
+            )  # fmt: skip
+        return self._native_solve
+
+    @property
+    def rows_valid(self) -> bool:
+        """MjData's rows are at the last solve's iterate (a fused solve may skip
+        mj_kinematics when it starts there)."""
+        return self._rows_valid
+
+    def solved_natively(self) -> None:
+        """A fused kernel solved on this object's MjData: its rows are at the last iterate,
+        the numpy evaluation's buffers are not."""
+        self._rows_valid, self._cached = True, False
 
     def _update(
         self, J: np.ndarray, fixed: np.ndarray | None, todo: np.ndarray | None
