@@ -141,6 +141,41 @@ def test_q_c_check_kernel_gives_the_reference_verdict_and_derivatives(n):
 
 @needs_kernel
 @pytest.mark.parametrize("n", [1, 16])
+def test_dq_c_check_kernel_gives_the_reference_verdict_and_derivatives(n):
+    """velocities_inside against _velocities_inside_limits' numpy: the verdict, and the
+    implied acceleration, jerk and next q_d, bit for bit."""
+    ctrl = make_controller(n)
+    eng = ctrl.engine
+    rng = np.random.default_rng(11 + n)
+    verdicts = set()
+    outputs = (eng._velocity_ddq, eng._velocity_dddq, eng._velocity_q)
+    for trial in range(400):
+        q_c = _reference_motion(ctrl, rng, scale=[0.01, 0.3, 1.0, 3.0][trial % 4])
+        dq_c = (q_c - ctrl.reference.q) / 1e-3
+        eng._q_c_kernel = engine_module.JOINT_KERNEL
+        fast = eng._velocities_inside_limits(dq_c)
+        fast_out = [x.copy() for x in outputs]
+        for x in outputs:
+            x[...] = np.nan
+        eng._q_c_kernel = None
+        reference = eng._velocities_inside_limits(dq_c)
+        assert fast is reference
+        for a, b in zip(fast_out, outputs, strict=True):
+            assert same_bits(a, b)
+        verdicts.add(fast)
+    assert verdicts == {True, False}
+    ddq_max = ctrl.table.ddq_max
+    args = [dq_c, *(np.zeros((n, 7)) for _ in range(6)), ddq_max, ddq_max]
+    args += [ctrl.table.envelope_table, 0.0]
+    for k, name in ((4, "ddq_out"), (7, "ddq_max")):
+        broken = list(args)
+        broken[k] = np.zeros(6)
+        with pytest.raises(ValueError, match=name):
+            kernel.velocities_inside(*broken)
+
+
+@needs_kernel
+@pytest.mark.parametrize("n", [1, 16])
 def test_measured_screen_kernel_gives_the_reference_row_and_verdict(n):
     ctrl = make_controller(n)
     eng, physics, w = ctrl.engine, ctrl.physics, ctrl.writer

@@ -6,6 +6,9 @@
  *       velocity envelope, [upper | -lower]).
  *   positions_inside(q_c, q, dq, ddq, stacked, upper, lower, constants, shift) -> bool
  *       fci/engine.py MotionEngine._positions_inside_limits (q_c's rows 12, 14, 13, 15).
+ *   velocities_inside(dq_c, q, dq, ddq, ddq_out, dddq_out, q_out, ddq_max, dddq_max,
+ *                     constants, shift) -> bool
+ *       fci/engine.py MotionEngine._velocities_inside_limits (dq_c's rows 15 and 13).
  *   measured_inside(dq, q, O_T_EE, ee_prev, measured, bounds) -> bool
  *       the screening comparison of fci/engine.py MotionEngine.safety_controller.
  *
@@ -160,6 +163,58 @@ done:
     return result;
 }
 
+/* velocities_inside(dq_c, q, dq, ddq, ddq_out, dddq_out, q_out, ddq_max, dddq_max,
+ *                   constants, shift) -> bool
+ *
+ * dq_c's implied acceleration and jerk against the reference (q, dq, ddq), backward
+ * differences over one cycle divided by DELTA_T as the rule function divides, into
+ * ddq_out and dddq_out; q_out = q + dq_c DELTA_T (the reference q_d the command advances
+ * to). True when every |ddq| <= ddq_max (7,), every |dddq| <= dddq_max (7,) and dq_c
+ * lies within the envelope at q (shift: its tolerance): rows 15 and 13 pass. */
+static PyObject *velocities_inside(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 11, "velocities_inside") < 0) return NULL;
+    enum { DQC, Q, DQ, DDQ, A_OUT, J_OUT, Q_OUT, A_MAX, J_MAX, C, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t any7[2] = {-1, 7};
+    if (f64_get(args[0], &a[DQC], 2, any7, 0, "dq_c") < 0) goto done;
+    Py_ssize_t n = a[DQC].shape[0];
+    Py_ssize_t s7[2] = {n, 7}, row7[1] = {7};
+    if (f64_get(args[1], &a[Q], 2, s7, 0, "q") < 0) goto done;
+    if (f64_get(args[2], &a[DQ], 2, s7, 0, "dq") < 0) goto done;
+    if (f64_get(args[3], &a[DDQ], 2, s7, 0, "ddq") < 0) goto done;
+    if (f64_get(args[4], &a[A_OUT], 2, s7, 1, "ddq_out") < 0) goto done;
+    if (f64_get(args[5], &a[J_OUT], 2, s7, 1, "dddq_out") < 0) goto done;
+    if (f64_get(args[6], &a[Q_OUT], 2, s7, 1, "q_out") < 0) goto done;
+    if (f64_get(args[7], &a[A_MAX], 1, row7, 0, "ddq_max") < 0) goto done;
+    if (f64_get(args[8], &a[J_MAX], 1, row7, 0, "dddq_max") < 0) goto done;
+    if (f64_get(args[9], &a[C], 2, CONSTANTS_SHAPE, 0, "constants") < 0) goto done;
+    double shift = PyFloat_AsDouble(args[10]);
+    if (shift == -1.0 && PyErr_Occurred()) goto done;
+    int inside = 1;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int j = 0; j < 7; j++) {
+            double v = AT2(a[DQC], i, j), q = AT2(a[Q], i, j);
+            double acc = (v - AT2(a[DQ], i, j)) / DELTA_T;
+            double jerk = (acc - AT2(a[DDQ], i, j)) / DELTA_T;
+            AT2(a[A_OUT], i, j) = acc;
+            AT2(a[J_OUT], i, j) = jerk;
+            AT2(a[Q_OUT], i, j) = q + v * DELTA_T;
+            if (fabs(acc) > AT1(a[A_MAX], j) || fabs(jerk) > AT1(a[J_MAX], j) ||
+                v > envelope_entry(&a[C], j, q, shift) ||
+                v < -envelope_entry(&a[C], j + 7, q, shift))
+                inside = 0;
+        }
+    }
+    result = PyBool_FromLong(inside);
+done:
+    f64_release_all(a, COUNT);
+    return result;
+}
+
 /* measured_inside(dq, q, O_T_EE, ee_prev, measured, bounds) -> bool
  *
  * measured (n, 34) receives [dq | q | v_ee | -dq | -q | -v_ee], v_ee the backward
@@ -211,6 +266,9 @@ static PyMethodDef METHODS[] = {
     {"positions_inside", (PyCFunction)(void (*)(void))positions_inside, METH_FASTCALL,
      "positions_inside(q_c, q, dq, ddq, stacked, upper, lower, constants, shift) -> bool: "
      "MotionEngine._positions_inside_limits."},
+    {"velocities_inside", (PyCFunction)(void (*)(void))velocities_inside, METH_FASTCALL,
+     "velocities_inside(dq_c, q, dq, ddq, ddq_out, dddq_out, q_out, ddq_max, dddq_max, "
+     "constants, shift) -> bool: MotionEngine._velocities_inside_limits."},
     {"measured_inside", (PyCFunction)(void (*)(void))measured_inside, METH_FASTCALL,
      "measured_inside(dq, q, O_T_EE, ee_prev, measured, bounds) -> bool: the safety "
      "controller's screening comparison."},

@@ -69,9 +69,11 @@ class MotionLimitEngine:
         # (tables.interior_bounds); outside it, the exact envelope is filled in.
         self._stacked = np.zeros((n, 35))
         self._derivatives = [self._stacked[:, 7 * k : 7 * k + 7] for k in range(5)]
-        # The joint-velocity fast path's implied acceleration and jerk.
+        # The joint-velocity fast path's implied acceleration and jerk, and the q_d the
+        # command advances to.
         self._velocity_ddq = np.zeros((n, 7))
         self._velocity_dddq = np.zeros((n, 7))
+        self._velocity_q = np.zeros((n, 7))
         #: the torque fast path's commanded rate (_torques_inside_limits)
         self._torque_rate = np.zeros((n, 7))
         inside = t.interior_bounds(INTERIOR_SPEED, tol)
@@ -116,8 +118,9 @@ class MotionLimitEngine:
             elif plain and m.n_joint_velocity == n and self._velocities_inside_limits(dq_c):
                 # What the general path records for an applied dq_c: q_d advances by dq_c
                 # over the cycle, the implied acceleration is frozen.
-                q = ref.q + dq_c * DELTA_T
-                ref.record_applied(q, dq_c, self._velocity_ddq, self.c.writer.message_id)
+                ref.record_applied(
+                    self._velocity_q, dq_c, self._velocity_ddq, self.c.writer.message_id
+                )
             else:  # the rule functions name any violation (and its precedence)
                 self._advance_joints(started, have, q_c, dq_c)
         if m.n_cartesian and count_nonzero(started):
@@ -150,14 +153,21 @@ class MotionLimitEngine:
 
         The arithmetic of ``limits.check_joint_velocity`` over one cycle against the
         reference, without its masks; leaves the implied acceleration in
-        ``_velocity_ddq``. Non-finite commands never get here (refused on arrival).
+        ``_velocity_ddq`` and the q_d it advances to, q_d + dq_c dt, in ``_velocity_q``.
+        Non-finite commands never get here (refused on arrival).
         """
         ref, t = self.c.reference, self.c.table
         ddq, dddq = self._velocity_ddq, self._velocity_dddq
+        if self._q_c_kernel is not None:  # the same arithmetic, fused
+            return self._q_c_kernel.velocities_inside(
+                dq_c, ref.q, ref.dq, ref.ddq, ddq, dddq, self._velocity_q, t.ddq_max,
+                t.dddq_max, t.envelope_table, JOINT_VELOCITY_LIMIT_TOLERANCE,
+            )  # fmt: skip
         np.subtract(dq_c, ref.dq, out=ddq)
         ddq /= DELTA_T  # divided, as the rule function does: bit-identical to the general path
         np.subtract(ddq, ref.ddq, out=dddq)
         dddq /= DELTA_T
+        np.add(ref.q, dq_c * DELTA_T, out=self._velocity_q)
         upper, lower = t.velocity_envelope(ref.q)
         return not (
             count_nonzero(np.abs(ddq) > t.ddq_max)
