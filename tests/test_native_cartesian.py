@@ -13,9 +13,11 @@ import pytest
 
 from franka_sim_gym import native
 from franka_sim_gym.fci import frames
+from franka_sim_gym.fci.cartesian_reference import columns
 from franka_sim_gym.fci.limits import cartesian as rules
 from franka_sim_gym.fci.tables import DELTA_T
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveMotionGeneratorMode
+from franka_sim_gym.sim import kinematics
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.kinematics import ArmKinematics, rotation_exp
 from franka_sim_gym.sim.world import HOME_Q
@@ -307,55 +309,51 @@ def test_ik_kernel_keeps_forward_and_the_cache_right():
     assert b.converged.all() and b.position_error.max() < 1e-12
 
 
-def _ik_solve_args(n: int) -> list:
-    fast, _ = _kinematics(n)
-    q = np.tile(HOME_Q, (n, 1))
-    target = fast.forward(q + 0.01)
-    cached, qpos, site_pos, R_site, axes, anchors, base, errors, converged = (
-        fast.native_solve[:9]
-    )
-    args = [
-        q, np.empty((n, 7)), cached, qpos, site_pos, R_site, axes, anchors, base, target,
-        None, None, None, errors, converged, 1e-8, 1e-14, 0.5, 8, False, fast._mj_kinematics,
-    ]  # fmt: skip
-    return args, fast
-
-
 def test_kernels_refuse_bad_shapes():
     n = 2
-    args, fast = _ik_solve_args(n)
-    assert IK.ik_solve(*args) is None and args[14].all()  # (converged)
-    names = {1: "q", 2: "cached_q", 5: "site_mat", 9: "target", 12: "active", 13: "errors"}
+    fast, _ = _kinematics(n)
+    q = np.tile(HOME_Q, (n, 1))
+    solver = fast.native_solve
+    args = [q, np.empty((n, 7)), fast.forward(q + 0.01), None, None, None, False, solver]
+    assert IK.ik_solve(*args) is None and solver[8].all()  # (converged)
     bad = {
-        1: np.zeros((n, 6)), 2: np.zeros((n, 6)), 5: np.zeros((n, 9)), 9: np.zeros((n, 3, 4)),
-        12: np.ones(n + 1, dtype=bool), 13: np.zeros(n),
-    }  # fmt: skip
-    for k, value in bad.items():
+        0: ("q_init", q.astype(np.float32)),
+        1: ("q", np.zeros((n, 6))),
+        2: ("target", np.zeros((n, 3, 4))),
+        3: ("F_T_EE", np.zeros((n, 4))),
+        4: ("elbow", np.zeros(n + 1)),
+        5: ("active", np.ones(n + 1, dtype=bool)),
+    }
+    for k, (name, value) in bad.items():
         broken = list(args)
         broken[k] = value
-        with pytest.raises(ValueError, match=names[k]):
+        with pytest.raises(ValueError, match=name):
             IK.ik_solve(*broken)
     broken = list(args)
-    broken[12] = np.ones(n)  # a float mask
+    broken[5] = np.ones(n)  # a float mask
     with pytest.raises(ValueError, match="active: expected a bool array"):
         IK.ik_solve(*broken)
-    broken = list(args)
-    broken[0] = args[0].astype(np.float32)
-    with pytest.raises(ValueError, match="q_init"):
-        IK.ik_solve(*broken)
-    for kinematics, message in (
-        ((1, 2), "kinematics: expected a tuple"),
-        ((0, 1, 2), "kinematics: a null address"),
-    ):
+    solver_bad = {
+        0: ("cached_q", np.zeros((n, 6))),
+        3: ("site_mat", np.zeros((n, 9))),
+        7: ("errors", np.zeros(n)),
+        8: ("converged", np.zeros(n)),
+        12: ("max_iterations", -1),
+        13: ("kinematics: expected a tuple", (1, 2)),
+    }
+    for k, (message, value) in solver_bad.items():
         broken = list(args)
-        broken[20] = kinematics
+        broken[7] = solver[:k] + (value,) + solver[k + 1 :]
         with pytest.raises(ValueError, match=message):
             IK.ik_solve(*broken)
     broken = list(args)
-    broken[18] = -1
-    with pytest.raises(ValueError, match="max_iterations"):
+    broken[7] = solver[:13] + ((0, 1, 2),)
+    with pytest.raises(ValueError, match="kinematics: a null address"):
         IK.ik_solve(*broken)
-    with pytest.raises(TypeError, match=r"ik_solve\(\) takes 21 arguments \(20 given\)"):
+    broken[7] = solver[:5]
+    with pytest.raises(ValueError, match="native_solve's tuple"):
+        IK.ik_solve(*broken)
+    with pytest.raises(TypeError, match=r"ik_solve\(\) takes 8 arguments \(7 given\)"):
         IK.ik_solve(*args[:-1])
     q = np.zeros((n, 7))
     T = np.tile(np.eye(4), (n, 1, 1))
@@ -375,6 +373,48 @@ def test_kernels_refuse_bad_shapes():
         K.twist_step(np.zeros((n, 5)), *[np.zeros((n, 6))] * 2, *good[3:])
     with pytest.raises(ValueError):
         K.homogeneous_quick(np.zeros((n, 15)), 0.9, 1.1)
+
+
+def test_plain_cycle_refuses_bad_arguments():
+    ctrl = make_controller(2)
+    gen = ctrl.engine.cartesian
+    kin, h = gen.kinematics, gen.reference
+    args = [
+        False, gen.T_cmd, gen.twist_cmd, h.buffer, gen._T_twist[0], gen._twist_stack,
+        gen._joint, H, _limits(), None, kin.native_solve, kin.rows_valid,
+    ]  # fmt: skip
+    cases = {
+        2: ("twist", np.zeros((2, 5))),
+        3: ("history", np.zeros((2, 91))),
+        4: ("T_tw", np.zeros((2, 4, 3))),
+        6: ("joint", np.zeros((2, 3, 7))),
+        8: ("limits", np.zeros(14)),
+        10: ("native_solve's tuple", (1, 2)),
+    }
+    for k, (name, value) in cases.items():
+        broken = list(args)
+        broken[k] = value
+        with pytest.raises(ValueError, match=name):
+            K.plain_cycle(*broken)
+    with pytest.raises(TypeError, match=r"plain_cycle\(\) takes 12 arguments"):
+        K.plain_cycle(*args[:-1])
+    assert K.history_columns() == columns()
+
+
+def test_without_mj_kinematics_from_c_the_numpy_loop_solves(monkeypatch):
+    """Where MuJoCo's mj_kinematics cannot be had from C, the IK kernel and the plain
+    cycle are off, and the numpy loop solves as the reference does."""
+    monkeypatch.setattr(kinematics, "_mujoco_kinematics", lambda model, data: None)
+    physics = ArmPhysics(n_arms=1)
+    kin = ArmKinematics(physics.model, physics.layout, kernel=True)
+    assert kin._kernel is None and kin.native_solve is None
+    assert make_controller(1).engine.cartesian._plain is None
+    q = np.tile(HOME_Q, (1, 1))
+    target = kin.forward(q + 0.01)
+    a = kin.solve(target, q)
+    b = ArmKinematics(physics.model, physics.layout).solve(target, q)
+    assert a.converged.all()
+    np.testing.assert_array_equal(a.q, b.q)
 
 
 # -- whole controllers ---------------------------------------------------------------------------

@@ -539,40 +539,23 @@ static F64 joint_rows(const F64 *joint, int from, int count)
 static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    enum { T_C, TWIST, HIST, T_TW, STACK, JOINT, LIMITS, F_EE, CACHED, QPOS, SITE_POS,
-           SITE_MAT, AXES, ANCHORS, BASE, ERRORS, COUNT };
+    enum { T_C, TWIST, HIST, T_TW, STACK, JOINT, LIMITS, F_EE, COUNT };
     F64 a[COUNT];
-    Mask converged, none;
-    Kinematics kin;
+    Mask every;
+    IkSolver solver;
     memset(a, 0, sizeof(a));
-    memset(&converged, 0, sizeof(converged));
-    memset(&none, 0, sizeof(none));
+    memset(&every, 0, sizeof(every));
+    memset(&solver, 0, sizeof(solver));
     PyObject *result = NULL;
     if (check_nargs(nargs, 12, "plain_cycle") < 0) return NULL;
     int pose = PyObject_IsTrue(args[0]);
     double h = PyFloat_AsDouble(args[7]);
     int rows_valid = PyObject_IsTrue(args[11]);
     if (pose < 0 || rows_valid < 0 || PyErr_Occurred()) return NULL;
-    PyObject *ik = args[10];
-    if (!PyTuple_Check(ik) || PyTuple_GET_SIZE(ik) != 14) {
-        PyErr_SetString(PyExc_ValueError, "ik: expected ArmKinematics.native_solve's tuple");
-        return NULL;
-    }
-    double damping2 = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 9));
-    double tol2 = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 10));
-    double max_step = PyFloat_AsDouble(PyTuple_GET_ITEM(ik, 11));
-    long max_iterations = PyLong_AsLong(PyTuple_GET_ITEM(ik, 12));
-    if (PyErr_Occurred()) return NULL;
-    if (max_iterations < 0 || max_iterations > 1000) {
-        PyErr_SetString(PyExc_ValueError, "ik: max_iterations expected 0 to 1000");
-        return NULL;
-    }
-    if (kinematics_get(PyTuple_GET_ITEM(ik, 13), &kin) < 0) return NULL;
     Py_ssize_t n = leading(args[3], "history");
     if (n < 0) return NULL;
     Py_ssize_t s44[3] = {n, 4, 4}, s6[2] = {n, 6}, sH[2] = {n, COL_WIDTH}, s36[3] = {n, 3, 6};
-    Py_ssize_t s47[3] = {n, 4, 7}, s20[1] = {20}, s7[2] = {n, 7}, s3[2] = {n, 3};
-    Py_ssize_t s33[3] = {n, 3, 3}, s73[3] = {n, 7, 3}, s2n[2] = {2, n};
+    Py_ssize_t s47[3] = {n, 4, 7}, s20[1] = {20};
     if ((pose ? f64_get(args[1], &a[T_C], 3, s44, 0, "T_c")
               : f64_get(args[2], &a[TWIST], 2, s6, 0, "twist")) < 0 ||
         f64_get(args[3], &a[HIST], 2, sH, 1, "history") < 0 ||
@@ -581,20 +564,8 @@ static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
         f64_get(args[6], &a[JOINT], 3, s47, 1, "joint") < 0 ||
         f64_get(args[8], &a[LIMITS], 1, s20, 0, "limits") < 0 ||
         (args[9] != Py_None && f64_get(args[9], &a[F_EE], 3, s44, 0, "F_T_EE") < 0) ||
-        f64_get(PyTuple_GET_ITEM(ik, 0), &a[CACHED], 2, s7, 1, "cached_q") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 1), &a[QPOS], 2, s7, 1, "qpos") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 2), &a[SITE_POS], 2, s3, 0, "site_pos") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 3), &a[SITE_MAT], 3, s33, 0, "site_mat") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 4), &a[AXES], 3, s73, 0, "axes") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 5), &a[ANCHORS], 3, s73, 0, "anchors") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 6), &a[BASE], 2, s3, 0, "base") < 0 ||
-        f64_get(PyTuple_GET_ITEM(ik, 7), &a[ERRORS], 2, s2n, 1, "errors") < 0 ||
-        mask_get(PyTuple_GET_ITEM(ik, 8), &converged, n, 1, "converged") < 0)
+        ik_solver_get(args[10], n, &solver) < 0)
         goto done;
-    if (!converged.data) {
-        PyErr_SetString(PyExc_ValueError, "converged: expected a bool array, not None");
-        goto done;
-    }
     const F64 *hist = &a[HIST];
     F64 T_prev = columns(hist, COL_T, 4, 4), history = columns(hist, COL_HISTORY, 2, 6);
     F64 frozen = columns(hist, COL_ACCELERATION_FROZEN, 6, 0);
@@ -611,12 +582,8 @@ static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
         for (Py_ssize_t i = 0; i < n; i++) twist_target_arm(&T_prev, &a[TWIST], &a[T_TW], i);
         target = &a[T_TW];
     }
-    IkProblem problem = {
-        &q_ik, &q, &a[CACHED], &a[QPOS], &a[SITE_POS], &a[SITE_MAT], &a[AXES], &a[ANCHORS],
-        &a[BASE], target, &a[F_EE], NULL, &none, &a[ERRORS], (char *)converged.data,
-        converged.stride, damping2, tol2, max_step, (int)max_iterations,
-    };
-    if (ik_solve_core(&problem, &kin, n, rows_valid) < 0) goto done;
+    IkProblem problem = ik_problem(&solver, &q_ik, &q, target, &a[F_EE], NULL, &every);
+    if (ik_solve_core(&problem, &solver.kin, n, rows_valid) < 0) goto done;
     /* The derivatives, the joint side and the screen; plain only if every arm is. */
     int plain = 1;
     for (Py_ssize_t i = 0; i < n && plain; i++) {
@@ -631,7 +598,7 @@ static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
             twist_derivatives_arm(&a[TWIST], &twist_prev, &dtwist, &a[STACK], i, h);
         }
         joint_differences(&q, &joint_history, &differences, i, h);
-        plain = converged.data[i * converged.stride] && AT2(*hist, i, COL_IK_WARM) >= 2.0 &&
+        plain = solver.converged.data[i * solver.converged.stride] && AT2(*hist, i, COL_IK_WARM) >= 2.0 &&
                 arm_quiet(&a[STACK], &differences, &a[LIMITS], i);
     }
     if (!plain) {
@@ -653,7 +620,7 @@ static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
     result = Py_NewRef(Py_True);
 done:
     f64_release_all(a, COUNT);
-    mask_release(&converged);
+    ik_solver_release(&solver);
     return result;
 }
 

@@ -230,6 +230,84 @@ typedef struct {
     int max_iterations;
 } IkProblem;
 
+/* sim/kinematics.py ArmKinematics.native_solve, borrowed: the solver's own arrays (its
+ * cache, MjData's rows, the verdicts), its settings and the mj_kinematics addresses. */
+typedef struct {
+    F64 cached_q, qpos, site_pos, site_mat, axes, anchors, base, errors;
+    Mask converged;
+    double damping2, tol2, max_step;
+    int max_iterations;
+    Kinematics kin;
+} IkSolver;
+
+static void ik_solver_release(IkSolver *s)
+{
+    f64_release(&s->cached_q);
+    f64_release(&s->qpos);
+    f64_release(&s->site_pos);
+    f64_release(&s->site_mat);
+    f64_release(&s->axes);
+    f64_release(&s->anchors);
+    f64_release(&s->base);
+    f64_release(&s->errors);
+    mask_release(&s->converged);
+}
+
+/* Borrow native_solve's tuple (cached_q, qpos, site_pos, site_mat, axes, anchors, base,
+ * errors, converged, damping2, tol2, max_step, max_iterations, kinematics) for n arms.
+ * Returns 0, or -1 with a ValueError (release with ik_solver_release either way). */
+static int ik_solver_get(PyObject *obj, Py_ssize_t n, IkSolver *s)
+{
+    memset(s, 0, sizeof(*s));
+    if (!PyTuple_Check(obj) || PyTuple_GET_SIZE(obj) != 14) {
+        PyErr_SetString(PyExc_ValueError, "ik: expected ArmKinematics.native_solve's tuple");
+        return -1;
+    }
+    PyObject *const *t = &PyTuple_GET_ITEM(obj, 0);
+    Py_ssize_t s7[2] = {n, 7}, s3[2] = {n, 3}, s33[3] = {n, 3, 3}, s73[3] = {n, 7, 3};
+    Py_ssize_t s2n[2] = {2, n};
+    if (f64_get(t[0], &s->cached_q, 2, s7, 1, "cached_q") < 0 ||
+        f64_get(t[1], &s->qpos, 2, s7, 1, "qpos") < 0 ||
+        f64_get(t[2], &s->site_pos, 2, s3, 0, "site_pos") < 0 ||
+        f64_get(t[3], &s->site_mat, 3, s33, 0, "site_mat") < 0 ||
+        f64_get(t[4], &s->axes, 3, s73, 0, "axes") < 0 ||
+        f64_get(t[5], &s->anchors, 3, s73, 0, "anchors") < 0 ||
+        f64_get(t[6], &s->base, 2, s3, 0, "base") < 0 ||
+        f64_get(t[7], &s->errors, 2, s2n, 1, "errors") < 0 ||
+        mask_get(t[8], &s->converged, n, 1, "converged") < 0)
+        return -1;
+    if (!s->converged.data) {
+        PyErr_SetString(PyExc_ValueError, "converged: expected a bool array, not None");
+        return -1;
+    }
+    s->damping2 = PyFloat_AsDouble(t[9]);
+    s->tol2 = PyFloat_AsDouble(t[10]);
+    s->max_step = PyFloat_AsDouble(t[11]);
+    long iterations = PyLong_AsLong(t[12]);
+    if (PyErr_Occurred()) return -1;
+    if (iterations < 0 || iterations > 1000) {
+        PyErr_SetString(PyExc_ValueError, "max_iterations: expected 0 to 1000");
+        return -1;
+    }
+    s->max_iterations = (int)iterations;
+    return kinematics_get(t[13], &s->kin);
+}
+
+/* The problem of solving ``target`` from q_init into q with solver s (F, elbow: data NULL
+ * where absent; active: data NULL for every arm). */
+static IkProblem ik_problem(const IkSolver *s, const F64 *q_init, const F64 *q,
+                            const F64 *target, const F64 *F, const F64 *elbow,
+                            const Mask *active)
+{
+    IkProblem p = {
+        q_init, q, &s->cached_q, &s->qpos, &s->site_pos, &s->site_mat, &s->axes,
+        &s->anchors, &s->base, target, F, elbow, active, &s->errors,
+        (char *)s->converged.data, s->converged.stride, s->damping2, s->tol2, s->max_step,
+        s->max_iterations,
+    };
+    return p;
+}
+
 /* One pass of solve's loop, MjData's rows being at q: every arm's error (errors (2, n):
  * position and rotation error, as IkResult reports them) and verdict; then, unless every
  * arm converged, no active arm is left or ``last``, the damped step of the active

@@ -476,17 +476,13 @@ class ArmKinematics:
             rows = np.asarray(rows, dtype=bool)
         if elbow is not None:
             elbow = np.asarray(elbow, dtype=np.float64)
-        qpos, site_pos, _, R_site, axes, _, anchors = self._rows
         if type(q_init) is not np.ndarray or q_init.dtype != np.float64:  # (lists, float32)
             q_init = np.asarray(q_init, dtype=np.float64)
-        converged, errors = self._converged, self._errors
         self._kernel.ik_solve(
-            q_init, q, self._cached_q, qpos, site_pos, R_site, axes, anchors, self._base,
-            target, F_T_EE, elbow, rows, errors, converged, self.damping**2,
-            self.tolerance**2, MAX_STEP, self.max_iterations, self._rows_valid,
-            self._mj_kinematics,
-        )  # fmt: skip
+            q_init, q, target, F_T_EE, elbow, rows, self._rows_valid, self.native_solve
+        )
         self.solved_natively()
+        converged, errors = self._converged, self._errors
         if count_nonzero(converged) == n:
             verdict = self._all
         else:
