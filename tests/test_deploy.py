@@ -21,6 +21,14 @@ CASES = {
         "policy_hz": 10,
         "max_episode_steps": 20,
     },
+    # Small translational pose steps (POSE_STEPS): 100 % in-process, no reflex. Over
+    # sockets: the client's pose filters and the server's Cartesian pose cycle.
+    "cartesian_pose": {
+        "action_interface": "cartesian_pose",
+        "cartesian_dof": 3,
+        "policy_hz": 10,
+        "max_episode_steps": 20,
+    },
 }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .conftest import load_example
-from .scripted_policies import Still, TowardTheGoal
+from .scripted_policies import POSE_STEPS, Still, TowardTheGoal
 
 evaluate = load_example("evaluate").evaluate
 
@@ -17,6 +17,18 @@ def test_a_policy_that_reaches_scores_one_and_no_reflex():
     assert r["success_rate"] == 1.0
     assert r["reflex_rate"] == 0.0 and r["reflexes_by_error"] == {}
     assert r["link_success_rate"] == 1.0  # a perfect channel answers every cycle
+
+
+def test_small_pose_steps_reach_where_full_ones_overshoot_into_reflexes():
+    """Cartesian pose targets near the reference reach every goal with no reflex; 5 cm
+    targets every step make libfranka's pose limiter overshoot (docs/env.md), and the
+    IK's joint velocity discontinuity (29) or the safety controller ends episodes."""
+    pose = "FrankaFCICartesianPose-v0"
+    r = evaluate(TowardTheGoal(**POSE_STEPS), pose, KWARGS, episodes=20, seed=0)
+    assert r["success_rate"] == 1.0 and r["reflexes_by_error"] == {}
+    r = evaluate(TowardTheGoal(), pose, KWARGS, episodes=20, seed=0)
+    assert r["success_rate"] < 0.5 and r["reflex_rate"] > 0.0
+    assert r["reflexes_by_error"]["cartesian_motion_generator_joint_velocity_discontinuity"] >= 1
 
 
 def test_a_naive_policy_is_counted_by_the_robots_error_name():

@@ -10,7 +10,9 @@ chosen by the env arguments' ``action_interface`` (``POLICIES``):
   effector);
 * Cartesian velocity (tests/scripted_policies.py, TowardTheGoal): the Cartesian
   error over 0.1 m, clipped to [-1, 1] (a 3-dof
-  translational twist, 0.3 m/s per unit action).
+  translational twist, 0.3 m/s per unit action);
+* Cartesian pose: TowardTheGoal with POSE_STEPS (30 % of the error a step, at most
+  1.5 cm: a 3-dof translational target near the reference).
 
 Prints the deploy result as its last line (JSON). Run in a child process: libfranka
 has no reply timeout.
@@ -33,7 +35,7 @@ from deploy_pylibfranka import deploy  # noqa: E402
 
 from franka_sim_gym.envs.commands import ActionScale  # noqa: E402
 from franka_sim_gym.sim.arm import ArmPhysics  # noqa: E402
-from tests.scripted_policies import TowardTheGoal  # noqa: E402
+from tests.scripted_policies import POSE_STEPS, TowardTheGoal  # noqa: E402
 
 
 class ProportionalReach:
@@ -66,7 +68,11 @@ class ProportionalReach:
 
 
 #: The scripted policy of each action interface.
-POLICIES = {"joint_position": ProportionalReach, "cartesian_velocity": TowardTheGoal}
+POLICIES = {
+    "joint_position": ProportionalReach,
+    "cartesian_velocity": TowardTheGoal,
+    "cartesian_pose": lambda: TowardTheGoal(**POSE_STEPS),
+}
 
 
 def main() -> None:
