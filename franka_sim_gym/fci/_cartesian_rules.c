@@ -19,14 +19,21 @@
  *       recorded a command that arrived and none opened its motion (plain copies, the
  *       reported twist and its rate).
  *
+ *   plain_cycle(pose, T_c, twist, history, T_tw, stack, joint, h, limits, F_T_EE, ik,
+ *               rows_valid) -> bool
+ *       fci/cartesian.py _cycle for a plain cycle, whole: the target, the IK
+ *       (native/_ik_core.h, as sim/_ik.c), the step above and, where nothing is left to
+ *       judge, the record; history_columns() -> dict: the history row's layout it uses.
+ *
  * Elementwise chains (the translations, every backward difference, the joint side)
  * follow the reference's order of operations and are built without fused multiply-adds
- * (setup.py): the reference's bits. The twist target's rotation (exp(omega dt) @ R: 3x3 products,
- * which numpy hands to BLAS) agrees with the reference to rounding. Reductions (the rotation's trace and norm, the IK's
- * products and its 6x6 solve) may differ from numpy's in the last bits, so every
- * comparison that uses one is a screen with a margin: a pass means the reference passes
- * too, anything near an edge is left to the reference's exact rows.
- * tests/test_native_cartesian.py holds each kernel to its reference. */
+ * (setup.py): the reference's bits. The twist target's rotation (exp(omega dt) @ R: 3x3
+ * products, which numpy hands to BLAS) agrees with the reference to rounding. Reductions
+ * (the rotation's trace and norm, the IK's products and its 6x6 solve) may differ from
+ * numpy's in the last bits, so every comparison that uses one is a screen with a margin:
+ * a pass means the reference passes too, anything near an edge is left to the
+ * reference's exact rows. tests/test_native_cartesian.py holds each kernel to its
+ * reference, and plain_cycle to the general cycle bit for bit. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -479,6 +486,10 @@ static PyObject *history_columns(PyObject *self, PyObject *unused)
                          COL_IK_WARM, "WIDTH", COL_WIDTH);
 }
 
+/* fci/cartesian.py _WARM_JERK: converged IK samples since a rebase before the joint
+ * side's jerk (30) is judged; below it _joint_checked zeroes the jerk (not plain). */
+#define WARM_JERK 2.0
+
 /* A view of columns [col, col + d1 * d2) of the (n, WIDTH) history as an (n, d1, d2)
  * array (d2 = 0: (n, d1)); it borrows the history's buffer (nothing to release). */
 static F64 columns(const F64 *history, int col, int d1, int d2)
@@ -598,7 +609,8 @@ static PyObject *plain_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
             twist_derivatives_arm(&a[TWIST], &twist_prev, &dtwist, &a[STACK], i, h);
         }
         joint_differences(&q, &joint_history, &differences, i, h);
-        plain = solver.converged.data[i * solver.converged.stride] && AT2(*hist, i, COL_IK_WARM) >= 2.0 &&
+        int converged = solver.converged.data[i * solver.converged.stride] != 0;
+        plain = converged && AT2(*hist, i, COL_IK_WARM) >= WARM_JERK &&
                 arm_quiet(&a[STACK], &differences, &a[LIMITS], i);
     }
     if (!plain) {
