@@ -327,7 +327,7 @@ def test_kernels_refuse_bad_shapes():
     for k, (name, value) in bad.items():
         broken = list(args)
         broken[k] = value
-        with pytest.raises(ValueError, match=name):
+        with pytest.raises(ValueError, match=f"^{name}: "):
             IK.ik_solve(*broken)
     broken = list(args)
     broken[5] = np.ones(n)  # a float mask
@@ -389,12 +389,12 @@ def test_plain_cycle_refuses_bad_arguments():
         4: ("T_tw", np.zeros((2, 4, 3))),
         6: ("joint", np.zeros((2, 3, 7))),
         8: ("limits", np.zeros(14)),
-        10: ("native_solve's tuple", (1, 2)),
+        10: ("ik: expected ArmKinematics.native_solve's tuple", (1, 2)),
     }
     for k, (name, value) in cases.items():
         broken = list(args)
         broken[k] = value
-        with pytest.raises(ValueError, match=name):
+        with pytest.raises(ValueError, match=f"^{name}"):
             K.plain_cycle(*broken)
     with pytest.raises(TypeError, match=r"plain_cycle\(\) takes 12 arguments"):
         K.plain_cycle(*args[:-1])
