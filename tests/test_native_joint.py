@@ -127,11 +127,11 @@ def test_q_c_check_kernel_gives_the_reference_verdict_and_derivatives(n):
     verdicts = set()
     for trial in range(400):
         q_c = _reference_motion(ctrl, rng, scale=[0.01, 0.3, 1.0, 3.0][trial % 4])
-        eng._q_c_kernel = engine_module.JOINT_KERNEL
+        eng._envelope_kernel = engine_module.JOINT_KERNEL
         fast = eng._positions_inside_limits(q_c)
         fast_rows = eng._stacked.copy()
         eng._stacked[...] = np.nan
-        eng._q_c_kernel = None
+        eng._envelope_kernel = None
         reference = eng._positions_inside_limits(q_c)
         assert fast is reference
         assert same_bits(fast_rows, eng._stacked)
@@ -152,12 +152,12 @@ def test_dq_c_check_kernel_gives_the_reference_verdict_and_derivatives(n):
     for trial in range(400):
         q_c = _reference_motion(ctrl, rng, scale=[0.01, 0.3, 1.0, 3.0][trial % 4])
         dq_c = (q_c - ctrl.reference.q) / 1e-3
-        eng._q_c_kernel = engine_module.JOINT_KERNEL
+        eng._envelope_kernel = engine_module.JOINT_KERNEL
         fast = eng._velocities_inside_limits(dq_c)
         fast_out = [x.copy() for x in outputs]
         for x in outputs:
             x[...] = np.nan
-        eng._q_c_kernel = None
+        eng._envelope_kernel = None
         reference = eng._velocities_inside_limits(dq_c)
         assert fast is reference
         for a, b in zip(fast_out, outputs, strict=True):
@@ -212,4 +212,4 @@ def test_the_fer_keeps_its_numpy_paths():
     gen = CommandGenerator("joint_position", "limit_rate", 40, table=FER)
     assert gen._kernel is None
     ctrl = make_controller(1, robot="fer")
-    assert ctrl.engine._q_c_kernel is None
+    assert ctrl.engine._envelope_kernel is None

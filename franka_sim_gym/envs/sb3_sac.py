@@ -118,20 +118,18 @@ class LeanSAC(SAC):
             actions_pi, log_prob = pi(obs_features)
             log_prob = log_prob.reshape(-1, 1)
 
-            ent_coef_loss = None
             if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
-                ent_coef = th.exp(self.log_ent_coef.detach())
+                ent_coef = th.exp(self.log_ent_coef.detach())  # (before the step below)
                 ent_coef_loss = -(
                     self.log_ent_coef * (log_prob + self.target_entropy).detach()
                 ).mean()
                 ent_coef_losses.append(ent_coef_loss.detach())
-            else:
-                ent_coef = self.ent_coef_tensor
-            ent_coefs.append(ent_coef)
-            if ent_coef_loss is not None:
                 self.ent_coef_optimizer.zero_grad()
                 ent_coef_loss.backward()
                 self.ent_coef_optimizer.step()
+            else:
+                ent_coef = self.ent_coef_tensor
+            ent_coefs.append(ent_coef)
 
             with th.no_grad():
                 next_features = features(data.next_observations)

@@ -239,9 +239,7 @@ class CartesianGenerators:
         recorded = self._plain.plain_cycle(
             pose, self.T_cmd, self.twist_cmd, h.buffer, self._T_twist[0],
             self._pose_stack if pose else self._twist_stack, self._joint, _DT,
-            rules._quiet_limits(c.table, c.config.joint_discontinuity_scale),
-            c.writer.F_T_EE if c.writer._any_custom_ee else None, kin.native_solve,
-            kin.rows_valid,
+            self._screen_limits(), self._ee_frame(), kin.native_solve, kin.rows_valid,
         )  # fmt: skip
         kin.solved_natively()
         if recorded:
@@ -322,7 +320,7 @@ class CartesianGenerators:
         # -- derivatives ----------------------------------------------------------------------
         # The pose's derivatives judge pose motions (and feed their extrapolation and
         # reported twist); the twist's judge twist motions. Each only when one runs.
-        F_T_EE = c.writer.F_T_EE if c.writer._any_custom_ee else None
+        F_T_EE = self._ee_frame()
         in_use = elbow.has is not self._none and bool(
             count_nonzero(elbow.has) or count_nonzero(elbow.had)
         )  # (_elbow's stream without an elbow has self._none)
@@ -347,13 +345,22 @@ class CartesianGenerators:
             T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded, quiet
         )
 
+    def _ee_frame(self) -> np.ndarray | None:
+        """(n, 4, 4) F_T_EE the IK solves at, or None where every robot's is the flange."""
+        w = self.c.writer
+        return w.F_T_EE if w._any_custom_ee else None
+
+    def _screen_limits(self) -> np.ndarray:
+        """(20,) the kernels' quiet screen's limits (rules._quiet_limits, cached there)."""
+        c = self.c
+        return rules._quiet_limits(c.table, c.config.joint_discontinuity_scale)
+
     def _fused(self, h: CartesianHistory, T_cand, twist, q, differences) -> tuple:
         """The derivatives (pose_derivatives or _twist_derivatives), the joint side
         (joint_side into ``differences``) and rules._quiet's screen in one kernel call, for
         a world whose robots all run one generator: (d, twist_stack, quiet). A rotation the
         kernel leaves alone (at or past pi / 2 in a cycle) takes the numpy functions."""
-        k, c = self._kernel, self.c
-        limits = rules._quiet_limits(c.table, c.config.joint_discontinuity_scale)
+        k, limits = self._kernel, self._screen_limits()
         if self.c.modes.n_cartesian_position:
             stack = self._pose_stack
             quiet = k.pose_step(T_cand, h.T, h.history, stack, q, h.joint, differences, _DT, limits)

@@ -87,9 +87,9 @@ class MotionLimitEngine:
         self._upper = self._upper_interior[:, :28].copy()
         self._lower = self._lower_interior[:, :28].copy()
         # The fused C copies of these checks (fci/_joint_rules.c), where built; the
-        # q_c check needs a position-based envelope (the FER's is constant).
+        # q_c and dq_c checks need a position-based envelope (the FER's is constant).
         self._kernel = JOINT_KERNEL
-        self._q_c_kernel = JOINT_KERNEL if t.envelope_table is not None else None
+        self._envelope_kernel = JOINT_KERNEL if t.envelope_table is not None else None
         #: the Cartesian generators (their history, checks and IK)
         self.cartesian = CartesianGenerators(self)
 
@@ -158,8 +158,8 @@ class MotionLimitEngine:
         """
         ref, t = self.c.reference, self.c.table
         ddq, dddq = self._velocity_ddq, self._velocity_dddq
-        if self._q_c_kernel is not None:  # the same arithmetic, fused
-            return self._q_c_kernel.velocities_inside(
+        if self._envelope_kernel is not None:  # the same arithmetic, fused
+            return self._envelope_kernel.velocities_inside(
                 dq_c, ref.q, ref.dq, ref.ddq, ddq, dddq, self._velocity_q, t.ddq_max,
                 t.dddq_max, t.envelope_table, JOINT_VELOCITY_LIMIT_TOLERANCE,
             )  # fmt: skip
@@ -185,8 +185,8 @@ class MotionLimitEngine:
         commands never get here (refused on arrival).
         """
         ref, x = self.c.reference, self._stacked
-        if self._q_c_kernel is not None:  # the same arithmetic, fused
-            return self._q_c_kernel.positions_inside(
+        if self._envelope_kernel is not None:  # the same arithmetic, fused
+            return self._envelope_kernel.positions_inside(
                 q_c,
                 ref.q,
                 ref.dq,

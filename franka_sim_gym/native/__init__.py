@@ -7,7 +7,8 @@ C call; it sits next to the numpy code it copies, in that code's layer
 ``envs/_client_filters.c``), and that numpy code stays the rule (the one the docs and
 the seed describe); tests hold the kernel to it: bit for bit where the reference is
 elementwise arithmetic, and to the same verdicts everywhere. This package holds what
-they share: the switch, the loader and the C headers ``_arrays.h`` and ``_rotation.h``.
+they share: the switch, the loader and the C headers ``_arrays.h``, ``_rotation.h`` and
+``_ik_core.h`` (the IK solve, for ``sim/_ik.c`` and the Cartesian rules' plain cycle).
 
 The kernels are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler was available
