@@ -46,7 +46,7 @@ def load_example(name: str):
     return importlib.import_module(name)
 
 
-CLIENTS = Path(__file__).resolve().parent / "clients"
+CLIENTS = Path(__file__).resolve().parent / "e2e" / "clients"
 _addresses = itertools.count(1)
 
 

@@ -1,5 +1,5 @@
 """Scripted reach policies with a trained policy's interface (SB3's ``predict``), shared by
-the evaluate, deploy and in-process tests and by tests/clients/deploy_runner.py.
+the evaluate, deploy and in-process tests and by tests/e2e/clients/deploy_runner.py.
 
 Both work on one observation (3,) or a batch (n, 3) alike.
 """

@@ -23,14 +23,14 @@
  * Elementwise arithmetic in the reference's order, built without fused multiply-adds
  * (setup.py); the twist limiter's 3-vector dot products sum as numpy's einsum sums
  * three products, (x0 y0 + x2 y2) + x1 y1, so the result is the reference's bits
- * (tests/test_native_client.py, tests/test_native_joint.py).
+ * (tests/envs/test_native_client.py, tests/fci/test_native_joint.py).
  *
  * limit_pose is the exception: its reference takes libm's acos, atan2, sin and cos (as
  * libfranka's Eigen does), which numpy's SIMD versions may round differently by an ulp,
  * a polar decomposition by Newton-Schulz iteration where the reference takes numpy's
  * SVD, and 3x3 products that numpy hands to BLAS. It agrees with the reference to
  * rounding (~1e-15), not bit for bit, and declines (False) wherever the reference would
- * raise or a screen is too near its edge to tell (tests/test_native_client.py). */
+ * raise or a screen is too near its edge to tell (tests/envs/test_native_client.py). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>

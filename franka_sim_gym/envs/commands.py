@@ -64,7 +64,7 @@ CARTESIAN_LIMITS: dict[str, tuple[float, ...] | None] = {
     # metre along x, so 9 m/s^2 asks ~29 rad/s^2 of it against the robot's 10.
     "libfranka": None,
     # What the joint side accepts across the reach workspace (measured with random
-    # actions: tests/test_env_cartesian.py): 1.5 m/s^2 already reached 10.4 rad/s^2 on
+    # actions: tests/envs/test_env_cartesian.py): 1.5 m/s^2 already reached 10.4 rad/s^2 on
     # joint 4 with the arm half stretched (q4 = -1.35); 1.0 keeps a third in hand.
     "conservative": (0.5, 1.0, 200.0, 1.0, 2.0, 400.0),
 }
@@ -271,7 +271,7 @@ class CommandGenerator:
             # _pose_command's low-pass and rate limiter in one C call
             # (envs/_client_filters.c). Not bit for bit: the kernel takes libm's
             # trigonometry (as libfranka's Eigen does) where numpy's SIMD versions may
-            # round an ulp apart, so the two agree to ~1e-15 (tests/test_native_client.py).
+            # round an ulp apart, so the two agree to ~1e-15 (tests/envs/test_native_client.py).
             # False where the numpy path below raises libfranka's error, or decides.
             return self._pose_out
         return to_wire(self._pose_command(state, k))

@@ -25,7 +25,7 @@ few microseconds of dispatch, and ``examples/train_sb3.py`` takes one step per s
 
 Nothing else changes: the same replay samples, random draws and floating-point
 operations in the same order, so the parameters after training are SB3's exactly
-(``tests/test_sb3_sac.py`` compares them). Models save and load as SB3 SAC models
+(``tests/training/test_sb3_sac.py`` compares them). Models save and load as SB3 SAC models
 (``SAC.load`` reads them). Configurations outside the above (gSDE, a target update
 interval other than 1, batch-norm statistics, other feature extractors) take SB3's
 own ``SAC.train``.

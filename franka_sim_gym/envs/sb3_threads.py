@@ -22,7 +22,7 @@ the current count by ``margin``; each probe that loses doubles the interval to t
 
 What it does not change: the results. torch's CPU kernels at these sizes compute every
 output element on one thread, whatever the count, so a run's parameters are the same
-bits with one thread, two, or any mix (tests/test_sb3_threads.py checks it for the
+bits with one thread, two, or any mix (tests/training/test_sb3_threads.py checks it for the
 default configuration). Larger batches can make torch split a reduction by thread; then
 pass a fixed count instead (``examples/train_sb3.py --threads N``). SB3's TD3 at the
 default's sizes gives the same bits at one thread and two as well (measured); PPO was

@@ -3,7 +3,7 @@
 ``gym.make_vec("FrankaFCI-v0", num_envs=N, vectorization_mode="vector_entry_point")``
 (or any per-interface id) returns a :class:`FrankaFCIVectorEnv`. Arm i behaves
 exactly like a single ``FrankaFCIEnv`` reset with seed ``seed + i`` and given the same
-actions: same observations, rewards and infos (tests/test_vector_env.py), because
+actions: same observations, rewards and infos (tests/envs/test_vector_env.py), because
 both are the same batched core (envs/core.py), the single env with one arm.
 """
 

@@ -32,7 +32,7 @@
  * (the rotation's trace and norm, the IK's products and its 6x6 solve) may differ from
  * numpy's in the last bits, so every comparison that uses one is a screen with a margin:
  * a pass means the reference passes too, anything near an edge is left to the
- * reference's exact rows. tests/test_native_cartesian.py holds each kernel to its
+ * reference's exact rows. tests/fci/test_native_cartesian.py holds each kernel to its
  * reference, and plain_cycle to the general cycle bit for bit. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

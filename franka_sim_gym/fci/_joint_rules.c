@@ -14,7 +14,7 @@
  *
  * Every one is elementwise arithmetic in the reference's order of operations, built
  * without fused multiply-adds (setup.py), so the results are the reference's bits;
- * tests/test_native_joint.py holds each to its reference. */
+ * tests/fci/test_native_joint.py holds each to its reference. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>

@@ -9,7 +9,7 @@
  * MuJoCo's and the whole solve is one C call. The IK's products and its 6x6 solve (an
  * elimination with pivoting in place of LAPACK's) may differ from numpy's in the last
  * bits: the same passes and verdicts, the solution to ~1e-14
- * (tests/test_native_cartesian.py). No rule of the robot lives here. */
+ * (tests/fci/test_native_cartesian.py). No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 #define FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 

@@ -11,7 +11,7 @@
  * The solve itself is native/_ik_core.h, which the Cartesian generators' plain cycle
  * (fci/_cartesian_rules.c) shares. The IK's products and its 6x6 solve (an elimination
  * with pivoting in place of LAPACK's) may differ from numpy's in the last bits: the same
- * passes and verdicts, the solution to ~1e-14 (tests/test_native_cartesian.py). */
+ * passes and verdicts, the solution to ~1e-14 (tests/fci/test_native_cartesian.py). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>

@@ -1,0 +1,541 @@
+"""pylibfranka scenarios, each run in its own process by the socket tests.
+
+`python pylibfranka_client.py SCENARIO HOST` prints one JSON line (the
+scenario's result) as its last line. libfranka has no reply timeout, so the
+tests run these in child processes they can kill; pylibfranka and franky
+cannot be imported into one process (their pybind11 types collide).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+import time
+
+import pylibfranka as fr
+import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
+
+HOME = [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
+
+
+def connect(host: str) -> fr.Robot:
+    return fr.Robot(host, fr.RealtimeConfig.kIgnore)
+
+
+def state_dict(state) -> dict:
+    names = (
+        "q",
+        "q_d",
+        "dq",
+        "dq_d",
+        "ddq_d",
+        "tau_J",
+        "tau_J_d",
+        "O_T_EE",
+        "O_T_EE_d",
+        "O_T_EE_c",
+        "F_T_EE",
+        "F_T_NE",
+        "NE_T_EE",
+        "elbow",
+        "O_ddP_O",
+        "theta",
+        "dtheta",
+    )
+    out = {name: list(getattr(state, name)) for name in names}
+    out["time"] = state.time.to_sec()
+    out["robot_mode"] = state.robot_mode.name
+    out["success_rate"] = state.control_command_success_rate
+    out["current_errors"] = str(state.current_errors)
+    out["last_motion_errors"] = str(state.last_motion_errors)
+    return out
+
+
+def cosine_motion(robot: fr.Robot, duration: float = 3.0, amplitude: float = math.pi / 8) -> dict:
+    """The shape of libfranka's generate_joint_position_motion: joints 4, 5, 7 move by
+    amplitude * (1 - cos(2 pi t / duration)), starting and ending at rest."""
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    t = 0.0
+    q0 = None
+    max_err = 0.0
+    rates = []
+    cycles = 0
+    while True:
+        state, period = control.readOnce()
+        t += period.to_sec()
+        if q0 is None:
+            q0 = list(state.q_d)
+        else:
+            max_err = max(max_err, max(abs(a - b) for a, b in zip(state.q, state.q_d, strict=True)))
+        rates.append(state.control_command_success_rate)
+        delta = amplitude * (1 - math.cos(2 * math.pi * t / duration))
+        q = list(q0)
+        for j in (3, 4, 6):
+            q[j] += delta
+        command = fr.JointPositions(q)
+        cycles += 1
+        if t >= duration:
+            command.motion_finished = True
+            control.writeOnce(command)
+            break
+        control.writeOnce(command)
+    final = robot.read_once()
+    return {
+        "cycles": cycles,
+        "max_tracking_error": max_err,
+        "q_start": q0,
+        "final": state_dict(final),
+        "min_success_rate_after_1s": min(rates[1000:]) if len(rates) > 1000 else None,
+    }
+
+
+def scenario_read_once(host: str) -> dict:
+    robot = connect(host)
+    first = state_dict(robot.read_once())
+    second = state_dict(robot.read_once())
+    return {"first": first, "second": second}
+
+
+def scenario_load_model(host: str) -> dict:
+    robot = connect(host)
+    model = robot.load_model()
+    state = robot.read_once()
+    return {
+        "q": list(state.q),
+        "gravity": list(model.gravity(state)),
+        "mass": list(model.mass(state)),
+        "zero_jacobian": list(model.zero_jacobian(state)),
+        "O_ddP_O": list(state.O_ddP_O),
+        "tau_J": list(state.tau_J),
+        "m_ee": state.m_ee,
+    }
+
+
+def scenario_cosine_motion(host: str) -> dict:
+    return cosine_motion(connect(host))
+
+
+def scenario_joint_velocity(host: str) -> dict:
+    """Joint 4 and 7 at a smooth velocity bump for 2 s, starting and ending at rest."""
+    robot = connect(host)
+    q_before = list(robot.read_once().q)
+    control = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
+    t = 0.0
+    duration = 2.0
+    peak = 0.3
+    max_dq_err = 0.0
+    while True:
+        state, period = control.readOnce()
+        t += period.to_sec()
+        v = peak * math.sin(math.pi * min(t, duration) / duration) ** 2
+        errors = (abs(a - b) for a, b in zip(state.dq, state.dq_d, strict=True))
+        max_dq_err = max(max_dq_err, max(errors))
+        dq = [0.0, 0.0, 0.0, v, 0.0, 0.0, -v]
+        command = fr.JointVelocities(dq)
+        if t >= duration:
+            command.motion_finished = True
+            control.writeOnce(command)
+            break
+        control.writeOnce(command)
+    time.sleep(0.2)
+    after = robot.read_once()
+    return {
+        "q_before": q_before,
+        "q_after": list(after.q),
+        "max_velocity_tracking_error": max_dq_err,
+        "robot_mode": after.robot_mode.name,
+        "expected_displacement": peak * duration / 2,
+    }
+
+
+def scenario_torque_zero_hold(host: str) -> dict:
+    robot = connect(host)
+    control = robot.start_torque_control()
+    t = 0.0
+    q0 = None
+    max_dev = 0.0
+    tau_J = None
+    while True:
+        state, period = control.readOnce()
+        t += period.to_sec()
+        if q0 is None:
+            q0 = list(state.q)
+        max_dev = max(max_dev, max(abs(a - b) for a, b in zip(state.q, q0, strict=True)))
+        tau_J = list(state.tau_J)
+        command = fr.Torques([0.0] * 7)
+        if t >= 2.0:
+            command.motion_finished = True
+            control.writeOnce(command)
+            break
+        control.writeOnce(command)
+    final = robot.read_once()
+    return {
+        "max_deviation": max_dev,
+        "tau_J": tau_J,
+        "final_mode": final.robot_mode.name,
+        "q_d_frozen": list(final.q_d),
+    }
+
+
+def scenario_stop_from_thread(host: str) -> dict:
+    robot = connect(host)
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    stopper_error = []
+
+    def stopper() -> None:
+        time.sleep(0.5)
+        try:
+            robot.stop()
+        except Exception as exc:  # reported, not raised, in the thread
+            stopper_error.append(repr(exc))
+
+    thread = threading.Thread(target=stopper)
+    thread.start()
+    error = None
+    q0 = None
+    t0 = time.monotonic()
+    try:
+        while time.monotonic() - t0 < 5.0:
+            state, _ = control.readOnce()
+            if q0 is None:
+                q0 = list(state.q_d)
+            control.writeOnce(fr.JointPositions(q0))
+    except fr.ControlException as exc:
+        error = str(exc)
+    thread.join()
+    del control
+    final = robot.read_once()
+    return {"error": error, "stopper_error": stopper_error, "mode": final.robot_mode.name}
+
+
+def scenario_vanish_mid_motion(host: str) -> dict:
+    """Start a motion, then die without a word (no StopMove, no FIN handshake of libfranka)."""
+    robot = connect(host)
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    state, _ = control.readOnce()
+    q0 = list(state.q_d)
+    for _ in range(200):
+        state, _ = control.readOnce()
+        control.writeOnce(fr.JointPositions(q0))
+    print(json.dumps({"vanished_after_cycles": 200}), flush=True)
+    os._exit(0)
+
+
+def scenario_reconnect_and_move(host: str) -> dict:
+    robot = connect(host)
+    state = robot.read_once()
+    result = cosine_motion(robot, duration=1.0, amplitude=0.05)
+    result["mode_on_connect"] = state.robot_mode.name
+    return result
+
+
+def scenario_hold_connection(host: str) -> dict:
+    """Connect and keep reading states for a while (the 'first client' of a second-client test)."""
+    robot = connect(host)
+    t0 = time.monotonic()
+    reads = 0
+    while time.monotonic() - t0 < float(os.environ.get("HOLD_SECONDS", "3")):
+        robot.read_once()
+        reads += 1
+    return {"reads": reads}
+
+
+def scenario_connect_only(host: str) -> dict:
+    try:
+        connect(host)
+    except Exception as exc:
+        return {"error_type": type(exc).__name__, "error": str(exc)}
+    return {"error": None}
+
+
+def scenario_rate(host: str) -> dict:
+    """States/s received by read_once over N s, then a readOnce/writeOnce loop's success rate."""
+    seconds = float(os.environ.get("RATE_SECONDS", "10"))
+    robot = connect(host)
+    first = robot.read_once()
+    t0 = time.monotonic()
+    last = first
+    reads = 0
+    while time.monotonic() - t0 < seconds:
+        last = robot.read_once()  # blocks until a newer state than the last one
+        reads += 1
+    elapsed = time.monotonic() - t0
+    # message ids count milliseconds: the states published over the interval
+    published_per_s = (last.time.to_sec() - first.time.to_sec()) * 1000.0 / elapsed
+    states_per_s = reads / elapsed
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    q0 = None
+    rates = []
+    t1 = time.monotonic()
+    while True:
+        state, _ = control.readOnce()
+        if q0 is None:
+            q0 = list(state.q_d)
+        rates.append(state.control_command_success_rate)
+        command = fr.JointPositions(q0)
+        if time.monotonic() - t1 > seconds:
+            command.motion_finished = True
+            control.writeOnce(command)
+            break
+        control.writeOnce(command)
+    return {
+        "states_per_s": states_per_s,
+        "published_per_s": published_per_s,
+        "loop_success_rate_mean": sum(rates[200:]) / max(1, len(rates[200:])),
+        "loop_success_rate_min": min(rates[200:]) if rates[200:] else None,
+    }
+
+
+#: Start pose of the fold: shoulder forward (q2 = 0.3), so that folding joint 4 brings
+#: the wrist down onto the base within 50 mm before joint 4 reaches its stop.
+FOLD_START = [0.0, 0.3, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
+
+
+def move_to(robot: fr.Robot, target: list[float], duration: float) -> None:
+    """A smooth (cosine-blended) joint-position motion to ``target``."""
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    t, q0 = 0.0, None
+    while True:
+        state, period = control.readOnce()
+        t += period.to_sec()
+        if q0 is None:
+            q0 = list(state.q_d)
+        s = 0.5 * (1 - math.cos(math.pi * min(t / duration, 1.0)))
+        command = fr.JointPositions([a + s * (b - a) for a, b in zip(q0, target, strict=True)])
+        if t >= duration:
+            command.motion_finished = True
+            control.writeOnce(command)
+            return
+        control.writeOnce(command)
+
+
+def _provoke(robot: fr.Robot, kind: str) -> str | None:
+    """Run one reflex provocation; the ControlException text it ends with (None if none)."""
+    if kind == "fold":
+        move_to(robot, FOLD_START, 3.0)
+    if kind == "torque_step":
+        control = robot.start_torque_control()
+    elif kind in ("velocity_step", "fold"):
+        control = robot.start_joint_velocity_control(fr.ControllerMode.JointImpedance)
+    else:
+        control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    q0 = None
+    t = 0.0
+    try:
+        for k in range(20000):
+            state, period = control.readOnce()
+            t += period.to_sec()
+            if q0 is None:
+                q0 = list(state.q_d)
+            if kind == "start_pose":  # first waypoint +0.2 rad on joint 1
+                q = list(q0)
+                q[0] += 0.2
+                control.writeOnce(fr.JointPositions(q))
+            elif kind == "position_step":  # hold, then a 1 rad step on joint 1
+                q = list(q0)
+                if k >= 50:
+                    q[0] += 1.0
+                control.writeOnce(fr.JointPositions(q))
+            elif kind == "velocity_step":  # rest, then a 50 rad/s step in dq_c
+                dq = [0.0] * 7
+                if k >= 50:
+                    dq[3] = 50.0
+                control.writeOnce(fr.JointVelocities(dq))
+            elif kind == "torque_step":  # zero torque, then a 5 Nm step on joint 1
+                tau = [0.0] * 7
+                if k >= 50:
+                    tau[0] = 5.0
+                control.writeOnce(fr.Torques(tau))
+            elif kind == "fold":
+                # Seed: joint 4 folds at -0.1 rad/s while joint 5 turns at 0.2 rad/s
+                # (smooth 0.5 s ramps keep the command inside the jerk limit).
+                ramp = min(1.0, t / 0.5)
+                ramp = ramp * ramp * (3 - 2 * ramp)
+                dq = [0.0, 0.0, 0.0, -0.1 * ramp, 0.2 * ramp, 0.0, 0.0]
+                control.writeOnce(fr.JointVelocities(dq))
+    except fr.ControlException as exc:
+        return str(exc)
+    finally:
+        del control
+    return None
+
+
+def scenario_reflex(host: str) -> dict:
+    """A provocation (REFLEX env), then: Move refused, recovery, a fresh motion succeeds."""
+    kind = os.environ["REFLEX"]
+    robot = connect(host)
+    error = _provoke(robot, kind)
+    after = robot.read_once()
+    refused = None
+    try:
+        control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+        del control
+    except Exception as exc:  # expected: the robot is in Reflex
+        refused = f"{type(exc).__name__}: {exc}"
+    t0 = time.monotonic()
+    robot.automatic_error_recovery()
+    recovery_s = time.monotonic() - t0
+    # States queued while the reply was deferred are stale (the UDP buffer kept the
+    # oldest ones): read until the stream shows the recovered robot.
+    recovered = robot.read_once()
+    for _ in range(3000):
+        if recovered.robot_mode != fr.RobotMode.AutomaticErrorRecovery:
+            break
+        recovered = robot.read_once()
+    try:
+        motion = cosine_motion(robot, duration=0.5, amplitude=0.02)
+        next_error = None
+    except fr.ControlException as exc:
+        motion, next_error = None, str(exc)
+    final = motion["final"] if motion else state_dict(robot.read_once())
+    return {
+        "error": error,
+        "mode_after": after.robot_mode.name,
+        "current_errors_after": str(after.current_errors),
+        "last_motion_errors_after": str(after.last_motion_errors),
+        "q4_after": after.q[3],
+        "refused": refused,
+        "recovery_s": recovery_s,
+        "mode_recovered": recovered.robot_mode.name,
+        "current_errors_recovered": str(recovered.current_errors),
+        "last_motion_errors_recovered": str(recovered.last_motion_errors),
+        "next_motion_error": next_error,
+        "next_motion_final_mode": final["robot_mode"],
+        "next_motion_last_motion_errors": final["last_motion_errors"],
+    }
+
+
+def scenario_silence(host: str) -> dict:
+    """A joint motion whose loop goes silent for SILENCE_MS once, then recovery and a motion."""
+    silence = float(os.environ["SILENCE_MS"]) / 1000.0
+    robot = connect(host)
+    control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
+    t, q0, error, slept = 0.0, None, None, False
+    try:
+        while t < 1.5:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            if q0 is None:
+                q0 = list(state.q_d)
+            if t >= 0.5 and not slept:
+                slept = True
+                time.sleep(silence)  # neither reading nor writing: cycles go unanswered
+                continue
+            q = list(q0)
+            q[3] += 0.05 * (1 - math.cos(2 * math.pi * t / 1.5))
+            command = fr.JointPositions(q)
+            if t >= 1.5:
+                command.motion_finished = True
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    after = robot.read_once()
+    if error is not None:
+        robot.automatic_error_recovery()
+    motion = cosine_motion(robot, duration=0.5, amplitude=0.02)
+    return {
+        "error": error,
+        "mode_after": after.robot_mode.name,
+        "next_motion_final_mode": motion["final"]["robot_mode"],
+    }
+
+
+def stream(control, duration: float, command_at) -> str | None:
+    """libfranka's active control loop: readOnce, ``command_at(state, t)``, writeOnce, until
+    ``duration`` has passed (the last command finishes the motion). The ControlException
+    text, or None."""
+    t = 0.0
+    try:
+        while True:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            command = command_at(state, min(t, duration))
+            command.motion_finished = t >= duration
+            control.writeOnce(command)
+            if t >= duration:
+                return None
+    except fr.ControlException as exc:
+        return str(exc)
+
+
+def scenario_cartesian_pose(host: str) -> dict:
+    """The shape of libfranka's cartesian_pose_example: the EE swings on an arc in the
+    x-z plane, angle = pi/4 (1 - cos(pi t / T)), radius 5 cm (ends 5 cm +x, 5 cm -z)."""
+    robot = connect(host)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
+    duration, radius = 2.5, 0.05
+    start = []
+
+    def pose_at(state, t: float):
+        if not start:
+            start.extend(state.O_T_EE_c)
+        angle = math.pi / 4 * (1 - math.cos(math.pi * t / duration))
+        pose = list(start)
+        pose[12] += radius * math.sin(angle)
+        pose[14] += radius * (math.cos(angle) - 1)
+        return fr.CartesianPose(pose)
+
+    error = stream(control, duration, pose_at)
+    del control
+    time.sleep(0.3)
+    after = robot.read_once()
+    return {
+        "error": error,
+        "pose_start": start,
+        "O_T_EE_after": list(after.O_T_EE),
+        "robot_mode": after.robot_mode.name,
+    }
+
+
+def scenario_cartesian_velocity(host: str) -> dict:
+    """The shape of libfranka's cartesian_velocity_example: v = v_max/2 (1 - cos(2 pi t / T))
+    along (cos 45deg, 0, -sin 45deg) for one period: a 5 cm twist integral."""
+    robot = connect(host)
+    before = list(robot.read_once().O_T_EE)
+    control = robot.start_cartesian_velocity_control(fr.ControllerMode.JointImpedance)
+    period_s, v_max, angle = 2.0, 0.05, math.pi / 4
+    echo = []
+
+    def twist_at(state, t: float):
+        echo.append((list(state.O_dP_EE_c), list(state.O_T_EE_d)))
+        v = v_max / 2 * (1 - math.cos(2 * math.pi * t / period_s))
+        return fr.CartesianVelocities([math.cos(angle) * v, 0, -math.sin(angle) * v, 0, 0, 0])
+
+    error = stream(control, period_s, twist_at)
+    del control
+    time.sleep(0.3)
+    after = robot.read_once()
+    mid = echo[len(echo) // 2]
+    return {
+        "error": error,
+        "O_T_EE_before": before,
+        "O_T_EE_after": list(after.O_T_EE),
+        "O_dP_EE_c_mid": mid[0],
+        "O_T_EE_d_mid": mid[1],
+        "expected_displacement": v_max / 2 * period_s,
+        "robot_mode": after.robot_mode.name,
+    }
+
+
+def scenario_cartesian_start_off(host: str) -> dict:
+    """A pose motion whose first pose is 15 cm off the robot's."""
+    robot = connect(host)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
+    error = None
+    try:
+        for _ in range(100):
+            state, _period = control.readOnce()
+            pose = list(state.O_T_EE_c)
+            pose[12] += 0.15
+            control.writeOnce(fr.CartesianPose(pose))
+    except fr.ControlException as exc:
+        error = str(exc)
+    del control
+    return {"error": error, "robot_mode": robot.read_once().robot_mode.name}
+
+
+if __name__ == "__main__":
+    scenario_main.run(globals())

@@ -1,0 +1,51 @@
+"""Socket mode with pylibfranka against `serve --enforce-comm-constraints`: the 20-cycle bound
+is counted in cycles the robot published and nobody answered."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.conftest import motion_summaries
+
+pytestmark = pytest.mark.socket
+
+
+def test_a_client_silent_for_30_ms_gets_communication_constraints_violation(serve, client):
+    server = serve("--enforce-comm-constraints")
+    r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "30"}, timeout=60)
+    assert "exception" not in r, r
+    assert r["error"] is not None and '["communication_constraints_violation"]' in r["error"]
+    assert r["mode_after"] == "Reflex"
+    assert r["next_motion_final_mode"] == "Idle"  # after recovery the next motion runs
+    server.stop()
+    # The 20th lost cycle aborts (the bound is counted in cycles), the next motion is clean.
+    (status, _, longest), (next_status, *_) = motion_summaries(server.log())
+    assert (status, longest, next_status) == ("kReflexAborted", 20, "kSuccess")
+
+
+def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
+    """Fewer than 20 consecutive lost cycles are extrapolated, never aborted.
+
+    Wall-clock silence only bounds the lost run from below: a loaded machine can
+    stall the client for longer. What the robot promises is stated in cycles, so
+    the assertion is too: the server's own count of the longest run decides, and
+    an attempt where a stall pushed that run to 20 proves nothing and is repeated.
+    """
+    for _attempt in range(3):
+        server = serve("--enforce-comm-constraints")
+        r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "10"}, timeout=60)
+        assert "exception" not in r, r
+        server.stop()
+        summaries = motion_summaries(server.log())
+        assert len(summaries) == 2, server.log()  # the silent motion, then the next one
+        status, lost, longest = summaries[0]
+        if longest >= 20:  # the machine stalled the client past the bound: inconclusive
+            assert status == "kReflexAborted" and r["error"] is not None
+            continue
+        assert longest >= 9, summaries  # the silence really went unanswered (~10 states)
+        assert status == "kSuccess", summaries
+        assert r["error"] is None
+        assert r["mode_after"] == "Idle"
+        assert "communication_constraints_violation" not in server.log()
+        return
+    pytest.fail("three attempts stalled the client for 20 cycles; the machine is too loaded")

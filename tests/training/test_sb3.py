@@ -1,0 +1,75 @@
+"""stable-baselines3 on FrankaFCI-v0: its env checker, and a short training smoke run."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import gymnasium as gym
+import pytest
+
+import franka_sim_gym  # noqa: F401
+from franka_sim_gym.envs import IDS
+from tests.conftest import ROOT, run_python
+
+sb3 = pytest.importorskip("stable_baselines3")
+
+from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer  # noqa: E402
+
+
+@pytest.mark.parametrize("env_id", list(IDS))
+def test_sb3_check_env_passes_for_every_id(env_id):
+    from stable_baselines3.common.env_checker import check_env
+
+    env = gym.make(env_id)
+    check_env(env.unwrapped, warn=True)
+    env.close()
+
+
+@pytest.mark.parametrize("arms", [["--num-envs", "1"], []], ids=["single", "batched"])
+def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, arms):
+    out = tmp_path / "run"
+    proc = run_python(
+        ROOT / "examples" / "train_sb3.py",
+        *arms,
+        "--steps",
+        "400",
+        "--evals",
+        "1",
+        "--eval-episodes",
+        "2",
+        "--out",
+        str(out),
+        "--env-kwargs",
+        '{"max_episode_steps": 10}',
+        "--tensorboard",
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    assert last.startswith("eval: success_rate=") and "reflex_rate=" in last
+    assert (out / "model.zip").is_file() and (out / "eval.csv").is_file()
+    assert (out / "progress.csv").is_file()
+    assert list(out.glob("events.out.tfevents.*")), "no TensorBoard events were written"
+    assert "training: 100%" in proc.stderr and "400/400" in proc.stderr  # the progress bar
+    # beside it, the thread tuner timed every gradient phase (envs/sb3_threads.py)
+    phases = re.search(r"torch threads: \d+ at the end, (\d+) gradient phases", proc.stdout)
+    assert phases and int(phases.group(1)) > 0, proc.stdout[-2000:]
+    config = json.loads((out / "train_config.json").read_text())
+    assert config["env_id"] == "FrankaFCICartesianVelocity-v0"
+    assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
+    env = gym.make(config["env_id"], **config["env_kwargs"])
+    model = sb3.SAC.load(out / "model.zip", env=env)  # HER needs the env
+    # HER keeps the reflex charge (envs/sb3_her.py); the buffer holds the run, no more
+    assert model.replay_buffer_class is ReflexChargedHerReplayBuffer
+    assert model.buffer_size == (401 if arms else 416)  # 400 samples and a spare step
+    assert model.ent_coef == "auto_0.02"
+    obs, _ = env.reset(seed=0)
+    action, _ = model.predict(obs, deterministic=True)
+    assert env.action_space.contains(action) and action.shape == (3,)
+    # evaluate.py takes the env id and arguments from train_config.json.
+    proc = run_python(
+        ROOT / "examples" / "evaluate.py", "--model", str(out / "model.zip"), "--episodes", "3"
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    last = proc.stdout.strip().splitlines()[-1]
+    assert last.startswith("evaluate: success_rate=") and "link_success_rate=" in last
