@@ -17,6 +17,8 @@ them to publish state k+1 and to compute the next cycle's servo torque.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mujoco
 import numpy as np
 
@@ -57,6 +59,8 @@ class ArmPhysics:
         spacing: distance between arm bases along x [m].
         object_width: a rigid object this wide [m] between every hand's fingers
             (the gripper's ``--gripper-object-width``); None: empty hands.
+        scene: a scene fragment on every arm's table (a shipped name, "block" or
+            "peg_in_hole", or an MJCF file; sim/scene.py); None: the bare table.
     """
 
     def __init__(
@@ -65,11 +69,12 @@ class ArmPhysics:
         hand: bool = False,
         spacing: float = 2.0,
         object_width: float | None = None,
+        scene: str | Path | None = None,
     ) -> None:
         if n_arms < 1:
             raise ValueError(f"n_arms must be >= 1, got {n_arms}")
         self.model, self.layout = build_world(
-            n_arms=n_arms, hand=hand, spacing=spacing, object_width=object_width
+            n_arms=n_arms, hand=hand, spacing=spacing, object_width=object_width, scene=scene
         )
         self.data = mujoco.MjData(self.model)
         self.n = n_arms

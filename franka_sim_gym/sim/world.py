@@ -4,19 +4,22 @@ Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
 (spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
 to each arm's ``flange`` site rotated Rz(-pi/4), as franka_description mounts
 it (fr3-model.md §5); ``object_width`` adds the gripper's rigid virtual object
-between each hand's fingertips (:func:`_add_object`). :class:`ArmLayout` holds
-every index the rest of the simulator needs, so nothing downstream looks names
-up.
+between each hand's fingertips (:func:`_add_object`). Every arm stands on the
+table (scene.py), and a scene fragment (``scene``) adds one copy of its bodies
+per arm. :class:`ArmLayout` holds every index the rest of the simulator needs,
+so nothing downstream looks names up.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
 import numpy as np
+
+from .scene import add_table, body_names, free_joint_names, load_scene
 
 MODEL_DIR: Path = Path(__file__).resolve().parent / "models"
 FR3_XML: Path = MODEL_DIR / "fr3.xml"
@@ -60,7 +63,10 @@ class ArmLayout:
 
     Rows are arms; columns joints 1..7 (or links 0..7). ``geom_arm`` /
     ``geom_link`` map every geom to the arm and link it belongs to, -1 for
-    geoms that are not arm-link geoms (the floor, the hand).
+    geoms that are not arm-link geoms (the table, the hand, scene objects).
+    ``scene_body`` / ``scene_qpos_adr`` map a scene fragment's body names and its
+    free joints' names to their (n,) body ids and (n,) qpos addresses (7 values
+    each: position, then the w-x-y-z quaternion), one per arm.
     """
 
     n: int
@@ -78,6 +84,8 @@ class ArmLayout:
     finger_actuator: np.ndarray | None = None  # (n,) the `fingers` position servo
     tcp_site: np.ndarray | None = None  # (n,) hand TCP site
     hand_body: np.ndarray | None = None  # (n,) the `hand` body (the palm; fingers below it)
+    scene_body: dict[str, np.ndarray] = field(default_factory=dict)
+    scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -113,12 +121,18 @@ def _arm_spec() -> mujoco.MjSpec:
 
 
 def build_world(
-    n_arms: int = 1, hand: bool = False, spacing: float = 2.0, object_width: float | None = None
+    n_arms: int = 1,
+    hand: bool = False,
+    spacing: float = 2.0,
+    object_width: float | None = None,
+    scene: str | Path | None = None,
 ) -> tuple[mujoco.MjModel, ArmLayout]:
-    """Build a world of ``n_arms`` FR3 arms on a ground plane.
+    """Build a world of ``n_arms`` FR3 arms on the table.
 
     ``object_width`` (needs ``hand``) puts a rigid box that wide between every
-    hand's fingertips; None or 0 leaves the hands empty.
+    hand's fingertips; None or 0 leaves the hands empty. ``scene`` names a shipped
+    scene fragment (scene.SCENES: "block", "peg_in_hole") or an MJCF file of one;
+    each arm gets its own copy, placed in its base frame.
 
     Keyframe ``home`` puts every arm at HOME_Q with the fingers open; callers
     should start from it (mj_resetDataKeyframe) or set data.qpos themselves:
@@ -139,22 +153,18 @@ def build_world(
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     world = spec.worldbody
-    # The floor is static, like each link0 (welded to the world): MuJoCo never
-    # collides two geoms of the world's weld group, so link0 cannot touch it.
-    world.add_geom(
-        name="floor",
-        type=mujoco.mjtGeom.mjGEOM_PLANE,
-        size=[0, 0, 0.05],
-        rgba=[0.5, 0.55, 0.6, 1],
-    )
+    add_table(spec)
     world.add_light(
         name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 3], dir=[0, 0, -1]
     )
     arm = _arm_spec()
     hand_spec = mujoco.MjSpec.from_file(str(HAND_XML)) if hand else None
+    fragment = load_scene(scene) if scene is not None else None
     for i in range(n_arms):
         prefix = f"arm{i}/"
         spec.attach(arm, prefix=prefix, frame=world.add_frame(pos=[spacing * i, 0.0, 0.0]))
+        if fragment is not None:
+            spec.attach(fragment, prefix=prefix, frame=world.add_frame(pos=[spacing * i, 0.0, 0.0]))
         if hand_spec is not None:
             # Same prefix, so the hand's names read arm{i}/hand, arm{i}/fingers, ...
             flange = spec.site(prefix + "flange")
@@ -164,7 +174,7 @@ def build_world(
                 _add_object(spec, prefix, object_width)
     spec.add_key(name="home")
     model = spec.compile()
-    layout = _layout(model, n_arms, hand)
+    layout = _layout(model, n_arms, hand, fragment)
     _set_home(model, layout)
     return model, layout
 
@@ -175,7 +185,7 @@ def _add_object(spec: mujoco.MjSpec, prefix: str, width: float) -> None:
     It is a geom of the hand body, so it moves with the hand and adds no mass
     (the body's inertial is explicit). It collides with nothing but the two
     fingertip pads (contype/conaffinity 0, two explicit contact pairs), so the
-    arm, the floor and the rest of the hand pass through it; the pads' inner
+    arm, the table and the rest of the hand pass through it; the pads' inner
     faces sit at the finger joint positions, so the fingers stall at a summed
     finger position of ``width`` (+ 0.04 mm: the pads' faces are 0.02 mm
     behind the joint origin).
@@ -202,7 +212,9 @@ def _ids(model: mujoco.MjModel, kind: str, names: list[list[str]]) -> np.ndarray
     return np.array([[lookup(name).id for name in row] for row in names], dtype=np.int64)
 
 
-def _layout(model: mujoco.MjModel, n: int, hand: bool) -> ArmLayout:
+def _layout(
+    model: mujoco.MjModel, n: int, hand: bool, fragment: mujoco.MjSpec | None = None
+) -> ArmLayout:
     pre = [f"arm{i}/" for i in range(n)]
     joints = _ids(model, "joint", [[p + j for j in _ARM_JOINTS] for p in pre])
     link_body = _ids(model, "body", [[p + b for b in _ARM_LINKS] for p in pre])
@@ -224,6 +236,17 @@ def _layout(model: mujoco.MjModel, n: int, hand: bool) -> ArmLayout:
             tcp_site=_ids(model, "site", [[p + "tcp"] for p in pre])[:, 0],
             hand_body=_ids(model, "body", [[p + "hand"] for p in pre])[:, 0],
         )
+    scene = {}
+    if fragment is not None:
+        scene = dict(
+            scene_body={
+                b: _ids(model, "body", [[p + b] for p in pre])[:, 0] for b in body_names(fragment)
+            },
+            scene_qpos_adr={
+                j: model.jnt_qposadr[_ids(model, "joint", [[p + j] for p in pre])[:, 0]]
+                for j in free_joint_names(fragment)
+            },
+        )
     return ArmLayout(
         n=n,
         hand=hand,
@@ -236,6 +259,7 @@ def _layout(model: mujoco.MjModel, n: int, hand: bool) -> ArmLayout:
         geom_arm=geom_arm,
         geom_link=geom_link,
         **fingers,
+        **scene,
     )
 
 

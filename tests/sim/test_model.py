@@ -270,11 +270,11 @@ def test_no_arm_geoms_within_the_report_band_at_home(arm_model):
     assert data.ncon == 0, _contact_names(arm_model, data)
 
 
-def test_no_contacts_at_home_in_a_world_including_the_floor():
+def test_no_contacts_at_home_in_a_world_including_the_table():
     model, layout = build_world(n_arms=2)
     data = _forward(model, HOME_Q, 0, layout)
     assert data.ncon == 0, _contact_names(model, data)
-    assert model.geom("floor").id >= 0
+    assert model.geom("table").id >= 0
 
 
 def test_hand_is_clear_of_links_0_to_4_at_home():
@@ -338,7 +338,7 @@ def test_layout_arrays_have_documented_shapes_and_point_at_the_right_names(n, ha
             assert name == f"arm{layout.geom_arm[g]}/link{layout.geom_link[g]}"
         else:
             assert layout.geom_link[g] == -1 and "/link" not in name
-    assert layout.geom_arm[model.geom("floor").id] == -1
+    assert layout.geom_arm[model.geom("table").id] == -1
     if hand:
         assert layout.finger_qpos_adr.shape == layout.finger_dof_adr.shape == (n, 2)
         assert layout.finger_actuator.shape == layout.tcp_site.shape == (n,)
