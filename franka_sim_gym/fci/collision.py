@@ -1,0 +1,115 @@
+"""Collision detection per SetCollisionBehavior: thresholds, phases, contact and collision.
+
+SetCollisionBehavior (libfranka ``Robot::setCollisionBehavior``, ``robot.h``) gives,
+per joint and per Cartesian axis (x, y, z in N; R, P, Y in Nm), a lower and an upper
+threshold for two phases of a motion, "acceleration" and "nominal"; the 4-argument
+overload sends the same values for both. The robot compares its external-torque
+estimate (tau_ext_hat_filtered) with the joint thresholds and its external wrench
+(O_F_ext_hat_K) with the Cartesian ones:
+
+* above a lower threshold the component's ``joint_contact`` / ``cartesian_contact``
+  reads 1, and 0 again once below it;
+* above an upper threshold its ``joint_collision`` / ``cartesian_collision`` latches
+  (until AutomaticErrorRecovery) and the motion aborts with ``joint_reflex`` (6) or
+  ``cartesian_reflex`` (7).
+
+What the robot takes as its acceleration phase is not published; here a running
+motion whose commanded joint acceleration exceeds ``ACCELERATION_PHASE`` on any joint
+is in it, any other cycle nominal (a choice, docs/motion-limits.md).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: The thresholds Franka's own examples set before every motion (libfranka
+#: ``examples/examples_common.cpp``, ``setDefaultBehavior``: lower = upper, both
+#: phases). Desk's factory thresholds are not published, so these are a choice:
+#: the ones most FCI programs run with.
+DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)
+DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)
+#: |ddq_d| above which a motion is in its acceleration phase [rad/s^2] (a choice).
+ACCELERATION_PHASE = 0.5
+
+#: The payload's arrays in wire order (fci/protocol.py SetCollisionBehaviorRequest).
+THRESHOLD_NAMES = (
+    "lower_torque_thresholds_acceleration",
+    "upper_torque_thresholds_acceleration",
+    "lower_torque_thresholds_nominal",
+    "upper_torque_thresholds_nominal",
+    "lower_force_thresholds_acceleration",
+    "upper_force_thresholds_acceleration",
+    "lower_force_thresholds_nominal",
+    "upper_force_thresholds_nominal",
+)
+
+
+def invalid_thresholds(values: dict[str, np.ndarray]) -> str | None:
+    """Why a SetCollisionBehavior payload is refused, or None when it is accepted.
+
+    The robot's accepted range is not published: we refuse what cannot be meant,
+    a non-finite or negative threshold, and accept the rest (a lower threshold above
+    its upper one included: the collision then comes first).
+    """
+    for name in THRESHOLD_NAMES:
+        v = np.asarray(values[name], dtype=float)
+        if not np.all(np.isfinite(v)):
+            return f"{name}: non-finite threshold"
+        if np.any(v < 0):
+            return f"{name}: negative threshold {v.tolist()}"
+    return None
+
+
+class Levels(NamedTuple):
+    """One cycle's verdicts, (n, 7) joints and (n, 6) Cartesian axes."""
+
+    joint_contact: np.ndarray
+    cartesian_contact: np.ndarray
+    joint_over: np.ndarray
+    cartesian_over: np.ndarray
+
+
+class CollisionBehavior:
+    """The configured thresholds of n robots: (n, 2, 7) torques and (n, 2, 6) forces,
+    phase 0 = acceleration, 1 = nominal."""
+
+    def __init__(self, n: int) -> None:
+        self.lower_torque = np.empty((n, 2, 7))
+        self.upper_torque = np.empty((n, 2, 7))
+        self.lower_force = np.empty((n, 2, 6))
+        self.upper_force = np.empty((n, 2, 6))
+        for i in range(n):
+            self.reset(i)
+
+    def reset(self, i: int) -> None:
+        """Robot i back to the defaults (a new connection, an env reset)."""
+        self.lower_torque[i] = self.upper_torque[i] = DEFAULT_TORQUE_THRESHOLDS
+        self.lower_force[i] = self.upper_force[i] = DEFAULT_FORCE_THRESHOLDS
+
+    def configure(self, i: int, values: dict[str, np.ndarray]) -> None:
+        """Store robot i's thresholds (validated by :func:`invalid_thresholds`)."""
+        for phase, suffix in enumerate(("acceleration", "nominal")):
+            self.lower_torque[i, phase] = values[f"lower_torque_thresholds_{suffix}"]
+            self.upper_torque[i, phase] = values[f"upper_torque_thresholds_{suffix}"]
+            self.lower_force[i, phase] = values[f"lower_force_thresholds_{suffix}"]
+            self.upper_force[i, phase] = values[f"upper_force_thresholds_{suffix}"]
+
+    def levels(self, tau_ext: np.ndarray, wrench: np.ndarray, accelerating: np.ndarray) -> Levels:
+        """Compare |tau_ext| (n, 7) and |O_F_ext_hat_K| (n, 6) with the thresholds of each
+        robot's phase (``accelerating``: (n,) bool)."""
+        phase = np.where(accelerating, 0, 1)
+        rows = np.arange(len(phase))
+        tau, force = np.abs(tau_ext), np.abs(wrench)
+        return Levels(
+            joint_contact=tau > self.lower_torque[rows, phase],
+            cartesian_contact=force > self.lower_force[rows, phase],
+            joint_over=tau > self.upper_torque[rows, phase],
+            cartesian_over=force > self.upper_force[rows, phase],
+        )
+
+
+def accelerating(ddq_d: np.ndarray, in_motion: np.ndarray) -> np.ndarray:
+    """(n,) bool: the robot is in its acceleration phase (see the module docstring)."""
+    return in_motion & (np.abs(ddq_d) > ACCELERATION_PHASE).any(axis=1)

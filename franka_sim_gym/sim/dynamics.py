@@ -1,0 +1,72 @@
+"""The arms' rigid-body model at the measured state: what a model-based estimator needs.
+
+The FR3 estimates the external torque from its dynamic model and its joint torque
+sensors; the model terms are those of the arm as simulated (the URDF's inertials, the
+mounted hand as a rigid end effector), evaluated at the state MuJoCo just reached.
+Contact forces are *not* read here: they reach an estimate only through the motion
+and the measured torques they cause, as on the robot. The external-force estimator
+itself is the controller's (fci/contact.py); this is the backend it reads.
+
+Everything is (n, 7) per arm, in the arm's base frame (bases are not rotated).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .arm import ArmPhysics
+
+
+class ArmDynamics:
+    """M(q) x, C(q, dq) dq + g(q) and the joint axes of n arms, at the current state.
+
+    Args:
+        physics: the arms (after a step, mj_step1 has left M and the bias forces of
+            the new state in MjData; see sim/arm.py).
+    """
+
+    def __init__(self, physics: ArmPhysics) -> None:
+        self.physics = physics
+        lay = physics.layout
+        self._dofs = np.asarray(lay.dof_adr)
+        self._bias = np.zeros((physics.n, 7))
+        self._full = np.zeros(physics.model.nv)
+        self._product = np.zeros(physics.model.nv)
+        # The arms' hinge joints, in the arm's order: their world axes and anchors.
+        model = physics.model
+        joints = np.array(
+            [[model.dof_jntid[d] for d in row] for row in lay.dof_adr], dtype=np.int64
+        )
+        self._joints = joints
+
+    def mass_times(self, x: np.ndarray) -> np.ndarray:
+        """(n, 7) M(q) x per arm: the joint-space inertia of each arm times ``x`` (n, 7).
+
+        The arm's own 7 x 7 block of MuJoCo's inertia matrix (armature included); the
+        fingers' and objects' degrees of freedom are left at zero, as the robot's model
+        treats its end effector as a rigid load on the flange.
+        """
+        full = self._full
+        full[self._dofs] = x
+        mujoco.mj_mulM(self.physics.model, self.physics.data, self._product, full)
+        return self._product[self._dofs]
+
+    def bias(self) -> np.ndarray:
+        """(n, 7) C(q, dq) dq + g(q) + the joint friction: what the drives must supply
+        besides M ddq.
+
+        The friction is the model's viscous joint damping (models/fr3.xml), which the
+        robot's model compensates like its real joint friction: left out, it would read
+        as an external torque of 0.1 Nm per rad/s.
+        """
+        data = self.physics.data
+        return np.subtract(data.qfrc_bias[self._dofs], data.qfrc_passive[self._dofs],
+                           out=self._bias)  # fmt: skip
+
+    def joint_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 7, 3) unit axes and (n, 7, 3) anchor points of joints 1..7, base frame."""
+        data = self.physics.data
+        axes = data.xaxis[self._joints]
+        anchors = data.xanchor[self._joints] - self.physics.base_pos[:, None, :]
+        return axes, anchors
