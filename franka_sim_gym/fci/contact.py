@@ -30,7 +30,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sim.dynamics import jacobian_at
 from .tables import DELTA_T
+
+__all__ = [
+    "ExternalTorqueEstimator",
+    "in_frame",
+    "jacobian_at",
+    "wrench_from_torque",
+]
 
 #: Time constant of the estimate's low-pass filter [s]. Not published for the FR3: a
 #: choice. 10 ms (16 Hz) passes a press on a table within a few cycles and smooths
@@ -42,16 +50,6 @@ ALPHA = DELTA_T / (ESTIMATE_TIME_CONSTANT + DELTA_T)
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.
 WRENCH_DAMPING = 1e-8
-
-
-def jacobian_at(axes: np.ndarray, anchors: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """(n, 6, 7) geometric Jacobian of ``point`` (n, 3) on the last link: rows v, omega.
-
-    Revolute joints only: column j is [z_j x (p - o_j); z_j] with z_j the joint's unit
-    axis and o_j a point of it (``axes``, ``anchors``: (n, 7, 3), base frame).
-    """
-    linear = np.cross(axes, point[:, None, :] - anchors)
-    return np.concatenate([linear, axes], axis=2).transpose(0, 2, 1)
 
 
 def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:

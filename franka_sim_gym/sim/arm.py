@@ -22,6 +22,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
+from .dynamics import jacobian_at
 from .views import strided_rows
 from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 
@@ -106,21 +108,29 @@ class ArmPhysics:
         R = None if mat is None else mat.reshape(n_arms, 3, 3)
         if pos is not None and R is not None and np.shares_memory(R, self.data.site_xmat):
             self.flange_views = (pos, R.transpose(0, 2, 1))
-        self._effective_inertia = self._home_inertia()
+        self._effective_inertia, self._cartesian_inertia = self._home_inertia()
+        self._joints = self.model.dof_jntid[np.asarray(lay.dof_adr)]
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
 
     # -- configuration -------------------------------------------------------------------------
 
-    def _home_inertia(self) -> np.ndarray:
-        """Diagonal of the joint-space inertia at home (armature included), arm 0."""
+    def _home_inertia(self) -> tuple[np.ndarray, np.ndarray]:
+        """At home, arm 0: the diagonal of the joint-space inertia (armature included)
+        and of the flange's Cartesian inertia (J M^-1 J^T)^-1, what the servos damp
+        against."""
         data = mujoco.MjData(self.model)
         data.qpos[self.layout.qpos_adr[0]] = HOME_Q
         mujoco.mj_forward(self.model, data)
         full = np.zeros((self.model.nv, self.model.nv))
         mujoco.mj_fullM(self.model, data, full)
         dofs = self.layout.dof_adr[0]
-        return full[dofs, dofs].copy()
+        M = full[np.ix_(dofs, dofs)]
+        jacp, jacr = np.zeros((3, self.model.nv)), np.zeros((3, self.model.nv))
+        mujoco.mj_jacSite(self.model, data, jacp, jacr, self.layout.flange_site[0])
+        J = np.vstack([jacp[:, dofs], jacr[:, dofs]])
+        cartesian = np.linalg.inv(J @ np.linalg.solve(M, J.T))
+        return np.diag(M).copy(), np.diag(cartesian).copy()
 
     def set_stiffness(self, arms: np.ndarray, stiffness: np.ndarray) -> None:
         """Set the joint servo stiffness K [Nm/rad] of ``arms``; damping follows critically.
@@ -188,6 +198,7 @@ class ArmPhysics:
         dq_ref: np.ndarray | None,
         tau_external: np.ndarray | None = None,
         external: np.ndarray | bool | None = None,
+        cartesian: CartesianTarget | None = None,
     ) -> None:
         """Advance the world by one 1 ms cycle.
 
@@ -198,6 +209,9 @@ class ArmPhysics:
                 ``external`` says; gravity is added by the actuators.
             external: None or False (no arm under external torque), True (every
                 arm), or an (n,) bool mask.
+            cartesian: the arms (its ``mask``) whose internal servo is the Cartesian
+                impedance (sim/cartesian_servo.py) holding K on a pose; their
+                ``q_ref`` is the nullspace's joint target.
         """
         tau, tmp = self._tau, self._tmp
         # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
@@ -210,6 +224,8 @@ class ArmPhysics:
             np.subtract(dq_ref, self.dq, out=tmp)
             tmp *= self.kd
             tau += tmp
+        if cartesian is not None:
+            tau = np.where(cartesian.mask[:, None], self._cartesian_servo(cartesian, q_ref), tau)
         tau += self.coriolis
         if external is True:
             tau = tau_external
@@ -222,6 +238,21 @@ class ArmPhysics:
             self._refresh()
         else:
             np.subtract(self._bias.view, self._gravcomp.view, out=self.coriolis)
+
+    def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
+        """(n, 7) the Cartesian impedance servo's torque (without Coriolis) of every arm."""
+        flange_p, flange_R = self.flange_pose()
+        k = target.flange_to_k
+        rotation = flange_R @ k[:, :3, :3]
+        position = flange_p + np.einsum("nij,nj->ni", flange_R, k[:, :3, 3])
+        data = self.data
+        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
+        J = jacobian_at(data.xaxis[self._joints], anchors, position)
+        damping = damping_for(target.stiffness, self._cartesian_inertia)
+        nullspace_damping = damping_for(NULLSPACE_STIFFNESS, self._effective_inertia)
+        return impedance_torque(
+            J, position, rotation, target, damping, self.q, self.dq, q_ref, nullspace_damping
+        )
 
     # -- kinematics ----------------------------------------------------------------------------
 

@@ -12,10 +12,23 @@ Everything is (n, 7) per arm, in the arm's base frame (bases are not rotated).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 
-from .arm import ArmPhysics
+if TYPE_CHECKING:
+    from .arm import ArmPhysics
+
+
+def jacobian_at(axes: np.ndarray, anchors: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """(n, 6, 7) geometric Jacobian of ``point`` (n, 3) on the last link: rows v, omega.
+
+    Revolute joints only: column j is [z_j x (p - o_j); z_j] with z_j the joint's unit
+    axis and o_j a point of it (``axes``, ``anchors``: (n, 7, 3), base frame).
+    """
+    linear = np.cross(axes, point[:, None, :] - anchors)
+    return np.concatenate([linear, axes], axis=2).transpose(0, 2, 1)
 
 
 class ArmDynamics:
@@ -70,3 +83,8 @@ class ArmDynamics:
         axes = data.xaxis[self._joints]
         anchors = data.xanchor[self._joints] - self.physics.base_pos[:, None, :]
         return axes, anchors
+
+    def jacobian(self, point: np.ndarray) -> np.ndarray:
+        """(n, 6, 7) Jacobian of ``point`` (n, 3, base frame) on each arm's last link."""
+        axes, anchors = self.joint_axes()
+        return jacobian_at(axes, anchors, point)
