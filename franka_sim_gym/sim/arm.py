@@ -63,6 +63,8 @@ class ArmPhysics:
             (the gripper's ``--gripper-object-width``); None: empty hands.
         scene: a scene fragment on every arm's table (a shipped name, "block" or
             "peg_in_hole", or an MJCF file; sim/scene.py); None: the bare table.
+        payload: (mass, x, y, z) a mass on every flange, centre of mass in the flange
+            frame, whose weight nothing compensates (``serve --payload``); None: none.
     """
 
     def __init__(
@@ -72,11 +74,17 @@ class ArmPhysics:
         spacing: float = 2.0,
         object_width: float | None = None,
         scene: str | Path | None = None,
+        payload: tuple[float, float, float, float] | None = None,
     ) -> None:
         if n_arms < 1:
             raise ValueError(f"n_arms must be >= 1, got {n_arms}")
         self.model, self.layout = build_world(
-            n_arms=n_arms, hand=hand, spacing=spacing, object_width=object_width, scene=scene
+            n_arms=n_arms,
+            hand=hand,
+            spacing=spacing,
+            object_width=object_width,
+            scene=scene,
+            payload=payload,
         )
         self.data = mujoco.MjData(self.model)
         self.n = n_arms
@@ -199,6 +207,7 @@ class ArmPhysics:
         tau_external: np.ndarray | None = None,
         external: np.ndarray | bool | None = None,
         cartesian: CartesianTarget | None = None,
+        compensation: np.ndarray | None = None,
     ) -> None:
         """Advance the world by one 1 ms cycle.
 
@@ -212,6 +221,8 @@ class ArmPhysics:
             cartesian: the arms (its ``mask``) whose internal servo is the Cartesian
                 impedance (sim/cartesian_servo.py) holding K on a pose; their
                 ``q_ref`` is the nullspace's joint target.
+            compensation: (n, 7) a torque the drives add in every mode (the weight
+                of a load configured with SetLoad, which MuJoCo does not know of).
         """
         tau, tmp = self._tau, self._tmp
         # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
@@ -231,6 +242,8 @@ class ArmPhysics:
             tau = tau_external
         elif external is not None and external is not False:
             tau = np.where(external[:, None], tau_external, tau)
+        if compensation is not None:
+            tau = tau + compensation
         self._ctrl.set(tau)
         mujoco.mj_step2(self.model, self.data)
         mujoco.mj_step1(self.model, self.data)

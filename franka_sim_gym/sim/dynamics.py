@@ -31,6 +31,13 @@ def jacobian_at(axes: np.ndarray, anchors: np.ndarray, point: np.ndarray) -> np.
     return np.concatenate([linear, axes], axis=2).transpose(0, 2, 1)
 
 
+def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """(n, 7) the joint torques that hold masses ``mass`` (n,) against ``gravity`` (3,)
+    at the points whose Jacobians are ``jacobian`` (n, 6, 7): J_v^T (-m g)."""
+    force = -mass[:, None] * gravity[None, :]
+    return np.einsum("nij,ni->nj", jacobian[:, :3, :], force)
+
+
 class ArmDynamics:
     """M(q) x, C(q, dq) dq + g(q) and the joint axes of n arms, at the current state.
 

@@ -126,13 +126,17 @@ def build_world(
     spacing: float = 2.0,
     object_width: float | None = None,
     scene: str | Path | None = None,
+    payload: tuple[float, float, float, float] | None = None,
 ) -> tuple[mujoco.MjModel, ArmLayout]:
     """Build a world of ``n_arms`` FR3 arms on the table.
 
     ``object_width`` (needs ``hand``) puts a rigid box that wide between every
     hand's fingertips; None or 0 leaves the hands empty. ``scene`` names a shipped
     scene fragment (scene.SCENES: "block", "peg_in_hole") or an MJCF file of one;
-    each arm gets its own copy, placed in its base frame.
+    each arm gets its own copy, placed in its base frame. ``payload`` (mass [kg] and
+    centre of mass x, y, z [m] in the flange frame) fixes a mass to every flange that
+    the robot does not know of: nothing compensates its weight unless a client
+    configures it with SetLoad (:func:`_add_payload`).
 
     Keyframe ``home`` puts every arm at HOME_Q with the fingers open; callers
     should start from it (mj_resetDataKeyframe) or set data.qpos themselves:
@@ -172,11 +176,43 @@ def build_world(
             spec.attach(hand_spec, prefix=prefix, frame=mount)
             if object_width:
                 _add_object(spec, prefix, object_width)
+        if payload is not None:
+            _add_payload(spec, prefix, payload)
     spec.add_key(name="home")
     model = spec.compile()
     layout = _layout(model, n_arms, hand, fragment)
     _set_home(model, layout)
     return model, layout
+
+
+#: Radius [m] of the payload's inertia: a solid sphere, 2/5 m r^2 about each axis.
+_PAYLOAD_RADIUS = 0.02
+
+
+def _add_payload(spec: mujoco.MjSpec, prefix: str, payload: tuple[float, ...]) -> None:
+    """A mass rigidly fixed to the flange, with gravcomp 0: unlike the arm's and the
+    hand's bodies, MuJoCo's actuators do not carry its weight. It collides with nothing
+    (its geom is a marker), so it is a load, not an object in the scene."""
+    mass, *com = (float(v) for v in payload)
+    if not (np.isfinite([mass, *com]).all() and mass > 0.0):
+        raise ValueError(f"payload {payload}: needs a positive mass and a finite centre")
+    flange = spec.site(prefix + "flange")
+    body = spec.body(prefix + "link7").add_body(
+        name=prefix + "payload", pos=np.asarray(flange.pos) + com
+    )
+    inertia = 0.4 * mass * _PAYLOAD_RADIUS**2
+    body.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_SPHERE,
+        size=[_PAYLOAD_RADIUS, 0, 0],
+        contype=0,
+        conaffinity=0,
+        group=1,
+        mass=0.0,
+        rgba=[0.2, 0.7, 0.3, 1.0],
+    )
+    body.mass = mass
+    body.inertia = [inertia, inertia, inertia]
+    body.explicitinertial = True
 
 
 def _add_object(spec: mujoco.MjSpec, prefix: str, width: float) -> None:
