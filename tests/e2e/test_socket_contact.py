@@ -1,0 +1,57 @@
+"""End to end against the table: real clients meet the FR3's collision detection.
+
+`serve --enforce-motion-limits` (collision reflexes abort like every other reflex);
+pylibfranka descends onto the table under SetCollisionBehavior's thresholds, franky
+runs the reaction pattern of its own examples.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+pytestmark = pytest.mark.socket
+
+
+@pytest.mark.parametrize("upper", [20.0, 60.0])
+def test_a_descent_onto_the_table_ends_in_a_collision_reflex_near_the_threshold(
+    serve, client, upper
+):
+    server = serve("--enforce-motion-limits")
+    r = client("contact", "descend", server.host, env={"FORCE": f"10,{upper}"}, timeout=90)
+    assert "exception" not in r, r
+    assert r["error"] is not None and "motion aborted by reflex" in r["error"], r
+    assert "cartesian_reflex" in r["error"] or "joint_reflex" in r["error"], r
+    # The contact flag came first (lower threshold 10 N), then the collision at the upper.
+    assert r["first_contact"] is not None and r["first_contact"][0] < r["t_end"]
+    assert -r["F_z_min"] == pytest.approx(upper, rel=0.5)
+    assert -r["F_z_min"] >= upper  # it stopped once the estimate crossed the threshold
+    # The flange stopped at the table: within 5 mm of where contact began, 18 cm below
+    # where it started at most.
+    assert abs(r["z_end"] - r["first_contact"][1]) < 5e-3
+    assert r["robot_mode"] == "Reflex"
+    assert "cartesian_reflex" in r["current_errors"] or "joint_reflex" in r["current_errors"]
+    assert r["cartesian_collision"][2] == 1.0  # latched on z ...
+    assert r["mode_recovered"] == "Idle"  # ... until AutomaticErrorRecovery
+    assert r["cartesian_collision_recovered"] == [0.0] * 6
+    assert "collision" in server.log()
+
+
+def test_at_rest_in_free_space_nothing_is_sensed(serve, client):
+    server = serve()
+    r = client("contact", "rest", server.host)
+    assert r["worst_tau"] < 0.05
+    assert r["worst_force"] < 0.5
+    assert r["flags"] == 0.0
+
+
+def test_frankys_force_reaction_fires_at_the_table(serve, client):
+    server = serve("--enforce-motion-limits")
+    r = client("franky_contact", "reaction", server.host, timeout=120)
+    assert "exception" not in r, r
+    assert r["error"] is None, r
+    assert r["fired"], "the reaction never fired"
+    force_z, z_fired = r["fired"][0]
+    assert force_z < -5.0
+    assert r["z_start"] - z_fired < 0.2  # at the table, not 30 cm down
+    assert r["z_end"] > z_fired  # ... and the retreat moved it up
+    assert r["robot_mode"] == "Idle"
