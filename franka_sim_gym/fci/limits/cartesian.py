@@ -43,7 +43,6 @@ from typing import NamedTuple
 import numpy as np
 
 from ...sim.kinematics import relative_rotation_log, rotation_log
-from .._fast import count_nonzero, einsum
 from ..errors import Error
 from ..frames import from_wire
 from ..tables import RobotTable
@@ -167,7 +166,7 @@ class CartesianCheck(NamedTuple):
 
 
 def _norm(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(einsum("ij,ij->i", x, x))
+    return np.sqrt(np.einsum("ij,ij->i", x, x))
 
 
 def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
@@ -229,7 +228,7 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
     """Rows 21 and 17 (both generators): the branch flag flipping mid-motion; elbow[0]
     outside joint 3's range (always), or its velocity, acceleration or jerk over the
     kMaxElbow* limits (after the first command)."""
-    if not count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
+    if not np.count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
         return elbow.has, elbow.has
     continuing = later & elbow.has & elbow.had
     sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
@@ -248,10 +247,10 @@ def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     kMaxJointJerk (the robot's per-joint tables times the discontinuity scale): the two
     (n,) rows, or None when neither tripped anywhere (the common case)."""
     checked = joint.checked
-    if not count_nonzero(checked):
+    if not np.count_nonzero(checked):
         return None
     over = np.abs(joint.stacked) > _ik_limits(table, scale)  # NaN is not over
-    if not count_nonzero(over):  # nothing over: the common case
+    if not np.count_nonzero(over):  # nothing over: the common case
         return None
     return checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
 
@@ -279,7 +278,7 @@ def _inside(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
     """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] within the
     table's limits, in one pass (NaN is not within: it trips)."""
     x = stacked.reshape(len(stacked), 6, 3)
-    return einsum("nkj,nkj->nk", x, x) <= _limits2(table)
+    return np.einsum("nkj,nkj->nk", x, x) <= _limits2(table)
 
 
 def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: float) -> bool:
@@ -292,9 +291,9 @@ def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: floa
     n = len(stacked)
     values = np.empty((n, 20))
     x = stacked.reshape(n, 6, 3)
-    einsum("nkj,nkj->nk", x, x, out=values[:, :6])
+    np.einsum("nkj,nkj->nk", x, x, out=values[:, :6])
     np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
-    return count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
+    return np.count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
 
 
 def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -359,8 +358,8 @@ def check_cartesian_pose(
     """
     first = np.asarray(first, dtype=bool)
     n = len(first)
-    starting = count_nonzero(first) > 0
-    if not starting and not count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
+    starting = np.count_nonzero(first) > 0
+    if not starting and not np.count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
         return _no_error(n)  # mid-motion, no elbow, nothing near a limit: the common case
     inside = _inside(d.stacked, table)
     joint_rows = _joint_side_rows(joint, table, scale)
@@ -411,7 +410,7 @@ def check_cartesian_velocity(
     """
     first = np.asarray(first, dtype=bool)
     n = len(first)
-    if not count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
+    if not np.count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
         return _no_error(n)  # no elbow, nothing near a limit: the common case
     inside = _inside(stacked, table)
     joint_rows = _joint_side_rows(joint, table, scale)
@@ -429,7 +428,7 @@ def check_cartesian_velocity(
 
 def _any(*tripped: np.ndarray) -> bool:
     """Whether any of the bool arrays has an entry set."""
-    return any(count_nonzero(x) for x in tripped)
+    return any(np.count_nonzero(x) for x in tripped)
 
 
 def _no_error(n: int) -> CartesianCheck:
