@@ -1,6 +1,9 @@
-"""What a command must be to be taken on arrival: finite (and a pose, a transformation).
+"""Which arriving commands a cycle takes: fresh, late or answering nothing; finite.
 
-Seed: a non-finite command is refused whatever the enforcement, and reported as the
+Seed "The cycle contract": a command answers the open cycle when it echoes the id of
+the last published state (fresh); an older id of the running motion is late and still
+applied; an id never published answers nothing (the cycle counts as lost). Seed: a
+non-finite command is refused whatever the enforcement, and reported as the
 limits violation of the generator it arrived in; a Cartesian pose that is not a
 homogeneous transformation (libfranka's isHomogeneousTransformation, NaN included)
 is refused as 31; a non-finite elbow as 17.
@@ -8,10 +11,62 @@ is refused as 31; a non-finite elbow as 17.
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from . import frames
-from .modes import Modes
+from .cycle_input import CycleInput
+from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
+
+log = logging.getLogger("franka_sim_gym.fci")
+
+
+def classify(
+    commands: np.ndarray,
+    mask: np.ndarray,
+    k: int,
+    m: Modes,
+    published: np.ndarray,
+    motion_first_id: np.ndarray,
+    cycle: CycleInput,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """(fresh, late, accepted) of the ``k`` commands delivered where ``mask`` (robots in
+    motion); ``late`` is None when every one is fresh. Refused (non-finite) commands
+    are logged and marked in ``cycle.refused`` (and ``refused_elbow``), not accepted."""
+    n = m.n
+    ids = commands["message_id"]
+    fresh = ids == published
+    if k < n:
+        fresh &= mask
+    late = None
+    if np.count_nonzero(fresh) == k:
+        accepted = fresh
+    else:
+        late = mask & (ids < published) & (ids >= motion_first_id)
+        accepted = fresh | late
+        for i in np.flatnonzero(mask & ~accepted).tolist():
+            log.warning(
+                "robot %d: command with message_id %d answers no state of the running motion "
+                "(last published %d); counted as lost",
+                i,
+                int(ids[i]),
+                int(published[i]),
+            )
+    ok, refused_elbow = acceptable(commands, m)
+    if ok is not None and np.count_nonzero(ok) < n:
+        refused = accepted & ~ok
+        for i in np.flatnonzero(refused).tolist():
+            gen = int(m.motion_generator_mode[i])
+            signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
+            log.warning(
+                "robot %d: non-finite value in the commanded %s; command refused", i, signal
+            )
+        cycle.refused |= refused
+        if refused_elbow is not None:
+            cycle.refused_elbow |= refused_elbow
+        accepted = accepted & ok
+    return fresh, late, accepted
 
 
 def acceptable(commands: np.ndarray, m: Modes) -> tuple[np.ndarray | None, np.ndarray | None]:

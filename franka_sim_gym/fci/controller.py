@@ -27,9 +27,8 @@ import numpy as np
 
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
-from . import setters
+from . import arrival, setters
 from .accounting import CycleAccounting
-from .arrival import acceptable
 from .cartesian import CartesianGenerators
 from .config import ControllerConfig
 from .cycle_input import CycleInput
@@ -39,12 +38,11 @@ from .events import Event, EventKind
 from .joint_generators import JointGenerators
 from .late import LateIntents
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
-from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .recovery import RecoveryWait
 from .reference import JointReference
-from .rows import put_rows
 from .safety_controller import SafetyController
 from .state import StateWriter
+from .statuses import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .tables import MAX_LOST_CYCLES
 from .wire import (
     MoveControllerMode,
@@ -150,27 +148,11 @@ class FciController:
         k = np.count_nonzero(mask)
         if k == 0:
             return
-        ids = commands["message_id"]
-        published = self.writer.message_id
-        fresh = ids == published
-        if k < n:
-            fresh &= mask
-        late = None
-        if np.count_nonzero(fresh) == k:
-            accepted = fresh
-        else:
-            late = mask & (ids < published) & (ids >= self.accounting.motion_first_id)
-            accepted = fresh | late
-            self._log_unanswerable(mask & ~accepted, ids)
         cycle = self.cycle_input
-        ok, refused_elbow = acceptable(commands, m)
-        if ok is not None and np.count_nonzero(ok) < n:
-            refused = accepted & ~ok
-            self._log_non_finite(refused)
-            cycle.refused |= refused
-            if refused_elbow is not None:
-                cycle.refused_elbow |= refused_elbow
-            accepted = accepted & ok
+        ids = commands["message_id"]
+        fresh, late, accepted = arrival.classify(
+            commands, mask, k, m, self.writer.message_id, self.accounting.motion_first_id, cycle
+        )
         self.accounting.answered |= fresh
         if late is not None and m.n_cartesian:
             late_cartesian = late & m.cartesian & accepted
@@ -189,29 +171,10 @@ class FciController:
                 self.joint.late_datagrams(cycle, commands, late_joint, ids)
                 self._apply_verdicts()
                 accepted = accepted & ~late_joint
-        all_in = np.count_nonzero(accepted) == n
-        if m.n_joint_position:
-            put_rows(cycle.q_c, commands["q_c"], accepted, all_in)
-        if m.n_joint_velocity:
-            put_rows(cycle.dq_c, commands["dq_c"], accepted, all_in)
-        if m.n_external:
-            put_rows(cycle.tau_c, commands["tau_J_d"], accepted, all_in)
         if m.n_cartesian:
             self.cartesian.take(commands, accepted)
-        cycle.have |= accepted
+        cycle.take(commands, accepted, m)
         self.accounting.started |= accepted
-        if m.n_torque_only == 0:
-            finished = commands["motion_generation_finished"]
-        elif m.n_torque_only == n:
-            finished = commands["torque_command_finished"]
-        else:
-            finished = np.where(
-                m.torque_only,
-                commands["torque_command_finished"],
-                commands["motion_generation_finished"],
-            )
-        if np.count_nonzero(finished):  # (the last command of a motion only)
-            cycle.finish |= accepted & finished
 
     def step(self) -> list[Event]:
         """Run one 1 ms cycle and publish state k+1; returns the events it produced."""
@@ -521,24 +484,6 @@ class FciController:
         self.recovery.end(i)
         self.modes.set_robot_mode(i, int(RobotMode.kIdle))
         self._write_modes(i)
-
-    def _log_unanswerable(self, bogus: np.ndarray, ids: np.ndarray) -> None:
-        for i in np.flatnonzero(bogus).tolist():
-            log.warning(
-                "robot %d: command with message_id %d answers no state of the running motion "
-                "(last published %d); counted as lost",
-                i,
-                int(ids[i]),
-                int(self.writer.message_id[i]),
-            )
-
-    def _log_non_finite(self, refused: np.ndarray) -> None:
-        for i in np.flatnonzero(refused).tolist():
-            gen = int(self.modes.motion_generator_mode[i])
-            signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
-            log.warning(
-                "robot %d: non-finite value in the commanded %s; command refused", i, signal
-            )
 
     def _write_modes(self, i: int) -> None:
         m = self.modes
