@@ -41,11 +41,11 @@ class MotionLimitEngine:
         self.violations = ViolationLog(n)
         #: (n,) robots a verdict not yet applied aborts
         self.aborted = np.zeros(n, dtype=bool)
-        self._verdicts: list[Verdict] = []
+        self._verdicts: list[Verdict] = []  # (their robots are the ones set in ``aborted``)
 
     def live(self, rows: np.ndarray) -> np.ndarray:
         """``rows`` without the robots a pending verdict aborts."""
-        if not np.count_nonzero(self.aborted):
+        if not self._verdicts:
             return rows
         return rows & ~self.aborted
 
@@ -86,7 +86,8 @@ class MotionLimitEngine:
     def take_verdicts(self) -> list[Verdict]:
         """The verdicts since the last call, for the controller to apply (in order)."""
         verdicts, self._verdicts = self._verdicts, []
-        self.aborted[...] = False
+        if verdicts:
+            self.aborted[...] = False
         return verdicts
 
     def judge_non_finite(self, cycle: CycleInput) -> None:

@@ -91,12 +91,15 @@ class JointGenerators:
         if not extrapolate_lost:
             lost = np.zeros_like(lost)
         extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
-        # Seed "What the sim does with a lost cycle": one substitute waypoint per
-        # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
-        ex_q, ex_dq = extrapolation.position_step(ref.q, ref.dq, ref.ddq_frozen, dt)
-        h = have[:, None]
-        q_cand = np.where(h, q_c, ex_q)
-        dq_cand = np.where(h, dq_c, ex_dq)
+        if np.count_nonzero(lost):
+            # Seed "What the sim does with a lost cycle": one substitute waypoint per
+            # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
+            ex_q, ex_dq = extrapolation.position_step(ref.q, ref.dq, ref.ddq_frozen, dt)
+            h = have[:, None]
+            q_cand = np.where(h, q_c, ex_q)
+            dq_cand = np.where(h, dq_c, ex_dq)
+        else:  # nothing to guess: the commands are the candidates (unapplied rows unread)
+            q_cand, dq_cand, ex_dq = q_c, dq_c, ref.dq
         first = cycle.first & have
         position = (have | extrapolate) & m.joint_position & tracking
         velocity = (have | extrapolate) & m.joint_velocity & tracking
