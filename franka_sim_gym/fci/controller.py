@@ -14,9 +14,10 @@ Requests (Move, StopMove, AutomaticErrorRecovery, the setters) are applied
 between cycles by the scalar methods below and answer immediately, or later
 through the events ``step()`` returns.
 
-The cycle branches on Python-int group counts (``modes.Modes``) so that when
-every robot is in the same situation — always so for one robot — it runs
-without masks; the masked path is the same arithmetic under ``np.where``.
+The controller owns the pieces and hands each what it needs: the cycle's
+``CycleInput`` to the joint and Cartesian generators (peers), the measured state to
+the safety controller; the engine returns verdicts, which the controller applies
+(:meth:`FciController.reflex`).
 """
 
 from __future__ import annotations
