@@ -10,8 +10,14 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import subprocess
 import sys
+
+import pytest
+
+from franka_sim_gym import native
+from franka_sim_gym.fci import tables
 
 STREAM = r"""
 import hashlib
@@ -61,3 +67,22 @@ def test_joint_and_torque_streams_publish_the_same_states_with_and_without_kerne
     assert on.split()[0] == "True" and off.split()[0] == "False"
     assert on.split()[1] == off.split()[1]
     assert hashlib.sha256().hexdigest() != on.split()[1]  # states were hashed
+
+
+def test_kernels_are_built_where_a_compiler_is():
+    """The install compiles the whole-rule replacements (setup.py); a silent fallback to
+    numpy would leave the speed the benchmarks record unmeasured."""
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler on this machine")
+    if not native.ENABLED:
+        pytest.skip("FRANKA_SIM_GYM_NATIVE=0")
+    assert all(native.loaded().values()), f"not built: {native.describe()}; pip install -e ."
+
+
+def test_the_kernels_difference_over_the_controllers_cycle():
+    """Each module carries the cycle it was built for; load() refuses another."""
+    assert native.CYCLE == tables.DELTA_T
+    for name in native.MODULES:
+        module = native.load(name)
+        if module is not None:
+            assert module.DELTA_T == tables.DELTA_T
