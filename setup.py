@@ -1,7 +1,7 @@
 """Build the optional C kernels: every ``franka_sim_gym/<layer>/_<name>.c``.
 
-Everything else is in pyproject.toml. Each kernel sits next to the numpy code it copies
-(fci/: the robot's rules, sim/: the IK, envs/: the libfranka client's filters) and
+Everything else is in pyproject.toml. Each kernel sits next to the numpy rule it replaces
+whole (sim/: the IK solve, envs/: the libfranka client's filters) and
 becomes the extension ``franka_sim_gym.<layer>._<name>``; franka_sim_gym/native/ holds
 the loader and the shared C header. The kernels are optional: a machine without a C
 compiler still installs, and the package runs on its numpy reference paths
@@ -21,7 +21,7 @@ KERNELS = [
     Extension(
         ".".join(source.with_suffix("").parts),
         [source.as_posix()],
-        include_dirs=["franka_sim_gym/native", "franka_sim_gym/fci"],
+        include_dirs=["franka_sim_gym/native"],
         depends=HEADERS,
         extra_compile_args=FLAGS,
         optional=True,

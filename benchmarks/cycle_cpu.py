@@ -5,7 +5,9 @@
 Rows: a joint-position, a Cartesian-pose and a Cartesian-velocity motion streamed
 in-process (cycle_rate.py's streams: a 4 s cosine on joint 4, or of 5 cm along x),
 each the best of ``--repeats`` runs of ``--cycles`` cycles in ``time.process_time``
-(CPU time: other processes on the host barely move it, unlike wall-clock rates).
+(CPU time: other processes on the host barely move it, unlike wall-clock rates), and
+bare ``mujoco.mj_step`` of the same world timed the same way: "vs mj_step" is the
+ratio of the two CPU times, cycle_rate.py's ratio without the host's noise.
 ``--rotate`` adds a 0.1 rad turn about z (and back) to the Cartesian streams, so the rotation
 paths (the pose's rotation log, the twist's exponential) are timed too.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 import argparse
 import time
 
+import mujoco
 from cycle_rate import (
     CARTESIAN_POSITION,
     CARTESIAN_VELOCITY,
@@ -23,6 +26,7 @@ from cycle_rate import (
 )
 
 from franka_sim_gym.native import describe
+from franka_sim_gym.sim.arm import ArmPhysics
 
 
 def cycle_cpu(cycle, cycles: int, repeats: int) -> float:
@@ -51,13 +55,19 @@ def main() -> None:
         "Cartesian velocity": CARTESIAN_VELOCITY,
     }
     print(describe())
-    print(f"{'row':<32}{'us/cycle':>10}{'vs joint':>10}")
+    print(f"{'row':<32}{'us/cycle':>10}{'vs joint':>10}{'vs mj_step':>12}")
     for n in args.arms:
+        physics = ArmPhysics(n_arms=n)
+        bare = cycle_cpu(
+            lambda p=physics: mujoco.mj_step(p.model, p.data), args.cycles, args.repeats
+        )
+        print(f"{f'bare mj_step, n={n}':<32}{bare * 1e6:>10.1f}{'':>10}{1.0:>12.3f}")
         joint = None
         for name, generator in generators.items():
             cpu = cycle_cpu(motion(n, generator, args.rotate)[1], args.cycles, args.repeats)
             joint = joint or cpu
-            print(f"{f'{name}, n={n}':<32}{cpu * 1e6:>10.1f}{cpu / joint:>10.2f}")
+            row = f"{name}, n={n}"
+            print(f"{row:<32}{cpu * 1e6:>10.1f}{cpu / joint:>10.2f}{bare / cpu:>12.3f}")
 
 
 if __name__ == "__main__":

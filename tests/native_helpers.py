@@ -1,4 +1,4 @@
-"""Shared by the C kernels' tests (tests/test_native_*.py): exact comparison, joint
+"""Shared by the C kernels' tests (tests/*/test_native_*.py): exact comparison, joint
 samples, a random-action episode, and the switch to the numpy reference paths."""
 
 from __future__ import annotations
@@ -7,8 +7,6 @@ import gymnasium as gym
 import numpy as np
 
 import franka_sim_gym.envs.commands as commands_module
-import franka_sim_gym.fci.engine as engine_module
-import franka_sim_gym.fci.tables as tables_module
 from franka_sim_gym.fci.tables import FR3
 
 
@@ -42,8 +40,6 @@ def rollout(interface: str, action_filter: str, steps: int = 25):
 
 
 def joint_and_client_kernels_off(monkeypatch) -> None:
-    """Envs and controllers made after this run the joint rules and the client's filters
-    on their numpy references (the Cartesian kernels stay as they are)."""
-    monkeypatch.setattr(tables_module, "JOINT_KERNEL", None)
-    monkeypatch.setattr(engine_module, "JOINT_KERNEL", None)
+    """Envs made after this run the client's filters on their numpy references (the
+    controller's joint rules have no kernel: they are numpy only)."""
     monkeypatch.setattr(commands_module, "CLIENT_KERNEL", None)

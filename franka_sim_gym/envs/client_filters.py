@@ -79,9 +79,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy import count_nonzero
 from numpy.typing import ArrayLike
 
-from ..fci._fast import count_nonzero
 from ..fci.frames import is_homogeneous
 from ..fci.tables import DELTA_T, INTERIOR_SPEED, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..sim.kinematics import skew

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._fast import count_nonzero
 from .reference import RING
 
 #: columns of one robot's history (the layout of ``CartesianHistory``): T, the pose's
@@ -90,21 +89,6 @@ class CartesianHistory:
         self.elbow_flag[...] = has_elbow
 
 
-def columns() -> dict[str, int]:
-    """Where each field of the plain cycle's kernel starts in a history row (the column
-    of its first value) and ``WIDTH``: what fci/_cartesian_rules.c history_columns()
-    must return for the kernel to be used."""
-    h = CartesianHistory(np.zeros((1, WIDTH)))
-    base = h.buffer.__array_interface__["data"][0]
-    names = ("T", "history", "acceleration_frozen", "twist", "dtwist", "dtwist_frozen")
-    names += ("reported", "dreported", "joint", "ik_warm")
-    found = {
-        name: (getattr(h, name).__array_interface__["data"][0] - base) // 8 for name in names
-    }
-    found["WIDTH"] = WIDTH
-    return found
-
-
 class CartesianReference(CartesianHistory):
     """The live Cartesian history of n robots, with what a late datagram is judged against.
 
@@ -155,7 +139,7 @@ class CartesianReference(CartesianHistory):
         sample the history stands at (seed: the guesses are what a late datagram throws
         away, and it is differenced against "the last command that actually arrived")."""
         starting = lost & (self.run == 0)
-        if count_nonzero(starting):
+        if np.count_nonzero(starting):
             np.copyto(self._real, self.buffer, where=starting[:, None])
         self.run += lost
 
@@ -165,7 +149,7 @@ class CartesianReference(CartesianHistory):
         A robot with no guess since its last real sample is already there.
         """
         rows = rows & (self.run > 0)
-        if not count_nonzero(rows):
+        if not np.count_nonzero(rows):
             return
         np.copyto(self.buffer, self._real, where=rows[:, None])
         np.copyto(self.has_elbow, self.elbow_flag > 0.0, where=rows)
@@ -173,7 +157,7 @@ class CartesianReference(CartesianHistory):
 
     def record_real(self, real: np.ndarray, echo: np.ndarray) -> None:
         """``real`` robots recorded a command that arrived, echoing ``echo``."""
-        if count_nonzero(real) == self.n:
+        if np.count_nonzero(real) == self.n:
             self.real_echo[...] = echo
             self.run[...] = 0
         else:

@@ -14,9 +14,10 @@ Requests (Move, StopMove, AutomaticErrorRecovery, the setters) are applied
 between cycles by the scalar methods below and answer immediately, or later
 through the events ``step()`` returns.
 
-The cycle branches on Python-int group counts (``modes.Modes``) so that when
-every robot is in the same situation — always so for one robot — it runs
-without masks; the masked path is the same arithmetic under ``np.where``.
+The controller owns the pieces and hands each what it needs: the cycle's
+``CycleInput`` to the joint and Cartesian generators (peers), the measured state to
+the safety controller; the engine returns verdicts, which the controller applies
+(:meth:`FciController.reflex`).
 """
 
 from __future__ import annotations
@@ -27,17 +28,22 @@ import numpy as np
 
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
-from . import frames, setters
-from ._fast import count_nonzero, put_rows
+from . import arrival, setters
 from .accounting import CycleAccounting
+from .cartesian import CartesianGenerators
 from .config import ControllerConfig
+from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
+from .joint_generators import JointGenerators
+from .late import LateIntents
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
-from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
+from .recovery import RecoveryWait
 from .reference import JointReference
+from .safety_controller import SafetyController
 from .state import StateWriter
+from .statuses import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .tables import MAX_LOST_CYCLES
 from .wire import (
     MoveControllerMode,
@@ -76,27 +82,32 @@ class FciController:
         self.accounting = CycleAccounting(n)
         self.errors = np.zeros((n, ERROR_COUNT), dtype=bool)
         self.reflex_reason = np.zeros((n, ERROR_COUNT), dtype=bool)
-        #: AutomaticErrorRecovery waiting for standstill: cycles waited, -1 = none
-        self._recovery_wait = np.full(n, -1, dtype=np.int64)
-        self._recovery_settled = np.zeros(n, dtype=np.int64)
-        self._n_recovering = 0
-        # The command candidates of the open cycle (the last datagram applied wins).
-        self._q_c = np.zeros((n, 7))
-        self._dq_c = np.zeros((n, 7))
-        self._tau_c = np.zeros((n, 7))
-        self._have = np.zeros(n, dtype=bool)
-        self._finish = np.zeros(n, dtype=bool)
-        self._all_true = np.ones(n, dtype=bool)
-        self._all_true.setflags(write=False)
-        #: a non-finite command arrived (refused whatever the enforcement)
-        self._refused = np.zeros(n, dtype=bool)
-        #: of those, a Cartesian command refused for its elbow alone (named 17)
-        self._refused_elbow = np.zeros(n, dtype=bool)
-        #: the motion's opening command has not been judged yet
-        self._first = np.zeros(n, dtype=bool)
-        #: the motion-limit engine (checks, safety controller, communication bound)
-        self.engine = MotionLimitEngine(self)
+        #: AutomaticErrorRecovery waiting for standstill
+        self.recovery = RecoveryWait(n, self.config)
+        #: the open cycle's command candidates, who has one, who opens its motion
+        self.cycle_input = CycleInput(n)
+        #: the motion-limit engine: judges what the rules found, returns verdicts
+        self.engine = MotionLimitEngine(n, self.modes, self.config)
         self.violations = self.engine.violations
+        #: late datagrams' joint intents for the open cycle
+        self.late = LateIntents(n)
+        # The generators, peers under the controller, and the safety controller.
+        self.joint = JointGenerators(
+            self.modes,
+            self.reference,
+            self.accounting,
+            self.config,
+            self.tau_J_d,
+            w.message_id,
+            self.engine,
+            self.late,
+        )
+        self.cartesian = CartesianGenerators(
+            physics, w, self.modes, self.accounting, self.config, self.engine, self.late
+        )
+        self.safety = SafetyController(
+            physics, w.O_T_EE, self.modes, self.accounting, self.config, self.engine
+        )
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         for i in range(n):
@@ -135,73 +146,52 @@ class FciController:
         n = self.n
         if m.n_motion < n:
             mask = mask & m.in_motion
-        k = count_nonzero(mask)
+        k = np.count_nonzero(mask)
         if k == 0:
             return
+        cycle = self.cycle_input
         ids = commands["message_id"]
-        published = self.writer.message_id
-        fresh = ids == published
-        if k < n:
-            fresh &= mask
-        late = None
-        if count_nonzero(fresh) == k:
-            accepted = fresh
-        else:
-            late = mask & (ids < published) & (ids >= self.accounting.motion_first_id)
-            accepted = fresh | late
-            self._log_unanswerable(mask & ~accepted, ids)
-        finite = self._finite(commands)
-        if finite is not self._all_true and count_nonzero(finite) < n:
-            refused = accepted & ~finite
-            self._log_non_finite(refused)
-            self._refused |= refused
-            accepted = accepted & finite
+        fresh, late, accepted = arrival.classify(
+            commands, mask, k, m, self.writer.message_id, self.accounting.motion_first_id, cycle
+        )
         self.accounting.answered |= fresh
         if late is not None and m.n_cartesian:
             late_cartesian = late & m.cartesian & accepted
-            if count_nonzero(late_cartesian):
+            if np.count_nonzero(late_cartesian):
                 # Seed "A datagram that turns up late replaces the guess it stood in for",
                 # as for joint motions: the one the extrapolated run is missing rewinds
                 # the Cartesian history, the others are judged and drive the servo only.
-                self.engine.cartesian.late_datagrams(commands, late_cartesian, ids)
+                self.cartesian.late_datagrams(cycle, commands, late_cartesian, ids)
+                self._apply_verdicts()
                 accepted = accepted & ~late_cartesian
         if late is not None and m.n_tracking:
             late_joint = late & m.tracking & accepted
-            if count_nonzero(late_joint):
+            if np.count_nonzero(late_joint):
                 # Late datagrams of joint motions are handled on arrival: the one
                 # the extrapolated run is missing rewinds it, the others are judged.
-                self.engine.late_joint_datagrams(commands, late_joint, ids)
+                self.joint.late_datagrams(cycle, commands, late_joint, ids)
+                self._apply_verdicts()
                 accepted = accepted & ~late_joint
-        all_in = count_nonzero(accepted) == n
-        if m.n_joint_position:
-            put_rows(self._q_c, commands["q_c"], accepted, all_in)
-        if m.n_joint_velocity:
-            put_rows(self._dq_c, commands["dq_c"], accepted, all_in)
-        if m.n_external:
-            put_rows(self._tau_c, commands["tau_J_d"], accepted, all_in)
         if m.n_cartesian:
-            self.engine.cartesian.take(commands, accepted)
-        self._have |= accepted
+            self.cartesian.take(commands, accepted)
+        cycle.take(commands, accepted, m)
         self.accounting.started |= accepted
-        if m.n_torque_only == 0:
-            finished = commands["motion_generation_finished"]
-        elif m.n_torque_only == n:
-            finished = commands["torque_command_finished"]
-        else:
-            finished = np.where(
-                m.torque_only,
-                commands["torque_command_finished"],
-                commands["motion_generation_finished"],
-            )
-        if count_nonzero(finished):  # (the last command of a motion only)
-            self._finish |= accepted & finished
 
     def step(self) -> list[Event]:
         """Run one 1 ms cycle and publish state k+1; returns the events it produced."""
         m = self.modes
         w = self.writer
+        cycle = self.cycle_input
         if m.n_motion:
-            self.engine.advance_commands()
+            # Seed "Motion limits and discontinuities": every command and every
+            # extrapolated waypoint judged by its generator; refused ones first.
+            if np.count_nonzero(cycle.refused):
+                self.engine.judge_non_finite(cycle)
+            started = self.accounting.started
+            self.joint.advance(cycle, started)
+            if m.n_cartesian and np.count_nonzero(started):
+                self.cartesian.advance(cycle, started)
+            self._apply_verdicts()
         # Physics: the internal joint servo tracks q_d / dq_d under a joint
         # generator and the hold setpoint otherwise; an external controller's
         # torque is applied with gravity added by the actuators.
@@ -214,33 +204,43 @@ class FciController:
             q_ref = np.where(track, w.q_d, self.q_hold)
             dq_ref = np.where(track, w.dq_d, 0.0)
         if m.n_cartesian:
-            q_ref, dq_ref = self.engine.cartesian.servo(q_ref, dq_ref)
+            q_ref, dq_ref = self.cartesian.servo(q_ref, dq_ref)
         # A late datagram's intent, where no fresh command superseded it (called every
         # cycle, so an intent never outlives the cycle it arrived in).
-        q_ref, dq_ref = self.engine.servo_reference(q_ref, dq_ref)
+        q_ref, dq_ref = self.late.servo(q_ref, dq_ref, cycle.have, m.in_motion)
         #: what the joint servo was given this cycle (for tests and viewers)
         self.servo_q = q_ref
         moving = m.n_motion > 0
         if moving:
-            self.engine.ee_prev[...] = w.O_T_EE[:, 12:15]
+            self.safety.remember_ee()
         self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg)
         w.write_measured(self.physics)
         if moving:
             if m.n_motion:
-                self.engine.safety_controller()
+                self.safety.check()
+                self._apply_verdicts()
             acc = self.accounting
-            acc.close_cycle(int(count_nonzero(acc.started)))
-            if count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
-                self.engine.communication_constraints()
-            if count_nonzero(self._finish):
-                for i in np.flatnonzero(self._finish & m.in_motion).tolist():
+            acc.close_cycle(int(np.count_nonzero(acc.started)))
+            if np.count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
+                self.safety.communication_constraints()
+                self._apply_verdicts()
+            if np.count_nonzero(cycle.finish):
+                for i in np.flatnonzero(cycle.finish & m.in_motion).tolist():
                     self._end_motion(i, MoveStatus.kSuccess, hold_reference=True)
-                self._finish[...] = False
-            self._have[...] = False
-        if self._n_recovering:
-            self._advance_recovery()
+                cycle.finish[...] = False
+            cycle.have[...] = False
+        if self.recovery.count:
+            for i in self.recovery.advance(self.physics.dq):
+                self._finish_recovery(i)
+                status = int(AutomaticErrorRecoveryStatus.kSuccess)
+                self._events.append(Event(i, EventKind.RECOVERY_FINISHED, status))
         self._publish_rest()
         return self.take_events()
+
+    def _apply_verdicts(self) -> None:
+        """The engine's verdicts, in the order it reached them: the reflex."""
+        for verdict in self.engine.take_verdicts():
+            self.reflex(verdict.robot, verdict.bits)
 
     def reflex(self, i: int, bits: list[int]) -> None:
         """Abort robot i's motion: latch ``bits``, kReflex, Move answered kReflexAborted
@@ -288,12 +288,12 @@ class FciController:
         elif m.n_motion < self.n:
             np.copyto(w.q_d, physics.q, where=~m.in_motion[:, None])
         if m.n_cartesian:
-            self.engine.cartesian.publish()
+            self.cartesian.publish()
         w.publish(self.accounting.success_rate())
         if m.n_tracking:
             self.reference.remember(int(w.message_id[0]))
         if m.n_cartesian:
-            self.engine.cartesian.remember(int(w.message_id[0]))
+            self.cartesian.remember(int(w.message_id[0]))
 
     # -- requests (between cycles) --------------------------------------------------------------
 
@@ -344,11 +344,10 @@ class FciController:
         # motion that was aborted, not the connection (as the robot does).
         self.reflex_reason[i] = False
         self.accounting.start_motion(i, int(self.writer.message_id[i]))
-        self._have[i] = self._finish[i] = self._refused[i] = False
-        self._first[i] = True
+        self.cycle_input.start(i)
         self.violations.begin_motion(i)
         if self.modes.cartesian[i]:
-            self.engine.cartesian.start(i)
+            self.cartesian.start(i)
         self._write_modes(i)
         return MoveStatus.kMotionStarted
 
@@ -372,9 +371,7 @@ class FciController:
         self.accounting.rearm(i)
         self.q_hold[i] = self.physics.q[i]
         self.modes.set_robot_mode(i, int(RobotMode.kAutomaticErrorRecovery))
-        self._recovery_wait[i] = 0
-        self._recovery_settled[i] = 0
-        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
+        self.recovery.begin(i)
         self._write_modes(i)
         return None
 
@@ -418,7 +415,7 @@ class FciController:
         """
         if self.modes.in_motion[robot]:
             self._end_motion(robot, MoveStatus.kAborted, hold_reference=False)
-        if self._recovery_wait[robot] >= 0:
+        if self.recovery.waiting(robot):
             self._finish_recovery(robot)
         self.writer.reset_configuration(robot)
         self.physics.set_stiffness(np.array([robot]), np.asarray(self.config.joint_stiffness))
@@ -439,13 +436,12 @@ class FciController:
             self._clear_commanded(i)
             self.errors[i] = False
             self.reflex_reason[i] = False
-            self._recovery_wait[i] = -1
+            self.recovery.end(i)
             self.accounting.stop_motion(i)
             self.writer.reset_configuration(i)
             self._write_modes(i)
-        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
-        self._have[robots] = False
-        self._finish[robots] = False
+        self.cycle_input.have[robots] = False
+        self.cycle_input.finish[robots] = False
         dropped = set(robots.tolist())
         self._events = [e for e in self._events if e.robot not in dropped]
         self._publish()
@@ -462,11 +458,11 @@ class FciController:
             self.q_hold[i] = self.reference.q[i]
         elif hold_reference and self.modes.cartesian[i]:
             # ... and a finished Cartesian motion where its last pose solved to.
-            self.q_hold[i] = self.engine.cartesian.q_ik[i]
+            self.q_hold[i] = self.cartesian.q_ik[i]
         else:
             self.q_hold[i] = self.physics.q[i]
         if self.modes.cartesian[i]:
-            self.engine.cartesian.end(i)
+            self.cartesian.end(i)
         if robot_mode is None:
             mode = int(self.modes.robot_mode[i])
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
@@ -475,7 +471,7 @@ class FciController:
         accounting = self.accounting
         summary = accounting.motion_summary(i)
         accounting.stop_motion(i)
-        self._have[i] = self._finish[i] = self._first[i] = self._refused[i] = False
+        self.cycle_input.clear(i)
         self._write_modes(i)
         self._events.append(Event(i, EventKind.MOVE_FINISHED, int(status), *summary))
 
@@ -485,90 +481,10 @@ class FciController:
         self.reference.ddq[i] = 0.0
         self.tau_J_d[i] = 0.0
 
-    def _advance_recovery(self) -> None:
-        waiting = self._recovery_wait >= 0
-        still = np.all(np.abs(self.physics.dq) < self.config.recovery_velocity_threshold, axis=1)
-        self._recovery_settled = np.where(waiting & still, self._recovery_settled + 1, 0)
-        self._recovery_wait[waiting] += 1
-        done = waiting & (
-            (self._recovery_settled >= self.config.recovery_settle_cycles)
-            | (self._recovery_wait >= self.config.recovery_max_cycles)
-        )
-        for i in np.flatnonzero(done).tolist():
-            if self._recovery_settled[i] < self.config.recovery_settle_cycles:
-                log.warning("robot %d: recovery answered at the 0.7 s cap before standstill", i)
-            self._finish_recovery(i)
-            status = int(AutomaticErrorRecoveryStatus.kSuccess)
-            self._events.append(Event(i, EventKind.RECOVERY_FINISHED, status))
-
     def _finish_recovery(self, i: int) -> None:
-        self._recovery_wait[i] = -1
-        self._recovery_settled[i] = 0
-        self._n_recovering = int(count_nonzero(self._recovery_wait >= 0))
+        self.recovery.end(i)
         self.modes.set_robot_mode(i, int(RobotMode.kIdle))
         self._write_modes(i)
-
-    def _finite(self, commands: np.ndarray) -> np.ndarray:
-        """Per robot: every value of the active interface's command fields is finite."""
-        m = self.modes
-        n = self.n
-        if m.n_joint_position == n:
-            q_c = commands["q_c"]
-            finite = np.isfinite(q_c)
-            if count_nonzero(finite) == finite.size:  # the common case, without a reduce
-                return self._all_true
-            return finite.all(axis=1)
-        if m.n_external == n and m.n_torque_only == n:
-            return np.isfinite(commands["tau_J_d"]).all(axis=1)
-        if m.n_cartesian == n and not count_nonzero(commands["valid_elbow"]):
-            # Every robot in one Cartesian generator, no elbow: the common case.
-            if m.n_cartesian_position == n:
-                verdict = frames.is_homogeneous_wire(commands["O_T_EE_c"])
-                return self._all_true if verdict is None else verdict
-            if m.n_cartesian_velocity == n:
-                finite = np.isfinite(commands["O_dP_EE_c"])
-                if count_nonzero(finite) == finite.size:
-                    return self._all_true
-                return finite.all(axis=1)
-        ok = np.ones(n, dtype=bool)
-        if m.n_joint_position:
-            ok &= ~m.joint_position | np.isfinite(commands["q_c"]).all(axis=1)
-        if m.n_joint_velocity:
-            ok &= ~m.joint_velocity | np.isfinite(commands["dq_c"]).all(axis=1)
-        if m.n_external:
-            ok &= ~m.external | np.isfinite(commands["tau_J_d"]).all(axis=1)
-        if m.n_cartesian_position:
-            # 31: libfranka's isHomogeneousTransformation (NaN fails it too).
-            pose_ok = frames.is_homogeneous_wire(commands["O_T_EE_c"])
-            if pose_ok is not None:
-                ok &= ~m.cartesian_position | pose_ok
-        if m.n_cartesian_velocity:
-            ok &= ~m.cartesian_velocity | np.isfinite(commands["O_dP_EE_c"]).all(axis=1)
-        if m.n_cartesian:
-            elbow_ok = ~commands["valid_elbow"].astype(bool) | np.isfinite(commands["elbow_c"]).all(
-                axis=1
-            )
-            self._refused_elbow |= m.cartesian & ok & ~elbow_ok
-            ok &= ~m.cartesian | elbow_ok
-        return ok
-
-    def _log_unanswerable(self, bogus: np.ndarray, ids: np.ndarray) -> None:
-        for i in np.flatnonzero(bogus).tolist():
-            log.warning(
-                "robot %d: command with message_id %d answers no state of the running motion "
-                "(last published %d); counted as lost",
-                i,
-                int(ids[i]),
-                int(self.writer.message_id[i]),
-            )
-
-    def _log_non_finite(self, refused: np.ndarray) -> None:
-        for i in np.flatnonzero(refused).tolist():
-            gen = int(self.modes.motion_generator_mode[i])
-            signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
-            log.warning(
-                "robot %d: non-finite value in the commanded %s; command refused", i, signal
-            )
 
     def _write_modes(self, i: int) -> None:
         m = self.modes

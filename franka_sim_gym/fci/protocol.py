@@ -1,4 +1,4 @@
-"""TCP messages of robot server v10 (port 1337): framing, requests, replies.
+"""TCP messages of robot server v10 (port 1337): requests, replies (framing: framing.py).
 
 Spec: fci-wire-protocol.md §2 (framing), §3 (commands, status enums, payloads),
 §4 (Connect), §5.1 (Move), §6 (GetRobotModel). Everything is little-endian and
@@ -11,8 +11,18 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import astuple, dataclass, fields
-from enum import IntEnum
 from typing import ClassVar
+
+from .framing import HEADER, MAX_MESSAGE_SIZE, Frame, FrameDecoder, FramingError
+from .statuses import (
+    AutomaticErrorRecoveryStatus,
+    Command,
+    ConnectStatus,
+    GetterStatus,
+    MoveStatus,
+    SetterStatus,
+    StopMoveStatus,
+)
 
 __all__ = [
     "VERSION",
@@ -59,98 +69,11 @@ __all__ = [
 
 VERSION = 10
 COMMAND_PORT = 1337
-# §2.1 CommandHeader: command u32, command_id u32, size u32 (total, header included).
-HEADER = struct.Struct("<III")
-# Our bound on one message read from the wire (the largest real one is the
-# ~15 kB GetRobotModel reply; requests are at most 428 bytes).
-MAX_MESSAGE_SIZE = 1 << 20
 # §5.1: libfranka always sends {translation 10.0 m, rotation 3.12 rad, elbow 2 pi}.
 DEFAULT_DEVIATION: tuple[float, float, float] = (10.0, 3.12, 2.0 * math.pi)
 
 _STATUS = struct.Struct("<B")
 _U16 = struct.Struct("<H")
-
-
-class Command(IntEnum):
-    """§3: command ids of robot server v10."""
-
-    kConnect = 0
-    kMove = 1
-    kStopMove = 2
-    kSetCollisionBehavior = 3
-    kSetJointImpedance = 4
-    kSetCartesianImpedance = 5
-    kSetGuidingMode = 6
-    kSetEEToK = 7
-    kSetNEToEE = 8
-    kSetLoad = 9
-    kAutomaticErrorRecovery = 10
-    kGetRobotModel = 11
-
-
-# §3.1 status enums (all u8; 0 = success everywhere).
-class ConnectStatus(IntEnum):
-    """§3.1 C: Connect reply status."""
-
-    kSuccess = 0
-    kIncompatibleLibraryVersion = 1
-
-
-class MoveStatus(IntEnum):
-    """§3.1 D: Move reply status (sent twice: kMotionStarted, then the final status)."""
-
-    kSuccess = 0
-    kMotionStarted = 1
-    kPreempted = 2
-    kPreemptedDueToActivatedSafetyFunctions = 3
-    kCommandRejectedDueToActivatedSafetyFunctions = 4
-    kCommandNotPossibleRejected = 5
-    kStartAtSingularPoseRejected = 6
-    kInvalidArgumentRejected = 7
-    kReflexAborted = 8
-    kEmergencyAborted = 9
-    kInputErrorAborted = 10
-    kAborted = 11
-
-
-class StopMoveStatus(IntEnum):
-    """§3.1 E: StopMove reply status."""
-
-    kSuccess = 0
-    kCommandNotPossibleRejected = 1
-    kCommandRejectedDueToActivatedSafetyFunctions = 2
-    kEmergencyAborted = 3
-    kReflexAborted = 4
-    kAborted = 5
-
-
-class SetterStatus(IntEnum):
-    """§3.1 B: status of the setters (ids 3-9)."""
-
-    kSuccess = 0
-    kCommandNotPossibleRejected = 1
-    kInvalidArgumentRejected = 2
-    kCommandRejectedDueToActivatedSafetyFunctions = 3
-
-
-class GetterStatus(IntEnum):
-    """§3.1 A: the Basic status enum, used by GetRobotModel."""
-
-    kSuccess = 0
-    kCommandNotPossibleRejected = 1
-    kCommandRejectedDueToActivatedSafetyFunctions = 2
-
-
-class AutomaticErrorRecoveryStatus(IntEnum):
-    """§3.1 F: AutomaticErrorRecovery reply status."""
-
-    kSuccess = 0
-    kCommandNotPossibleRejected = 1
-    kCommandRejectedDueToActivatedSafetyFunctions = 2
-    kManualErrorRecoveryRequiredRejected = 3
-    kReflexAborted = 4
-    kEmergencyAborted = 5
-    kAborted = 6
 
 
 # §3: total request sizes, header included.
@@ -478,102 +401,3 @@ def decode_connect_reply(payload: bytes) -> tuple[int, int]:
     if len(payload) < _STATUS.size + _U16.size:
         raise ProtocolError(f"truncated Connect reply payload: {len(payload)} bytes, expected 3")
     return payload[0], _U16.unpack_from(payload, 1)[0]
-
-
-# ---------------------------------------------------------------------------
-# Framing (§2): incremental, bounded memory.
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One complete message: header fields and the payload after the header."""
-
-    command: int
-    command_id: int
-    payload: bytes
-
-
-@dataclass(frozen=True)
-class FramingError:
-    """A header the decoder skipped; ``reason`` is meant for the log."""
-
-    reason: str
-    command: int
-    command_id: int
-
-
-def _bound_text(size: int) -> str:
-    return f"{size >> 20} MiB" if size % (1 << 20) == 0 else f"{size}-byte"
-
-
-class FrameDecoder:
-    """Cut a TCP byte stream into frames, holding at most one header + one bounded payload.
-
-    * ``size`` < header size: a ``FramingError``; the header bytes are skipped and
-      parsing resumes right after them.
-    * ``size`` > ``max_message_size``: a ``FramingError``; the declared payload is
-      discarded as it arrives (only a counter is kept), then parsing resumes.
-
-    ``header`` is any struct unpacking to (command, command_id, size) with size
-    counting the header itself (the robot's ``HEADER`` by default).
-    """
-
-    def __init__(
-        self, max_message_size: int = MAX_MESSAGE_SIZE, header: struct.Struct = HEADER
-    ) -> None:
-        if max_message_size < header.size:
-            raise ValueError(f"max_message_size {max_message_size} below the header size")
-        self._header = header
-        self._max = max_message_size
-        self._buf = bytearray()
-        self._size: int | None = None  # total size of the message whose header is in _buf
-        self._discard = 0  # payload bytes of an oversized message still to drop
-
-    @property
-    def buffered(self) -> int:
-        """Bytes currently held (header + partial payload)."""
-        return len(self._buf)
-
-    @property
-    def discarding(self) -> int:
-        """Bytes of an oversized message still to be dropped."""
-        return self._discard
-
-    def feed(self, data: bytes) -> list[Frame | FramingError]:
-        """Consume ``data``; return the frames and framing errors it completed, in order."""
-        out: list[Frame | FramingError] = []
-        view = memoryview(data).cast("B")
-        pos, end = 0, len(view)
-        hsize = self._header.size
-        while True:
-            if self._discard:
-                n = min(self._discard, end - pos)
-                pos += n
-                self._discard -= n
-                if self._discard:
-                    break
-            need = hsize if self._size is None else self._size
-            take = min(need - len(self._buf), end - pos)
-            if take > 0:
-                self._buf += view[pos : pos + take]
-                pos += take
-            if len(self._buf) < need:
-                break
-            command, command_id, size = self._header.unpack_from(self._buf)
-            if self._size is None:
-                if size < hsize:
-                    reason = f"message size {size} below the {hsize}-byte header"
-                elif size > self._max:
-                    reason = f"message size {size} above the {_bound_text(self._max)} bound"
-                    self._discard = size - hsize
-                else:
-                    self._size = size  # go round again to collect the payload
-                    continue
-                out.append(FramingError(reason, command, command_id))
-                self._buf.clear()
-                continue
-            out.append(Frame(command, command_id, bytes(self._buf[hsize:])))
-            self._buf.clear()
-            self._size = None
-        return out

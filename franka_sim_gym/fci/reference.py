@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._fast import count_nonzero
 from .tables import DELTA_T
 
 #: published references kept for judging late datagrams: more than the 20 cycles
@@ -125,7 +124,7 @@ class JointReference:
         a = apply[:, None]
         guessed = apply & ~real
         starting = guessed & (self.run == 0)
-        if count_nonzero(starting):  # a run of guesses begins: remember the real sample
+        if np.count_nonzero(starting):  # a run of guesses begins: remember the real sample
             st = starting[:, None]
             np.copyto(self._real_q, self.q, where=st)
             np.copyto(self._real_dq, self.dq, where=st)
@@ -137,7 +136,7 @@ class JointReference:
         np.copyto(self.dq, dq, where=a)
         np.copyto(self.ddq, ddq, where=a)
         np.copyto(self.ddq_frozen, ddq, where=real[:, None])
-        if count_nonzero(held):
+        if np.count_nonzero(held):
             h = held[:, None]
             np.copyto(self.dq, 0.0, where=h)
             np.copyto(self.ddq, 0.0, where=h)

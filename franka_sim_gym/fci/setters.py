@@ -13,7 +13,7 @@ import logging
 import numpy as np
 
 from . import frames
-from .protocol import SetterStatus
+from .statuses import SetterStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 

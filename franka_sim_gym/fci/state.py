@@ -68,7 +68,7 @@ class StateWriter:
         #: F_T_EE = F_T_NE · NE_T_EE (libfranka Robot::setEE), row-major 4x4 per robot
         self.F_T_EE = np.tile(np.eye(4), (n, 1, 1))
         self._custom_ee = np.zeros(n, dtype=bool)
-        self._any_custom_ee = False
+        self.any_custom_ee = False
         # O_T_EE's position and rotation block as views (column-major: the block is R^T).
         self._O_T_EE_position = self.O_T_EE[:, 12:15]
         self._O_T_EE_rotation = self.O_T_EE.reshape(n, 4, 4)[:, :3, :3]
@@ -120,7 +120,7 @@ class StateWriter:
         """Robot i's EE frame (row-major), where write_measured measures O_T_EE."""
         self.F_T_EE[i] = F_T_EE
         self._custom_ee[i] = not np.array_equal(F_T_EE, np.eye(4))
-        self._any_custom_ee = bool(self._custom_ee.any())
+        self.any_custom_ee = bool(self._custom_ee.any())
         self.field["F_T_EE"][i] = frames.to_wire(F_T_EE)
 
     def set_load(self, i: int, m_load: float, F_x_Cload: np.ndarray, I_load: np.ndarray) -> None:
@@ -150,7 +150,7 @@ class StateWriter:
             pos, xmat = physics.flange_pose_raw()
             pose[:, _ROT_WIRE] = xmat[:, _ROT_XMAT]
             pose[:, 12:15] = pos
-        if self._any_custom_ee:
+        if self.any_custom_ee:
             pose[...] = frames.to_wire(frames.from_wire(pose) @ self.F_T_EE)
         self.elbow[:, 0] = q[:, 2]
         # Seed: the elbow flag is the sign of joint 4 (sign(0) taken as +1).

@@ -16,19 +16,18 @@ from functools import cached_property
 
 import numpy as np
 
-from ..native import load
-
 #: libfranka include/franka/rate_limiting.h: kDeltaT, the 1 kHz cycle.
 DELTA_T = 1e-3
 #: libfranka rate_limiting.h: kLimitEps.
 LIMIT_EPS = 1e-3
 #: libfranka joint_velocity_limits.cpp: tolerance subtracted from the envelope.
 JOINT_VELOCITY_LIMIT_TOLERANCE = 1e-3
-#: The joint speed [rad/s] up to which the per-cycle envelope checks pass on the interior
-#: shortcut (RobotTable.interior_bounds) instead of the envelope's square roots. Any value is
-#: exact (faster motions, or motions near a stop, take the envelope itself); 1.5 rad/s
-#: covers the motions the env's policies and the examples make, with interiors that
-#: still contain the usual workspace (joint 2 within +-1.23 rad, joint 4 in [-2.64, -0.55]).
+#: The joint speed [rad/s] up to which the client filters' envelope band passes on the
+#: interior shortcut (RobotTable.interior_bounds) instead of the envelope's square roots.
+#: Any value is exact (faster motions, or motions near a stop, take the envelope itself);
+#: 1.5 rad/s covers the motions the env's policies and the examples make, with interiors
+#: that still contain the usual workspace (joint 2 within +-1.23 rad, joint 4 in
+#: [-2.64, -0.55]). The controller's rules always evaluate the envelope itself.
 INTERIOR_SPEED = 1.5
 #: Franka docs "Control Interface Specification": >= 20 consecutive lost
 #: packets abort the motion with communication_constraints_violation.
@@ -94,8 +93,9 @@ class RobotTable:
 
     @cached_property
     def envelope_table(self) -> np.ndarray | None:
-        """(4, 14) the envelope's constants as the C kernels take them (rows 2 a_dec, bound,
-        v_off, v_max; fci/_envelope.h); None for a constant envelope."""
+        """(4, 14) the envelope's constants, upper and lower halves side by side (rows
+        2 a_dec, bound, v_off, v_max; the client filters' kernel takes them); None for a
+        constant envelope."""
         if self.dq_offset is None:
             return None
         return _ro(np.stack(self._envelope_constants))
@@ -122,17 +122,6 @@ class RobotTable:
         if self.dq_offset is None:
             vmax = np.concatenate([self.dq_max] * 2)
             return np.broadcast_to(vmax, (*np.shape(q)[:-1], 14)) - shift
-        if (
-            JOINT_KERNEL is not None
-            and type(q) is np.ndarray
-            and q.ndim == 2
-            and q.dtype == _F64
-            and (type(shift) is float or np.shape(shift)[-1:] == (14,))
-        ):
-            # One fused C call (fci/_joint_rules.c), the same bits as the numpy below.
-            out = q if doubled else np.empty((len(q), 14))
-            JOINT_KERNEL.envelope(q, self.envelope_table, shift, out)
-            return out
         two_a, bound, offset, vmax = self._envelope_constants
         r = q if doubled else np.concatenate((q, q), axis=-1)
         r *= _MIRROR
@@ -173,11 +162,6 @@ class RobotTable:
         halves = self.velocity_envelope_halves(np.concatenate([upper_edge, lower_edge]), shift)
         return np.concatenate([halves[:7], upper_edge, halves[7:], -lower_edge])
 
-
-_F64 = np.dtype(np.float64)
-
-#: The joint-side rules in C (fci/_joint_rules.c; None: not built, or turned off).
-JOINT_KERNEL = load("fci._joint_rules")
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
 _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))

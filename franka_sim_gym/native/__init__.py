@@ -1,14 +1,14 @@
 """The loader of the optional C kernels for the 1 kHz hot path (no rule lives here).
 
-At one arm, a cycle's cost is the number of numpy calls, not their arithmetic (each
-costs 0.3-1 us on arrays of 7 values). A kernel fuses a hot function's calls into one
-C call; it sits next to the numpy code it copies, in that code's layer
-(``fci/_joint_rules.c``, ``fci/_cartesian_rules.c``, ``sim/_ik.c``,
-``envs/_client_filters.c``), and that numpy code stays the rule (the one the docs and
-the seed describe); tests hold the kernel to it: bit for bit where the reference is
-elementwise arithmetic, and to the same verdicts everywhere. This package holds what
-they share: the switch, the loader and the C headers ``_arrays.h``, ``_rotation.h`` and
-``_ik_core.h`` (the IK solve, for ``sim/_ik.c`` and the Cartesian rules' plain cycle).
+A kernel replaces one whole rule: the same signature as the numpy function it stands
+in for, in that function's layer (``sim/_ik.c``: the IK solve; ``envs/_client_filters.c``:
+the libfranka client's filters), every constant passed in from the tables, never fused
+with the code of another layer. The numpy function stays the rule (the one the docs
+describe); a test holds the kernel to it. The controller's own rules (``fci/limits``)
+have no kernel: they are numpy only (docs/architecture.md, "Fast paths", says why).
+This package holds what the kernels share: the switch, the loader and the C headers
+``_arrays.h``, ``_envelope.h`` (the joint velocity envelope's law, for the client's
+filters), ``_rotation.h`` and ``_ik_core.h``.
 
 The kernels are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler was available
@@ -38,7 +38,7 @@ CYCLE = 1e-3
 
 
 def load(name: str) -> ModuleType | None:
-    """The kernel module ``franka_sim_gym.<name>`` (e.g. ``"fci._joint_rules"``), or None
+    """The kernel module ``franka_sim_gym.<name>`` (e.g. ``"sim._ik"``), or None
     when it was not built, the kernels are turned off, or it was built for another cycle
     (a stale build)."""
     if not ENABLED:
@@ -51,7 +51,7 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
-MODULES = ("fci._joint_rules", "fci._cartesian_rules", "sim._ik", "envs._client_filters")
+MODULES = ("sim._ik", "envs._client_filters")
 
 
 def loaded() -> dict[str, bool]:

@@ -126,7 +126,7 @@ static inline PyObject *kernel_module(PyModuleDef *def)
 }
 
 /* The definition and the init function of kernel module ``name`` (an identifier such as
- * _joint_rules: PyInit__joint_rules) with its ``doc`` and METHODS table. */
+ * _client_filters: PyInit__client_filters) with its ``doc`` and METHODS table. */
 #define KERNEL_MODULE(name, doc)                                                         \
     static struct PyModuleDef name##_definition = {                                      \
         PyModuleDef_HEAD_INIT, #name, doc, -1, METHODS, NULL, NULL, NULL, NULL};        \

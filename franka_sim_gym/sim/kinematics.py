@@ -21,9 +21,9 @@ from typing import NamedTuple
 
 import mujoco
 import numpy as np
+from numpy import count_nonzero, einsum
 
 from .. import native
-from ..fci._fast import count_nonzero, einsum
 from .views import strided_rows
 from .world import ArmLayout
 

@@ -477,7 +477,7 @@ def test_an_unreachable_pose_holds_the_arm_at_its_last_usable_solution(caplog):
     c = start(CP, enforce_motion_limits=False)
     T0 = pose0(c)
     c.send(O_T_EE_c=T0)
-    held = c.ctrl.engine.cartesian.q_ik[0].copy()
+    held = c.ctrl.cartesian.q_ik[0].copy()
     far = T0.copy()
     far[12] += 1.0
     far[14] -= 1.0
@@ -486,7 +486,7 @@ def test_an_unreachable_pose_holds_the_arm_at_its_last_usable_solution(caplog):
             c.send(O_T_EE_c=far)
     assert "no converged IK solution" in caplog.text
     assert c.state["robot_mode"] == RobotMode.kMove
-    np.testing.assert_array_equal(c.ctrl.engine.cartesian.q_ik[0], held)
+    np.testing.assert_array_equal(c.ctrl.cartesian.q_ik[0], held)
     assert np.abs(c.state["dq"]).max() < 1e-2  # at rest, not flailing
     np.testing.assert_allclose(c.state["q"], held, atol=2e-3)
     for _ in range(500):

@@ -66,7 +66,7 @@ def deliver(c: LoopClient, items: list[tuple[int, dict]]) -> None:
 def history(c: LoopClient) -> np.ndarray:
     """Every value the next Cartesian command is differenced against (pose, twist,
     elbow, reported twist, IK joint history), as one row."""
-    return c.ctrl.engine.cartesian.reference.buffer[0].copy()
+    return c.ctrl.cartesian.reference.buffer[0].copy()
 
 
 def names(seen: np.ndarray) -> set[str]:
@@ -89,7 +89,7 @@ def stream_with_stall(generator, reorder=None, jerk: float = 0.0, **config) -> L
     now = int(c.state["message_id"])
     backlog = reorder(stalled) if reorder else stalled
     deliver(c, [*backlog, (now, fields_at(generator, T0, 106, jerk))])
-    reference = c.ctrl.engine.cartesian.reference
+    reference = c.ctrl.cartesian.reference
     # the fresh answer was the last real sample, the run of guesses is gone
     assert (int(reference.real_echo[0]), int(reference.run[0])) == (now, 0)
     for k in range(107, 120):
@@ -261,7 +261,7 @@ def test_an_inconsistent_replay_aborts_under_enforcement():
 def test_a_late_pose_drives_the_servo_for_its_cycle_unless_a_fresh_one_arrives():
     c = start(CP)
     T0 = pose0(c)
-    cartesian = c.ctrl.engine.cartesian
+    cartesian = c.ctrl.cartesian
     solutions = {}  # the IK solution each published state carried
     for k in range(50):
         c.send(**fields_at(CP, T0, k))
@@ -271,7 +271,7 @@ def test_a_late_pose_drives_the_servo_for_its_cycle_unless_a_fresh_one_arrives()
     late_T[13] += 1e-4  # its intent: 0.1 mm off the stream
     # the IK of the late pose, solved from the solution of the state it answers
     target = frames.from_wire(late_T[None])
-    intent = cartesian.kinematics.solve(target, solutions[late_id][None]).q[0]
+    intent = cartesian.stepper.kinematics.solve(target, solutions[late_id][None]).q[0]
     deliver(c, [(late_id, {"O_T_EE_c": late_T})])
     # the cycle was lost: the history is the extrapolated one, the servo had the intent
     np.testing.assert_array_equal(c.ctrl.servo_q[0], intent)
@@ -356,7 +356,7 @@ def _two_arms(stall: bool) -> np.ndarray:
         ctrl.step()
     assert (ctrl.modes.robot_mode == int(RobotMode.kMove)).all()
     assert not ctrl.violations.take().any()
-    return ctrl.engine.cartesian.reference.buffer.copy()
+    return ctrl.cartesian.reference.buffer.copy()
 
 
 def test_a_backlog_on_one_arm_rewinds_that_arm_alone():

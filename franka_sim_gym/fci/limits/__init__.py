@@ -45,7 +45,6 @@ the only constant defined here is ``MEASURED_VELOCITY_MARGIN`` (0.1 rad/s, seed
 "joint_velocity_violation (3)").
 """
 
-from ._common import NO_ERROR, Violation
 from .joint import (
     PositionCheck,
     VelocityCheck,
@@ -54,6 +53,7 @@ from .joint import (
     describe_joint_position,
     describe_joint_velocity,
 )
+from .precedence import NO_ERROR, Violation
 from .safety import (
     MEASURED_VELOCITY_MARGIN,
     check_measured_cartesian_speed,

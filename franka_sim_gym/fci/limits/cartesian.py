@@ -42,12 +42,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import relative_rotation_log, rotation_log
-from .._fast import count_nonzero, einsum
+from ...sim.kinematics import rotation_log
 from ..errors import Error
 from ..frames import from_wire
 from ..tables import RobotTable
-from ._common import NO_ERROR, Violation, interval
+from .cartesian_derivatives import (
+    ElbowDerivatives,
+    ElbowStream,
+    JointSide,
+    PoseDerivatives,
+    Twist,
+    elbow_derivatives,
+    joint_side,
+    pose_derivatives,
+)
+from .precedence import NO_ERROR, Violation
 
 _E = Error
 
@@ -97,66 +106,6 @@ TWIST_ROWS = ("acceleration", "jerk", "velocity", "IK joint acceleration", "elbo
 POSE_IK_ROW = 6
 
 
-class Twist(NamedTuple):
-    """Translational and rotational halves of a derivative, (n, 3) each."""
-
-    linear: np.ndarray
-    angular: np.ndarray
-
-
-def _block(*index) -> property:
-    """A read-only property: the view ``stacked[:, *index]`` of a stacked result."""
-    return property(lambda self: self.stacked[(slice(None), *index)])
-
-
-class PoseDerivatives(NamedTuple):
-    """Backward differences of a commanded pose against its history."""
-
-    #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the properties are its views
-    stacked: np.ndarray
-
-    v = _block(0, slice(0, 3))
-    omega = _block(0, slice(3, 6))
-    a = _block(1, slice(0, 3))
-    alpha = _block(1, slice(3, 6))
-    jerk = _block(2, slice(0, 3))
-    zeta = _block(2, slice(3, 6))  # rotational jerk
-
-
-class ElbowDerivatives(NamedTuple):
-    """Backward differences of elbow_c[0] (n,) each."""
-
-    v: np.ndarray
-    a: np.ndarray
-    jerk: np.ndarray
-
-
-class ElbowStream(NamedTuple):
-    """This cycle's elbow_c and the history it continues."""
-
-    #: (n, 2) the commanded elbow (elbow[0] = joint 3's angle, elbow[1] the branch flag)
-    command: np.ndarray
-    #: (n,) this command carries an elbow (valid_elbow, or one extrapolated)
-    has: np.ndarray
-    #: (n,) the previous command carried one
-    had: np.ndarray
-    #: (n,) the previous command's branch flag
-    prev_flag: np.ndarray
-    #: elbow_c[0]'s backward differences
-    derivatives: ElbowDerivatives
-
-
-class JointSide(NamedTuple):
-    """The IK solution's acceleration and jerk, judged where ``checked`` (n,)."""
-
-    #: (n, 2, 7): rows ddq, dddq (the properties are its views)
-    stacked: np.ndarray
-    checked: np.ndarray
-
-    ddq = _block(0)
-    dddq = _block(1)
-
-
 class CartesianCheck(NamedTuple):
     """Result of a Cartesian check: the latched error and every row that tripped."""
 
@@ -167,7 +116,7 @@ class CartesianCheck(NamedTuple):
 
 
 def _norm(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(einsum("ij,ij->i", x, x))
+    return np.sqrt(np.einsum("ij,ij->i", x, x))
 
 
 def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
@@ -176,60 +125,11 @@ def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
     return np.where(tripped.any(axis=1), codes[first], NO_ERROR)
 
 
-def pose_derivatives(
-    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps, out: np.ndarray | None = None
-) -> PoseDerivatives:
-    """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
-    rotation as the body-frame rotation vector of R_prev^T R_c per interval.
-
-    ``history`` is the previous (n, 2, 6) [[v | omega], [a | alpha]], side by side so
-    that each order takes one difference. ``out``: an (n, 3, 6) array to fill (and keep
-    as ``stacked``), default a new one.
-    """
-    h = interval(steps)
-    D = np.empty((len(T_c), 3, 6)) if out is None else out
-    velocity, acceleration, jerk = D[:, 0], D[:, 1], D[:, 2]
-    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=velocity[:, :3])
-    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=velocity[:, 3:])
-    velocity /= h
-    np.subtract(velocity, history[:, 0], out=acceleration)
-    acceleration /= h
-    np.subtract(acceleration, history[:, 1], out=jerk)
-    jerk /= h
-    return PoseDerivatives(D)
-
-
-def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
-    """Backward differences of elbow_c[0] against its history."""
-    h = np.reshape(interval(steps), -1)
-    v = (e_c - e_prev) / h
-    a = (v - de_prev) / h
-    return ElbowDerivatives(v, a, (a - dde_prev) / h)
-
-
-def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps, out: np.ndarray | None = None):
-    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c); ``out``: an
-    (n, 3, 7) array to write them into, side by side (default: new arrays)."""
-    h = interval(steps)
-    if out is None:
-        dq = (q_ik - q_prev) / h
-        ddq = (dq - dq_prev) / h
-        return dq, ddq, (ddq - ddq_prev) / h
-    dq, ddq, dddq = out[:, 0], out[:, 1], out[:, 2]
-    np.subtract(q_ik, q_prev, out=dq)
-    dq /= h
-    np.subtract(dq, dq_prev, out=ddq)
-    ddq /= h
-    np.subtract(ddq, ddq_prev, out=dddq)
-    dddq /= h
-    return dq, ddq, dddq
-
-
 def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
     """Rows 21 and 17 (both generators): the branch flag flipping mid-motion; elbow[0]
     outside joint 3's range (always), or its velocity, acceleration or jerk over the
     kMaxElbow* limits (after the first command)."""
-    if not count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
+    if not np.count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
         return elbow.has, elbow.has
     continuing = later & elbow.has & elbow.had
     sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
@@ -248,10 +148,10 @@ def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
     kMaxJointJerk (the robot's per-joint tables times the discontinuity scale): the two
     (n,) rows, or None when neither tripped anywhere (the common case)."""
     checked = joint.checked
-    if not count_nonzero(checked):
+    if not np.count_nonzero(checked):
         return None
     over = np.abs(joint.stacked) > _ik_limits(table, scale)  # NaN is not over
-    if not count_nonzero(over):  # nothing over: the common case
+    if not np.count_nonzero(over):  # nothing over: the common case
         return None
     return checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
 
@@ -279,7 +179,7 @@ def _inside(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
     """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] within the
     table's limits, in one pass (NaN is not within: it trips)."""
     x = stacked.reshape(len(stacked), 6, 3)
-    return einsum("nkj,nkj->nk", x, x) <= _limits2(table)
+    return np.einsum("nkj,nkj->nk", x, x) <= _limits2(table)
 
 
 def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: float) -> bool:
@@ -292,9 +192,9 @@ def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: floa
     n = len(stacked)
     values = np.empty((n, 20))
     x = stacked.reshape(n, 6, 3)
-    einsum("nkj,nkj->nk", x, x, out=values[:, :6])
+    np.einsum("nkj,nkj->nk", x, x, out=values[:, :6])
     np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
-    return count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
+    return np.count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
 
 
 def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -359,8 +259,8 @@ def check_cartesian_pose(
     """
     first = np.asarray(first, dtype=bool)
     n = len(first)
-    starting = count_nonzero(first) > 0
-    if not starting and not count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
+    starting = np.count_nonzero(first) > 0
+    if not starting and not np.count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
         return _no_error(n)  # mid-motion, no elbow, nothing near a limit: the common case
     inside = _inside(d.stacked, table)
     joint_rows = _joint_side_rows(joint, table, scale)
@@ -411,7 +311,7 @@ def check_cartesian_velocity(
     """
     first = np.asarray(first, dtype=bool)
     n = len(first)
-    if not count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
+    if not np.count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
         return _no_error(n)  # no elbow, nothing near a limit: the common case
     inside = _inside(stacked, table)
     joint_rows = _joint_side_rows(joint, table, scale)
@@ -429,7 +329,7 @@ def check_cartesian_velocity(
 
 def _any(*tripped: np.ndarray) -> bool:
     """Whether any of the bool arrays has an entry set."""
-    return any(count_nonzero(x) for x in tripped)
+    return any(np.count_nonzero(x) for x in tripped)
 
 
 def _no_error(n: int) -> CartesianCheck:
@@ -472,3 +372,25 @@ def describe_cartesian(i: int, error: int, row: str, quantities: dict) -> Violat
                 Violation(error, signal, joint, float(value[j]), float(limit[j]), unit, row),
             )
     return best[1]
+
+
+__all__ = [
+    "POSE_CODES",
+    "POSE_IK_ROW",
+    "POSE_ROWS",
+    "TWIST_CODES",
+    "TWIST_ROWS",
+    "CartesianCheck",
+    "ElbowDerivatives",
+    "ElbowStream",
+    "JointSide",
+    "PoseDerivatives",
+    "Twist",
+    "check_cartesian_pose",
+    "check_cartesian_velocity",
+    "describe_cartesian",
+    "elbow_derivatives",
+    "joint_side",
+    "pose_derivatives",
+    "select",
+]

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import Error
 from ..tables import RobotTable
-from ._common import (
+from .precedence import (
     NO_ERROR,
     Precedence,
     Row,

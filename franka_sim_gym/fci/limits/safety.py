@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import Error
 from ..tables import RobotTable
-from ._common import NO_ERROR, Row, Violation, describe_row, robot_row
+from .precedence import NO_ERROR, Row, Violation, describe_row, robot_row
 
 #: Seed "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
 #: the envelope before firing" (measured dq carries integrator ring / contact spikes).

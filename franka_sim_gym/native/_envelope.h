@@ -1,7 +1,7 @@
-/* libfranka's position-based joint velocity envelope (src/joint_velocity_limits.cpp,
- * limits.md §4), one entry at a time: fci/tables.py RobotTable.velocity_envelope_halves,
- * the rule, in C for the kernels that judge with it (fci/_joint_rules.c) and for the
- * env's libfranka client, which limits against it (envs/_client_filters.c). */
+/* libfranka's position-based joint velocity envelope (src/joint_velocity_limits.cpp),
+ * one entry at a time: fci/tables.py RobotTable.velocity_envelope_halves, the rule, in
+ * C for the env's libfranka client, which limits against it (envs/_client_filters.c).
+ * Its constants come from the robot's table (RobotTable.envelope_table). */
 #ifndef FRANKA_SIM_GYM_ENVELOPE_H
 #define FRANKA_SIM_GYM_ENVELOPE_H
 
@@ -11,7 +11,7 @@
 
 /* The envelope's constants, (4, 14): rows 2 a_dec, bound ([q_upper | -q_lower]),
  * v_off and v_max, each doubled as [upper half | lower half]
- * (RobotTable._envelope_constants). */
+ * (RobotTable.envelope_table). */
 static const Py_ssize_t CONSTANTS_SHAPE[2] = {4, 14};
 
 /* Half k (0-13) of the envelope at joint value q: velocity_envelope_halves, one entry.

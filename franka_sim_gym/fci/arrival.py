@@ -1,0 +1,117 @@
+"""Which arriving commands a cycle takes: fresh, late or answering nothing; finite.
+
+Seed "The cycle contract": a command answers the open cycle when it echoes the id of
+the last published state (fresh); an older id of the running motion is late and still
+applied; an id never published answers nothing (the cycle counts as lost). Seed: a
+non-finite command is refused whatever the enforcement, and reported as the
+limits violation of the generator it arrived in; a Cartesian pose that is not a
+homogeneous transformation (libfranka's isHomogeneousTransformation, NaN included)
+is refused as 31; a non-finite elbow as 17.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from . import frames
+from .cycle_input import CycleInput
+from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
+
+log = logging.getLogger("franka_sim_gym.fci")
+
+
+def classify(
+    commands: np.ndarray,
+    mask: np.ndarray,
+    k: int,
+    m: Modes,
+    published: np.ndarray,
+    motion_first_id: np.ndarray,
+    cycle: CycleInput,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """(fresh, late, accepted) of the ``k`` commands delivered where ``mask`` (robots in
+    motion); ``late`` is None when every one is fresh. Refused (non-finite) commands
+    are logged and marked in ``cycle.refused`` (and ``refused_elbow``), not accepted."""
+    n = m.n
+    ids = commands["message_id"]
+    fresh = ids == published
+    if k < n:
+        fresh &= mask
+    late = None
+    if np.count_nonzero(fresh) == k:
+        accepted = fresh
+    else:
+        late = mask & (ids < published) & (ids >= motion_first_id)
+        accepted = fresh | late
+        for i in np.flatnonzero(mask & ~accepted).tolist():
+            log.warning(
+                "robot %d: command with message_id %d answers no state of the running motion "
+                "(last published %d); counted as lost",
+                i,
+                int(ids[i]),
+                int(published[i]),
+            )
+    ok, refused_elbow = acceptable(commands, m)
+    if ok is not None and np.count_nonzero(ok) < n:
+        refused = accepted & ~ok
+        for i in np.flatnonzero(refused).tolist():
+            gen = int(m.motion_generator_mode[i])
+            signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
+            log.warning(
+                "robot %d: non-finite value in the commanded %s; command refused", i, signal
+            )
+        cycle.refused |= refused
+        if refused_elbow is not None:
+            cycle.refused_elbow |= refused_elbow
+        accepted = accepted & ok
+    return fresh, late, accepted
+
+
+def acceptable(commands: np.ndarray, m: Modes) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Per robot, whether the active interface's command fields pass (finite; a pose that
+    is a homogeneous transformation): (ok, refused_elbow). ``ok`` is None when every
+    robot passes (the common case); ``refused_elbow`` (or None) marks the Cartesian
+    commands that pass but for a non-finite elbow (named 17)."""
+    n = m.n
+    if m.n_joint_position == n:
+        finite = np.isfinite(commands["q_c"])
+        if np.count_nonzero(finite) == finite.size:  # the common case, without a reduce
+            return None, None
+        return finite.all(axis=1), None
+    if m.n_external == n and m.n_torque_only == n:
+        return _all_or_rows(np.isfinite(commands["tau_J_d"])), None
+    if m.n_cartesian == n and not np.count_nonzero(commands["valid_elbow"]):
+        # Every robot in one Cartesian generator, no elbow: the common case.
+        if m.n_cartesian_position == n:
+            return frames.is_homogeneous_wire(commands["O_T_EE_c"]), None
+        if m.n_cartesian_velocity == n:
+            return _all_or_rows(np.isfinite(commands["O_dP_EE_c"])), None
+    ok = np.ones(n, dtype=bool)
+    if m.n_joint_position:
+        ok &= ~m.joint_position | np.isfinite(commands["q_c"]).all(axis=1)
+    if m.n_joint_velocity:
+        ok &= ~m.joint_velocity | np.isfinite(commands["dq_c"]).all(axis=1)
+    if m.n_external:
+        ok &= ~m.external | np.isfinite(commands["tau_J_d"]).all(axis=1)
+    if m.n_cartesian_position:
+        pose_ok = frames.is_homogeneous_wire(commands["O_T_EE_c"])
+        if pose_ok is not None:
+            ok &= ~m.cartesian_position | pose_ok
+    if m.n_cartesian_velocity:
+        ok &= ~m.cartesian_velocity | np.isfinite(commands["O_dP_EE_c"]).all(axis=1)
+    refused_elbow = None
+    if m.n_cartesian:
+        finite_elbow = np.isfinite(commands["elbow_c"]).all(axis=1)
+        elbow_ok = ~commands["valid_elbow"].astype(bool) | finite_elbow
+        refused_elbow = m.cartesian & ok & ~elbow_ok
+        ok &= ~m.cartesian | elbow_ok
+    return ok, refused_elbow
+
+
+def _all_or_rows(finite: np.ndarray) -> np.ndarray | None:
+    """None when every value is finite, else the (n,) rows that are."""
+    if np.count_nonzero(finite) == finite.size:
+        return None
+    return finite.all(axis=1)

@@ -1,0 +1,126 @@
+"""The backward differences a Cartesian command is judged on: the pose's (translation per
+axis, rotation as the body-frame rotation vector), the elbow's and the IK solution's
+(the joint side), with the named views the rules read.
+
+Backward Euler over ``steps * dt`` as for q_c (seed "The difference formulas"); the
+orientation's derivatives in the body frame, the frame the lost-cycle law composes
+the rotation increment in (seed: "rotation composed on the right").
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ...sim.kinematics import relative_rotation_log
+from .precedence import interval
+
+
+class Twist(NamedTuple):
+    """Translational and rotational halves of a derivative, (n, 3) each."""
+
+    linear: np.ndarray
+    angular: np.ndarray
+
+
+def _block(*index) -> property:
+    """A read-only property: the view ``stacked[:, *index]`` of a stacked result."""
+    return property(lambda self: self.stacked[(slice(None), *index)])
+
+
+class PoseDerivatives(NamedTuple):
+    """Backward differences of a commanded pose against its history."""
+
+    #: (n, 3, 6): rows [v | omega], [a | alpha], [jerk | zeta]; the properties are its views
+    stacked: np.ndarray
+
+    v = _block(0, slice(0, 3))
+    omega = _block(0, slice(3, 6))
+    a = _block(1, slice(0, 3))
+    alpha = _block(1, slice(3, 6))
+    jerk = _block(2, slice(0, 3))
+    zeta = _block(2, slice(3, 6))  # rotational jerk
+
+
+class ElbowDerivatives(NamedTuple):
+    """Backward differences of elbow_c[0] (n,) each."""
+
+    v: np.ndarray
+    a: np.ndarray
+    jerk: np.ndarray
+
+
+class ElbowStream(NamedTuple):
+    """This cycle's elbow_c and the history it continues."""
+
+    #: (n, 2) the commanded elbow (elbow[0] = joint 3's angle, elbow[1] the branch flag)
+    command: np.ndarray
+    #: (n,) this command carries an elbow (valid_elbow, or one extrapolated)
+    has: np.ndarray
+    #: (n,) the previous command carried one
+    had: np.ndarray
+    #: (n,) the previous command's branch flag
+    prev_flag: np.ndarray
+    #: elbow_c[0]'s backward differences
+    derivatives: ElbowDerivatives
+
+
+class JointSide(NamedTuple):
+    """The IK solution's acceleration and jerk, judged where ``checked`` (n,)."""
+
+    #: (n, 2, 7): rows ddq, dddq (the properties are its views)
+    stacked: np.ndarray
+    checked: np.ndarray
+
+    ddq = _block(0)
+    dddq = _block(1)
+
+
+def pose_derivatives(
+    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps, out: np.ndarray | None = None
+) -> PoseDerivatives:
+    """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
+    rotation as the body-frame rotation vector of R_prev^T R_c per interval.
+
+    ``history`` is the previous (n, 2, 6) [[v | omega], [a | alpha]], side by side so
+    that each order takes one difference. ``out``: an (n, 3, 6) array to fill (and keep
+    as ``stacked``), default a new one.
+    """
+    h = interval(steps)
+    D = np.empty((len(T_c), 3, 6)) if out is None else out
+    velocity, acceleration, jerk = D[:, 0], D[:, 1], D[:, 2]
+    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=velocity[:, :3])
+    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=velocity[:, 3:])
+    velocity /= h
+    np.subtract(velocity, history[:, 0], out=acceleration)
+    acceleration /= h
+    np.subtract(acceleration, history[:, 1], out=jerk)
+    jerk /= h
+    return PoseDerivatives(D)
+
+
+def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
+    """Backward differences of elbow_c[0] against its history."""
+    h = np.reshape(interval(steps), -1)
+    v = (e_c - e_prev) / h
+    a = (v - de_prev) / h
+    return ElbowDerivatives(v, a, (a - dde_prev) / h)
+
+
+def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps, out: np.ndarray | None = None):
+    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c); ``out``: an
+    (n, 3, 7) array to write them into, side by side (default: new arrays)."""
+    h = interval(steps)
+    if out is None:
+        dq = (q_ik - q_prev) / h
+        ddq = (dq - dq_prev) / h
+        return dq, ddq, (ddq - ddq_prev) / h
+    dq, ddq, dddq = out[:, 0], out[:, 1], out[:, 2]
+    np.subtract(q_ik, q_prev, out=dq)
+    dq /= h
+    np.subtract(dq, dq_prev, out=ddq)
+    ddq /= h
+    np.subtract(ddq, ddq_prev, out=dddq)
+    dddq /= h
+    return dq, ddq, dddq

@@ -1,0 +1,103 @@
+"""The safety controller on the measured state (errors 2, 3, 4) and the communication
+bound (25), judged every cycle of a motion after physics stepped.
+
+Seed "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
+"self_collision_avoidance_violation (2)" and "Enabling the violation" (25). Not in any
+generator's precedence chain: every control mode, 4 outranks 3, 2 is independent of
+both. The rules are ``limits.check_measured_joint_velocity``,
+``limits.check_measured_cartesian_speed`` and ``limits.safety_error``; the
+self-collision distances come from the simulation (``sim.self_collision``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sim.arm import ArmPhysics
+from ..sim.self_collision import close_link_pairs, closest_link_pair
+from . import limits
+from .accounting import CycleAccounting
+from .config import ControllerConfig
+from .engine import MotionLimitEngine
+from .errors import ERROR_NAMES, Error
+from .modes import Modes
+from .tables import DELTA_T, MAX_LOST_CYCLES
+
+
+class SafetyController:
+    """Watches the measured state of n robots; violations go to the engine."""
+
+    def __init__(
+        self,
+        physics: ArmPhysics,
+        O_T_EE: np.ndarray,
+        modes: Modes,
+        accounting: CycleAccounting,
+        config: ControllerConfig,
+        engine: MotionLimitEngine,
+    ) -> None:
+        self.physics = physics
+        #: (n, 16) the measured pose as published (read)
+        self.O_T_EE = O_T_EE
+        self.modes = modes
+        self.accounting = accounting
+        self.config = config
+        self.table = config.table
+        self.engine = engine
+        #: the measured EE position of the previous cycle (for the EE speed)
+        self.ee_prev = np.zeros((physics.n, 3))
+
+    def remember_ee(self) -> None:
+        """Keep the measured EE position before physics steps (the speed's other end)."""
+        self.ee_prev[...] = self.O_T_EE[:, 12:15]
+
+    def check(self) -> None:
+        """Errors 3, 4 and 2 of the robots in motion (call after the step's state is written)."""
+        physics, table = self.physics, self.table
+        margin = self.config.measured_velocity_margin
+        dq, q = physics.dq, physics.q
+        # The measured EE speed at F_T_EE: backward difference of the measured O_T_EE
+        # position over the 1 ms cycle (equal to J(q) dq to first order).
+        v_ee = self.O_T_EE[:, 12:15] - self.ee_prev
+        v_ee *= 1.0 / DELTA_T
+        error = limits.safety_error(
+            limits.check_measured_joint_velocity(dq, q, table, margin),
+            limits.check_measured_cartesian_speed(v_ee, table),
+        )
+        distance = self.config.self_collision_distance
+        close = close_link_pairs(physics.model, physics.data, physics.layout, distance)
+        bad = self.modes.in_motion & ((error >= 0) | close)
+        if not np.count_nonzero(bad):
+            return
+        enforce = self.config.enforce_motion_limits
+        for i in np.flatnonzero(bad).tolist():
+            bits = []
+            if error[i] >= 0:
+                e = int(error[i])
+                if e == int(Error.cartesian_velocity_violation):
+                    d = limits.describe_measured_cartesian_speed(i, v_ee, table)
+                else:
+                    d = limits.describe_measured_joint_velocity(i, dq, q, table, margin)
+                self.engine.report(i, e, d.message() if d else ERROR_NAMES[e], enforce)
+                bits.append(e)
+            if close[i]:
+                e = int(Error.self_collision_avoidance_violation)
+                pair = closest_link_pair(physics.model, physics.data, physics.layout, i)
+                where = f"link{pair[1]} / link{pair[2]} at {pair[0] * 1000:.1f} mm" if pair else ""
+                self.engine.report(i, e, f"{where}, limit {distance * 1000:.0f} mm", enforce)
+                bits.append(e)
+            if enforce:
+                self.engine.abort(i, bits)
+
+    def communication_constraints(self) -> None:
+        """Seed "Enabling the violation": 20 consecutive lost cycles latch 25 (opt-in)."""
+        lost_run = self.accounting.lost_run
+        over = (lost_run >= MAX_LOST_CYCLES) & self.modes.in_motion
+        enforce = self.config.enforce_comm_constraints
+        e = int(Error.communication_constraints_violation)
+        for i in np.flatnonzero(over).tolist():
+            run = int(lost_run[i])
+            message = f"{run} consecutive lost cycles, limit {MAX_LOST_CYCLES}"
+            self.engine.report(i, e, message, enforce)
+            if enforce:
+                self.engine.abort(i, [e])
