@@ -31,7 +31,9 @@ from ..sim.hand_load import hand_load
 from . import arrival, setters
 from .accounting import CycleAccounting
 from .cartesian import CartesianGenerators
+from .collision import THRESHOLD_NAMES
 from .config import ControllerConfig
+from .contact_sensing import ContactSensing
 from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
@@ -107,6 +109,10 @@ class FciController:
         )
         self.safety = SafetyController(
             physics, w.O_T_EE, self.modes, self.accounting, self.config, self.engine
+        )
+        #: the external-torque estimate, the wrench at K and the collision thresholds
+        self.contact = ContactSensing(
+            physics, w.field, self.engine, self.config.enforce_motion_limits
         )
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
@@ -213,8 +219,12 @@ class FciController:
         moving = m.n_motion > 0
         if moving:
             self.safety.remember_ee()
-        self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg)
+        # The drives carry a load configured with SetLoad in every mode (the robot's
+        # gravity compensation of its model); MuJoCo knows only what is physically there.
+        load = self.contact.load_weight()
+        self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg, compensation=load)
         w.write_measured(self.physics)
+        self.contact.sense(m.in_motion, load)
         if moving:
             if m.n_motion:
                 self.safety.check()
@@ -368,6 +378,7 @@ class FciController:
         if self.modes.in_motion[i]:
             return AutomaticErrorRecoveryStatus.kCommandNotPossibleRejected
         self.errors[i] = False
+        self.contact.clear(i)
         self.accounting.rearm(i)
         self.q_hold[i] = self.physics.q[i]
         self.modes.set_robot_mode(i, int(RobotMode.kAutomaticErrorRecovery))
@@ -403,8 +414,20 @@ class FciController:
             self.physics.set_stiffness(np.array([robot]), np.asarray(K_theta, dtype=float))
         return status
 
+    def set_collision_behavior(self, robot: int, thresholds) -> SetterStatus:
+        """SetCollisionBehavior (command 3): the contact and collision thresholds, applied
+        from the next cycle (``thresholds``: the payload's eight arrays by name,
+        fci/collision.py THRESHOLD_NAMES; libfranka's 4-argument form sends each pair
+        twice). Non-finite or negative thresholds: kInvalidArgumentRejected."""
+        values = {name: np.asarray(thresholds[name], dtype=float) for name in THRESHOLD_NAMES}
+        why = self.contact.configure(robot, values)
+        if why is not None:
+            log.warning("robot %d: SetCollisionBehavior rejected: %s", robot, why)
+            return SetterStatus.kInvalidArgumentRejected
+        return SetterStatus.kSuccess
+
     def acknowledge_setter(self, robot: int, name: str, values) -> SetterStatus:
-        """SetCollisionBehavior, SetCartesianImpedance, SetGuidingMode: accepted, not simulated."""
+        """SetCartesianImpedance, SetGuidingMode: accepted, not simulated."""
         return setters.check_finite(name, robot, values)
 
     def end_session(self, robot: int) -> None:
@@ -418,6 +441,7 @@ class FciController:
         if self.recovery.waiting(robot):
             self._finish_recovery(robot)
         self.writer.reset_configuration(robot)
+        self.contact.behavior.reset(robot)
         self.physics.set_stiffness(np.array([robot]), np.asarray(self.config.joint_stiffness))
         self._events = [e for e in self._events if e.robot != robot]
 
@@ -440,6 +464,7 @@ class FciController:
             self.accounting.stop_motion(i)
             self.writer.reset_configuration(i)
             self._write_modes(i)
+        self.contact.reset(robots)
         self.cycle_input.have[robots] = False
         self.cycle_input.finish[robots] = False
         dropped = set(robots.tolist())

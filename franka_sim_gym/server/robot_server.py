@@ -223,8 +223,8 @@ class RobotServer:
             status = ctrl.acknowledge_setter(0, "SetCartesianImpedance", request.K_x)
             session.reply(command, command_id, status)
         elif command == C.kSetCollisionBehavior:
-            values = [v for f in dataclasses.fields(request) for v in getattr(request, f.name)]
-            status = ctrl.acknowledge_setter(0, "SetCollisionBehavior", values)
+            thresholds = {f.name: getattr(request, f.name) for f in dataclasses.fields(request)}
+            status = ctrl.set_collision_behavior(0, thresholds)
             session.reply(command, command_id, status)
         elif command == C.kSetGuidingMode:
             status = ctrl.acknowledge_setter(0, "SetGuidingMode", [float(request.nullspace)])

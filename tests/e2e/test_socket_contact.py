@@ -23,8 +23,9 @@ def test_a_descent_onto_the_table_ends_in_a_collision_reflex_near_the_threshold(
     assert "cartesian_reflex" in r["error"] or "joint_reflex" in r["error"], r
     # The contact flag came first (lower threshold 10 N), then the collision at the upper.
     assert r["first_contact"] is not None and r["first_contact"][0] < r["t_end"]
-    assert -r["F_z_min"] == pytest.approx(upper, rel=0.5)
-    assert -r["F_z_min"] >= upper  # it stopped once the estimate crossed the threshold
+    # The last state the client saw before the reflex: just under the threshold (the
+    # next one crossed it and carried the abort).
+    assert 0.8 * upper < -r["F_z_min"] <= upper
     # The flange stopped at the table: within 5 mm of where contact began, 18 cm below
     # where it started at most.
     assert abs(r["z_end"] - r["first_contact"][1]) < 5e-3
@@ -33,7 +34,7 @@ def test_a_descent_onto_the_table_ends_in_a_collision_reflex_near_the_threshold(
     assert r["cartesian_collision"][2] == 1.0  # latched on z ...
     assert r["mode_recovered"] == "Idle"  # ... until AutomaticErrorRecovery
     assert r["cartesian_collision_recovered"] == [0.0] * 6
-    assert "collision" in server.log()
+    assert "external wrench at K" in server.log()  # logged, naming what crossed
 
 
 def test_at_rest_in_free_space_nothing_is_sensed(serve, client):

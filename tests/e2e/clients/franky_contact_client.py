@@ -17,9 +17,15 @@ OVER_THE_TABLE = [0.0, 0.6, 0.0, -1.9, 0.0, 2.5, math.pi / 4]
 
 def scenario_reaction(host: str) -> dict:
     """A motion 30 cm straight down (through the table) with the reaction franky's
-    examples attach, ``Measure.FORCE_Z < -5.0``, retreating 1 cm up when it fires."""
+    examples attach, ``Measure.FORCE_Z < -5.0``, retreating 1 cm up when it fires.
+
+    The collision thresholds are raised to 100 Nm / 100 N: franky's retreat starts from
+    the motion's velocity and decelerates within its dynamics limits, while the joint
+    servo keeps pressing (~1 N per ms at this speed), so at franky's default 30 N the
+    robot's reflex would stop the retreat before it lifts off."""
     robot = franky.Robot(host, realtime_config=franky.RealtimeConfig.Ignore)
-    robot.relative_dynamics_factor = 0.05
+    robot.set_collision_behavior(100.0, 100.0)
+    robot.relative_dynamics_factor = 0.02
     robot.move(franky.JointMotion(franky.JointState(OVER_THE_TABLE)))
     start = robot.current_cartesian_state.pose.end_effector_pose
     down = franky.Affine(start.translation + np.array([0.0, 0.0, -0.3]), start.quaternion)

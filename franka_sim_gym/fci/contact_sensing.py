@@ -1,0 +1,158 @@
+"""The contact group of the RobotState, every cycle, and the collision reflexes (6, 7).
+
+After physics stepped and the measured state is written: the external-torque estimate
+(fci/contact.py) on the measured q, dq, tau_J and the arm's model with the configured
+load; the wrench at K (O_T_EE · EE_T_K); SetCollisionBehavior's levels
+(fci/collision.py). It writes ``tau_ext_hat_filtered``, ``O_F_ext_hat_K``,
+``K_F_ext_hat_K``, ``joint_contact`` and ``cartesian_contact`` every cycle, latches
+``joint_collision`` / ``cartesian_collision`` during a motion, and reports
+``joint_reflex`` (6) / ``cartesian_reflex`` (7) to the engine like the safety
+controller's checks: logged always, the motion aborted when motion limits are enforced.
+
+Where it sits: on the measured state, beside the safety controller (errors 2, 3, 4)
+and outside every generator's precedence chain; when one cycle trips both, the robot
+latches both (docs/motion-limits.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..sim.arm import ArmPhysics
+from ..sim.dynamics import ArmDynamics, weight_torque
+from .collision import CollisionBehavior, Levels, accelerating, invalid_thresholds
+from .contact import ExternalTorqueEstimator, in_frame, wrench_from_torque
+from .engine import MotionLimitEngine
+from .errors import Error
+
+_AXES = ("x", "y", "z", "R", "P", "Y")
+
+
+def column_major(flat: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) row-major transforms from (n, 16) column-major wire transforms."""
+    return flat.reshape(-1, 4, 4).transpose(0, 2, 1)
+
+
+class ContactSensing:
+    """What n robots sense of contact, and their collision thresholds.
+
+    Args:
+        physics: the simulated arms (measured state and model terms).
+        field: the state writer's float64 views of the wire fields, by name.
+        engine: reports violations and turns enforced ones into verdicts.
+        enforce: abort a motion on a collision (``--enforce-motion-limits``).
+    """
+
+    def __init__(
+        self,
+        physics: ArmPhysics,
+        field: dict[str, np.ndarray],
+        engine: MotionLimitEngine,
+        enforce: bool,
+    ) -> None:
+        n = physics.n
+        self.physics = physics
+        self.dynamics = ArmDynamics(physics)
+        self.estimator = ExternalTorqueEstimator(n)
+        self.estimator.reset(np.arange(n), physics.dq)
+        #: SetCollisionBehavior's thresholds per robot
+        self.behavior = CollisionBehavior(n)
+        self.engine = engine
+        self.enforce = enforce
+        self.field = field
+        self._gravity = np.asarray(physics.model.opt.gravity, dtype=float).copy()
+
+    # -- configuration ----------------------------------------------------------------------
+
+    def reset(self, robots) -> None:
+        """Teleported or reconfigured ``robots``: estimate from zero, flags clear,
+        thresholds back to the defaults."""
+        robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
+        self.estimator.reset(robots, self.physics.dq[robots])
+        for name in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "K_F_ext_hat_K"):
+            self.field[name][robots] = 0.0
+        for name in ("joint_contact", "cartesian_contact"):
+            self.field[name][robots] = 0.0
+        for i in robots.tolist():
+            self.behavior.reset(i)
+            self.clear(i)
+
+    def clear(self, i: int) -> None:
+        """AutomaticErrorRecovery: the latched collision flags of robot i clear."""
+        self.field["joint_collision"][i] = 0.0
+        self.field["cartesian_collision"][i] = 0.0
+
+    # -- the model with the configured load -------------------------------------------------
+
+    def load_weight(self) -> np.ndarray | None:
+        """(n, 7) the torque that holds each robot's configured load (SetLoad: m_load at
+        F_x_Cload in the flange frame) against gravity; None when no load is configured.
+        The drives apply it in every mode, and the model the estimate runs on includes it."""
+        mass = self.field["m_load"]
+        if not np.count_nonzero(mass):
+            return None
+        p, R = self.physics.flange_pose()
+        com = p + np.einsum("nij,nj->ni", R, self.field["F_x_Cload"])
+        return weight_torque(self.dynamics.jacobian(com), mass, self._gravity)
+
+    # -- the cycle --------------------------------------------------------------------------
+
+    def configure(self, i: int, thresholds: dict[str, np.ndarray]) -> str | None:
+        """SetCollisionBehavior for robot i: stored from the next cycle on; or the reason
+        the thresholds are refused (nothing stored)."""
+        why = invalid_thresholds(thresholds)
+        if why is None:
+            self.behavior.configure(i, thresholds)
+        return why
+
+    def sense(self, in_motion: np.ndarray, load_weight: np.ndarray | None) -> Levels:
+        """Estimate, write the contact group, judge the thresholds (after the state's
+        measured fields are written); returns the cycle's levels."""
+        physics, f = self.physics, self.field
+        bias = self.dynamics.bias()
+        if load_weight is not None:
+            bias = bias + load_weight
+        tau = self.estimator.update(self.dynamics.mass_times, bias, physics.tau_J, physics.dq)
+        O_T_K = column_major(f["O_T_EE"]) @ column_major(f["EE_T_K"])
+        wrench = wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau)
+        f["tau_ext_hat_filtered"][...] = tau
+        f["O_F_ext_hat_K"][...] = wrench
+        f["K_F_ext_hat_K"][...] = in_frame(wrench, O_T_K[:, :3, :3])
+        phase = accelerating(f["ddq_d"], in_motion)
+        levels = self.behavior.levels(tau, wrench, phase)
+        f["joint_contact"][...] = levels.joint_contact
+        f["cartesian_contact"][...] = levels.cartesian_contact
+        if np.count_nonzero(levels.joint_over) or np.count_nonzero(levels.cartesian_over):
+            self._collide(levels, in_motion & self.engine.live(in_motion), phase, tau, wrench)
+        return levels
+
+    def _collide(self, levels: Levels, rows: np.ndarray, phase, tau, wrench) -> None:
+        """Latch the collision flags of the robots in motion (``rows``) that crossed an
+        upper threshold, and report 6 / 7 (one abort latching both when both)."""
+        f, b = self.field, self.behavior
+        over = rows & (levels.joint_over.any(axis=1) | levels.cartesian_over.any(axis=1))
+        for i in np.flatnonzero(over).tolist():
+            p = 0 if phase[i] else 1
+            bits = []
+            joints = np.flatnonzero(levels.joint_over[i])
+            if len(joints):
+                f["joint_collision"][i, joints] = 1.0
+                what = ", ".join(
+                    f"joint {j + 1} {tau[i, j]:+.1f} Nm (upper {b.upper_torque[i, p, j]:g})"
+                    for j in joints
+                )
+                e = int(Error.joint_reflex)
+                self.engine.report(i, e, f"external torque {what}", self.enforce)
+                bits.append(e)
+            axes = np.flatnonzero(levels.cartesian_over[i])
+            if len(axes):
+                f["cartesian_collision"][i, axes] = 1.0
+                what = ", ".join(
+                    f"{_AXES[a]} {wrench[i, a]:+.1f} (upper {b.upper_force[i, p, a]:g})"
+                    for a in axes
+                )
+                e = int(Error.cartesian_reflex)
+                self.engine.report(i, e, f"external wrench at K {what}", self.enforce)
+                bits.append(e)
+            if self.enforce:
+                self.engine.abort(i, bits)
