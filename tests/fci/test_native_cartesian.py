@@ -237,8 +237,8 @@ def test_homogeneous_quick_gives_the_reference_verdicts(n: int):
 def _kinematics(n: int, hand: bool = False):
     physics = ArmPhysics(n_arms=n, hand=hand)
     fast = ArmKinematics(physics.model, physics.layout, kernel=True)
-    reference = ArmKinematics(physics.model, physics.layout)
-    assert fast._kernel is not None and reference._kernel is None
+    reference = ArmKinematics(physics.model, physics.layout, kernel=False)
+    assert fast.native_solve is not None and reference.native_solve is None
     return fast, reference
 
 
@@ -346,7 +346,7 @@ def test_kernels_refuse_bad_shapes():
         with pytest.raises(ValueError, match=message):
             IK.ik_solve(*broken)
     broken = list(args)
-    broken[7] = solver[:13] + ((0, 1, 2),)
+    broken[7] = solver[:13] + ((0, 1, 2),) + solver[14:]
     with pytest.raises(ValueError, match="kinematics: a null address"):
         IK.ik_solve(*broken)
     broken[7] = solver[:5]
@@ -403,15 +403,15 @@ def test_plain_cycle_refuses_bad_arguments():
 def test_without_mj_kinematics_from_c_the_numpy_loop_solves(monkeypatch):
     """Where MuJoCo's mj_kinematics cannot be had from C, the IK kernel and the plain
     cycle are off, and the numpy loop solves as the reference does."""
-    monkeypatch.setattr(kinematics, "_mujoco_kinematics", lambda model, data: None)
+    monkeypatch.setattr(kinematics, "mj_kinematics_addresses", lambda model, data: None)
     physics = ArmPhysics(n_arms=1)
     kin = ArmKinematics(physics.model, physics.layout, kernel=True)
-    assert kin._kernel is None and kin.native_solve is None
+    assert kin.native_solve is None
     assert make_controller(1).engine.cartesian._plain is None
     q = np.tile(HOME_Q, (1, 1))
     target = kin.forward(q + 0.01)
     a = kin.solve(target, q)
-    b = ArmKinematics(physics.model, physics.layout).solve(target, q)
+    b = ArmKinematics(physics.model, physics.layout, kernel=False).solve(target, q)
     assert a.converged.all()
     np.testing.assert_array_equal(a.q, b.q)
 
@@ -423,7 +423,7 @@ def _reference_paths(ctrl, monkeypatch) -> None:
     """Send ``ctrl`` down the numpy reference paths (as FRANKA_SIM_GYM_NATIVE=0 would)."""
     cartesian = ctrl.engine.cartesian
     cartesian._kernel = cartesian._plain = None
-    cartesian.kinematics._kernel = None
+    cartesian.kinematics._native_solve = None
     monkeypatch.setattr(frames, "_quick_test", frames._quick_test_numpy)
 
 
