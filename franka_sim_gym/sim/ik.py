@@ -98,7 +98,7 @@ def damped_step(
         J[held, :, ELBOW_JOINT] = 0.0
     Jt = J.transpose(0, 2, 1)
     JJt = J @ Jt
-    JJt += np.eye(6) * damping**2
+    JJt += _EYE6 * damping**2
     step = (Jt @ np.linalg.solve(JJt, e[..., None]))[..., 0]
     if todo is not None:
         step[~todo] = 0.0
@@ -136,6 +136,9 @@ def mj_kinematics_addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple
             return (address, int(model_address), int(data_address))
     return None
 
+
+_EYE6 = np.eye(6)
+_EYE6.setflags(write=False)
 
 #: pose_error's rotation half: vee((E - E^T) / 2) of E = R_t R^T as -eps / 2 contracted
 #: with R_t and R in one call.

@@ -145,7 +145,9 @@ class ArmKinematics:
 
         The arrays are the evaluation's own buffers: valid until the next evaluation.
         """
-        if self._cached and np.array_equal(q, self._cached_q) and self._same_frame(F_T_EE):
+        # (a NaN in q never equals: evaluated afresh)
+        same_q = self._cached and np.count_nonzero(q != self._cached_q) == 0
+        if same_q and self._same_frame(F_T_EE):
             return self._p, self._R_out, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
         d = self.data
@@ -180,7 +182,7 @@ class ArmKinematics:
         cached = self._cached_F
         if F_T_EE is None or cached is None:
             return F_T_EE is None and cached is None
-        return np.array_equal(F_T_EE, cached)
+        return np.count_nonzero(F_T_EE != cached) == 0
 
     def forward(self, q: np.ndarray, F_T_EE: np.ndarray | None = None) -> np.ndarray:
         """(n, 4, 4) end-effector poses in each arm's base frame at joint positions q."""
