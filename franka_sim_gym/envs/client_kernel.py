@@ -1,0 +1,50 @@
+"""The backend of the env client's per-cycle filter rules: numpy, or their C replacements.
+
+Every rule the client runs each cycle is a ``*_core`` function of
+:mod:`~franka_sim_gym.envs.client_filters` or :mod:`~franka_sim_gym.envs.cartesian_filters`
+(the reference, written once, batch-first). ``envs/_client_filters.c`` holds C
+replacements with the same signatures, ``out`` given: the joint, torque and twist rules
+bit for bit, the pose rules to rounding (tests/envs/test_native_client.py). The one
+backend switch (``native.load``, ``FRANKA_SIM_GYM_NATIVE=0`` for numpy) picks them; the
+C module receives its constants here, from fci/tables.py and libfranka's rate_limiting.h
+values in cartesian_filters.py.
+
+At one arm a cycle's cost is the number of numpy calls, not their arithmetic: the numpy
+rules take 30-80 % of an env step there (docs/architecture.md, fast paths); batched over
+64 arms they take < 10 %.
+"""
+
+from __future__ import annotations
+
+from types import ModuleType, SimpleNamespace
+
+from .. import native
+from ..fci.tables import DELTA_T
+from . import cartesian_filters as cartesian
+from . import client_filters as joint
+
+__all__ = ["NUMPY_RULES", "load", "rules"]
+
+#: The numpy rules, by the names the C module gives its replacements.
+NUMPY_RULES = SimpleNamespace(
+    limit_velocities_core=joint.limit_velocities_core,
+    limit_positions_core=joint.limit_positions_core,
+    limit_torques_core=joint.limit_torques_core,
+    limit_twist_core=cartesian.limit_twist_core,
+    cartesian_lowpass_core=cartesian.cartesian_lowpass_core,
+    limit_pose_core=cartesian.limit_pose_core,
+    reference_pose=cartesian.reference_pose,
+)
+
+
+def load() -> ModuleType | None:
+    """The C replacements (configured), or None where not built or switched off."""
+    kernel = native.load("envs._client_filters")
+    if kernel is not None:
+        kernel.configure(DELTA_T, cartesian.NORM_EPS, cartesian.ROTATION_POSE_FACTOR)
+    return kernel
+
+
+def rules(kernel: ModuleType | None) -> ModuleType | SimpleNamespace:
+    """The rules a client runs: ``kernel``'s where given, else :data:`NUMPY_RULES`."""
+    return NUMPY_RULES if kernel is None else kernel
