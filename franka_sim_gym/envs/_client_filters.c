@@ -29,26 +29,31 @@
 #include "_arrays.h"
 #include "_rotation.h"
 
+#ifndef M_PI /* (strict C99's math.h leaves it out) */
+#define M_PI 3.14159265358979323846
+#endif
+
 /* The constants configure() receives: fci/tables.py DELTA_T, libfranka's kNormEps and
- * kFactorCartesianRotationPoseInterface (envs/cartesian_filters.py). */
-static double DT = 0.0, NORM_EPS = 0.0, ROTATION_POSE_FACTOR = 0.0;
+ * kFactorCartesianRotationPoseInterface (envs/cartesian_filters.py), and
+ * sim/rotations.py's NEAR_PI, TURNING_ABOVE and SERIES_BELOW. */
+static double DT, NORM_EPS, ROTATION_POSE_FACTOR, NEAR_PI, TURNING_ABOVE, SERIES_BELOW;
 static int CONFIGURED = 0;
 
 static int check_configured(void)
 {
     if (CONFIGURED) return 0;
     PyErr_SetString(PyExc_RuntimeError,
-                    "envs._client_filters: configure(dt, norm_eps, rotation_pose_factor) first");
+                    "envs._client_filters: configure(...) first (envs/client_kernel.py load)");
     return -1;
 }
 
-/* configure(dt, norm_eps, rotation_pose_factor) */
+/* configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, series_below) */
 static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 3, "configure") < 0) return NULL;
-    double v[3];
-    for (int k = 0; k < 3; k++) {
+    if (check_nargs(nargs, 6, "configure") < 0) return NULL;
+    double v[6];
+    for (int k = 0; k < 6; k++) {
         v[k] = PyFloat_AsDouble(args[k]);
         if (v[k] == -1.0 && PyErr_Occurred()) return NULL;
         if (!(v[k] > 0.0 && isfinite(v[k]))) {
@@ -59,6 +64,9 @@ static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nar
     DT = v[0];
     NORM_EPS = v[1];
     ROTATION_POSE_FACTOR = v[2];
+    NEAR_PI = v[3];
+    TURNING_ABOVE = v[4];
+    SERIES_BELOW = v[5];
     CONFIGURED = 1;
     Py_RETURN_NONE;
 }
@@ -328,15 +336,15 @@ static void quaternion_slerp(const double *q0, const double *q1, double t, doubl
 }
 
 /* rotation_log: axis * angle, angle = atan2(|vee|, trace - 1) of the skew part vee; the
- * axis from the quaternion within 1e-3 of a half turn (sim/rotations.py _NEAR_PI). */
+ * axis from the quaternion within NEAR_PI of a half turn. */
 static void rotation_log(const double *m, double *out)
 {
     double vee[3] = {m[7] - m[5], m[2] - m[6], m[3] - m[1]};
     double two_sin = sqrt(dot3(vee, vee));
     double angle = atan2(two_sin, ((m[0] + m[4]) + m[8]) - 1.0);
-    double scale = two_sin > 1e-12 ? angle / two_sin : 0.5;
+    double scale = two_sin > TURNING_ABOVE ? angle / two_sin : 0.5;
     for (int k = 0; k < 3; k++) out[k] = vee[k] * scale;
-    if (!(M_PI - angle < 1e-3)) return;
+    if (!(M_PI - angle < NEAR_PI)) return;
     double q[4];
     rotation_to_quaternion(m, q);
     double n = sqrt(dot3(q + 1, q + 1));
@@ -349,13 +357,13 @@ static void rotation_log(const double *m, double *out)
     for (int k = 0; k < 3; k++) out[k] = q[k + 1] / div * half;
 }
 
-/* out = rotation_exp(rv) @ R (Rodrigues with sin t / t and (1 - cos t) / t^2, the series
- * below 1e-8 rad). */
+/* out = rotation_exp(rv) @ R (Rodrigues with sin t / t and (1 - cos t) / t^2, their
+ * series below SERIES_BELOW). */
 static void exp_left(const double rv[3], const double *R, double *out)
 {
     double angle = sqrt((rv[0] * rv[0] + rv[1] * rv[1]) + rv[2] * rv[2]);
     double a2 = angle * angle;
-    if (angle < 1e-8)
+    if (angle < SERIES_BELOW)
         rotate_left(rv, 1.0 - a2 / 6.0, 0.5 - a2 / 24.0, R, out);
     else
         rotate_left(rv, sin(angle) / angle, (1.0 - cos(angle)) / a2, R, out);
@@ -542,7 +550,8 @@ done:
 #define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
 
 static PyMethodDef METHODS[] = {
-    METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor): the rules' constants."),
+    METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, "
+                      "series_below): the rules' constants."),
     METHOD(limit_velocities_core, "client_filters.limit_velocities_core, out given."),
     METHOD(limit_positions_core, "client_filters.limit_positions_core, out given."),
     METHOD(limit_torques_core, "client_filters.limit_torques_core, out given."),

@@ -6,8 +6,8 @@ Every rule the client runs each cycle is a ``*_core`` function of
 replacements with the same signatures, ``out`` given: the joint, torque and twist rules
 bit for bit, the pose rules to rounding (tests/envs/test_native_client.py). The one
 backend switch (``native.load``, ``FRANKA_SIM_GYM_NATIVE=0`` for numpy) picks them; the
-C module receives its constants here, from fci/tables.py and libfranka's rate_limiting.h
-values in cartesian_filters.py.
+C module receives its constants here: fci/tables.py's cycle, libfranka's rate_limiting.h
+values in cartesian_filters.py and the rotation library's thresholds (sim/rotations.py).
 
 At one arm a cycle's cost is the number of numpy calls, not their arithmetic: the numpy
 rules take 30-80 % of an env step there (docs/architecture.md, fast paths); batched over
@@ -20,6 +20,7 @@ from types import ModuleType, SimpleNamespace
 
 from .. import native
 from ..fci.tables import DELTA_T
+from ..sim import rotations
 from . import cartesian_filters as cartesian
 from . import client_filters as joint
 
@@ -41,7 +42,14 @@ def load() -> ModuleType | None:
     """The C replacements (configured), or None where not built or switched off."""
     kernel = native.load("envs._client_filters")
     if kernel is not None:
-        kernel.configure(DELTA_T, cartesian.NORM_EPS, cartesian.ROTATION_POSE_FACTOR)
+        kernel.configure(
+            DELTA_T,
+            cartesian.NORM_EPS,
+            cartesian.ROTATION_POSE_FACTOR,
+            rotations.NEAR_PI,
+            rotations.TURNING_ABOVE,
+            rotations.SERIES_BELOW,
+        )
     return kernel
 
 

@@ -24,7 +24,7 @@ The Cartesian interfaces send O_T_EE_c (pose) or O_dP_EE_c (twist) with no elbow
 ``limitRate``, run against ``cartesian_limits``: libfranka's own constants
 (``"libfranka"``) keep the Cartesian derivatives legal but not the joint side — the
 robot solves every pose to joint space and refuses joint accelerations over 10 rad/s^2
-(errors 29 / 30: seed, "The joint side of a Cartesian command") — so the default,
+(errors 29 / 30: docs/motion-limits.md, Cartesian pose) — so the default,
 ``"conservative"``, limits the Cartesian motion to what the joint side accepts.
 """
 
@@ -44,13 +44,13 @@ INTERFACES = ("joint_position", "joint_velocity", "cartesian_pose", "cartesian_v
 CARTESIAN = ("cartesian_pose", "cartesian_velocity")
 
 #: The rate limiter's targets sit this far inside the robot's thresholds. The
-#: seed's thresholds (kMaxJointAcceleration = 10 - 1e-3, kMaxJointJerk = 5000 - 1e-3,
+#: robot's thresholds (kMaxJointAcceleration = 10 - 1e-3, kMaxJointJerk = 5000 - 1e-3,
 #: kMaxTorqueRate = 1000 - 1e-3, the URDF envelope with libfranka's 1e-3 tolerance)
 #: equal libfranka's own limiter targets, and the limiter integrates from the
 #: float32 references of the v10 state while the robot differences in float64:
 #: the rounding (half an ulp: 1.2e-7 rad at |q| ~ 3) reaches the jerk amplified by
 #: 1/dt^3, up to ~120 rad/s^3. libfranka's 1e-3 margins cannot absorb that
-#: (limits.md warns about borderline comparisons); our client keeps ~6 % inside.
+#: (a comparison at the very threshold can go either way); our client keeps ~6 % inside.
 LIMITER_MARGIN = {"ddq": 0.3, "dddq": 300.0, "dq": 0.01, "dtau": 2.0}
 FILTERS = ("none", "interpolate", "lowpass", "limit_rate")
 

@@ -20,6 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "NEAR_PI",
+    "SERIES_BELOW",
+    "TURNING_ABOVE",
     "nearest_rotation",
     "quaternion_slerp",
     "quaternion_to_rotation",
@@ -33,10 +36,15 @@ __all__ = [
 #: Eigen's QuaternionBase::slerp interpolates linearly once |dot| >= 1 - epsilon.
 _SLERP_LINEAR = 1.0 - float(np.finfo(np.float64).eps)
 
-#: Within this of a half turn the skew part of R, 2 sin(angle) axis, has too few
+#: Within this of a half turn [rad] the skew part of R, 2 sin(angle) axis, has too few
 #: significant bits for the axis (its rounding is ~1e-16 absolute): rotation_log takes
 #: the axis from the quaternion there (Shepperd's method, exact up to pi).
-_NEAR_PI = 1e-3
+NEAR_PI = 1e-3
+#: rotation_log: a skew part (2 sin(angle)) at or below this counts as no turn, where
+#: angle / (2 sin(angle)) is its limit 1/2.
+TURNING_ABOVE = 1e-12
+#: rotation_exp: below this angle [rad] its coefficients are their Taylor series.
+SERIES_BELOW = 1e-8
 
 
 def skew(u: np.ndarray) -> np.ndarray:
@@ -53,9 +61,9 @@ def skew(u: np.ndarray) -> np.ndarray:
 def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
     """(..., 3) rotation vectors to (..., 3, 3) matrices (Rodrigues):
     ``I + sin(t) / t K + (1 - cos(t)) / t^2 K^2`` with ``K = skew(rotvec)``, ``t = |rotvec|``
-    (the series below 1e-8 rad)."""
+    (their series below :data:`SERIES_BELOW`)."""
     angle = np.sqrt(np.add.reduce(rotvec * rotvec, axis=-1))
-    small = angle < 1e-8
+    small = angle < SERIES_BELOW
     safe = np.where(small, 1.0, angle)
     a = np.where(small, 1.0 - angle**2 / 6.0, np.sin(angle) / safe)
     b = np.where(small, 0.5 - angle**2 / 24.0, (1.0 - np.cos(angle)) / safe**2)
@@ -68,7 +76,7 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     angle in [0, pi]: the inverse of :func:`rotation_exp`.
 
     The angle is atan2(|vee|, trace - 1) of the skew part vee = 2 sin(angle) axis,
-    exact over [0, pi]; the axis is vee's direction, except within 1e-3 of a half turn,
+    exact over [0, pi]; the axis is vee's direction, except within :data:`NEAR_PI` of a half turn,
     where vee vanishes and the axis comes from the quaternion (Eigen's ``AngleAxisd``).
     """
     flat = R.reshape(*R.shape[:-2], 9)
@@ -77,7 +85,7 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     two_sin = np.sqrt(np.einsum("...i,...i->...", vee, vee))
     angle = np.arctan2(two_sin, flat[..., 0] + flat[..., 4] + flat[..., 8] - 1.0)
     _scale_vee(vee, two_sin, angle)
-    near_pi = np.pi - angle < _NEAR_PI
+    near_pi = np.pi - angle < NEAR_PI
     if np.count_nonzero(near_pi):
         vee[near_pi] = _quaternion_log(rotation_to_quaternion(R[near_pi]))
     return vee
@@ -94,7 +102,7 @@ def relative_rotation_log(
     two_sin = np.sqrt(np.einsum("ni,ni->n", vee, vee))
     angle = np.arctan2(two_sin, two_cos)
     _scale_vee(vee, two_sin, angle)
-    near_pi = np.pi - angle < _NEAR_PI
+    near_pi = np.pi - angle < NEAR_PI
     if np.count_nonzero(near_pi):  # the skew part vanishes: rotation_log's branch
         vee[near_pi] = rotation_log(R_a[near_pi].transpose(0, 2, 1) @ R_b[near_pi])
     return vee
@@ -102,7 +110,7 @@ def relative_rotation_log(
 
 def _scale_vee(vee: np.ndarray, two_sin: np.ndarray, angle: np.ndarray) -> None:
     """vee (2 sin(angle) axis) *= angle / (2 sin(angle)), in place (1/2 as angle -> 0)."""
-    turning = two_sin > 1e-12
+    turning = two_sin > TURNING_ABOVE
     vee *= np.where(turning, angle / np.where(turning, two_sin, 1.0), 0.5)[..., None]
 
 
