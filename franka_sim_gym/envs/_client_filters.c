@@ -4,6 +4,7 @@
  * hands over the constants (configure) from fci/tables.py and libfranka's
  * rate_limiting.h values in envs/cartesian_filters.py, so none is repeated here:
  *
+ *   lowpass_core(x, x_ref, gain, out)
  *   limit_velocities_core(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_torques_core(tau_c, tau_last, d_max, out)
@@ -12,7 +13,7 @@
  *   limit_pose_core(T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out)
  *   reference_pose(O_T_EE_c, out)
  *
- * The joint, torque and twist rules are elementwise arithmetic in the numpy rule's order,
+ * The low-pass filter and the joint, torque and twist rules are elementwise arithmetic in the numpy rule's order,
  * built without fused multiply-adds (setup.py); 3-vector dot products sum as numpy's
  * einsum sums three products, (x0 y0 + x2 y2) + x1 y1: the same bits as numpy on finite
  * inputs (tests/envs/test_native_client.py). The pose rules agree with numpy to rounding
@@ -82,6 +83,36 @@ static int get_double(PyObject *obj, double *out)
 {
     *out = PyFloat_AsDouble(obj);
     return (*out == -1.0 && PyErr_Occurred()) ? -1 : 0;
+}
+
+/* ---- the low-pass filter -------------------------------------------------------------- */
+
+/* lowpass_core(x, x_ref, gain, out): (n, k) each (x_ref float32 or float64), gain a float:
+ * gain * x + (1 - gain) * x_ref. */
+static PyObject *lowpass_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 4, "lowpass_core") < 0) return NULL;
+    enum { X, REF, OUT, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t any2[2] = {-1, -1};
+    if (f64_get(args[0], &a[X], 2, any2, 0, "x") < 0) goto done;
+    Py_ssize_t n = a[X].shape[0], k = a[X].shape[1];
+    Py_ssize_t shape[2] = {n, k};
+    double gain;
+    if (num_get(args[1], &a[REF], 2, shape, 0, "x_ref") < 0 || get_double(args[2], &gain) < 0 ||
+        f64_get(args[3], &a[OUT], 2, shape, 1, "out") < 0)
+        goto done;
+    const double gain_ref = 1.0 - gain;
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (Py_ssize_t j = 0; j < k; j++)
+            put2(&a[OUT], i, j, gain * AT2(a[X], i, j) + gain_ref * num2(&a[REF], i, j));
+    result = Py_NewRef(a[OUT].view.obj);
+done:
+    f64_release_all(a, COUNT);
+    return result;
 }
 
 /* ---- joints and torques -------------------------------------------------------------- */
@@ -552,6 +583,7 @@ done:
 static PyMethodDef METHODS[] = {
     METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, "
                       "series_below): the rules' constants."),
+    METHOD(lowpass_core, "client_filters.lowpass_core, out given."),
     METHOD(limit_velocities_core, "client_filters.limit_velocities_core, out given."),
     METHOD(limit_positions_core, "client_filters.limit_positions_core, out given."),
     METHOD(limit_torques_core, "client_filters.limit_torques_core, out given."),

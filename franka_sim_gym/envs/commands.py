@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import to_wire
-from ..fci.tables import FR3, RobotTable
+from ..fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
 from . import client_kernel
@@ -158,6 +158,7 @@ class CommandGenerator:
         m = LIMITER_MARGIN
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
+        self._band_shift = JOINT_VELOCITY_LIMIT_TOLERANCE + m["dq"]
         self._lowpassed = np.zeros((n, 6 if interface == "cartesian_velocity" else 7))
         self._out = np.zeros_like(self._lowpassed)
         self._ref_pose = np.zeros((n, 4, 4))
@@ -282,7 +283,7 @@ class CommandGenerator:
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).
             ref = np.where(self._first[:, None], target, ref)
-        x = cf.lowpass_core(target, ref, self._gain, out=self._lowpassed)
+        x = rules.lowpass_core(target, ref, self._gain, self._lowpassed)
         if self.action_filter != "limit_rate":
             return x
         out = self._out
@@ -292,9 +293,9 @@ class CommandGenerator:
         if interface == "torque":
             return rules.limit_torques_core(x, state["tau_J_d"], self._dtau_max, out)
         # The velocity band at the last commanded position (libfranka evaluates it at the
-        # reference), minus the client's margin: [upper | -lower].
-        band = self.table.velocity_envelope_halves(np.asarray(state["q_d"], dtype=np.float64))
-        band -= LIMITER_MARGIN["dq"]
+        # reference), the client's margin inside libfranka's tolerance: [upper | -lower].
+        q_d = np.asarray(state["q_d"], dtype=np.float64)
+        band = self.table.velocity_envelope_halves(q_d, self._band_shift)
         upper, lower = band[:, :7], np.negative(band[:, 7:])
         a_max, j_max = self._ddq_max, self._dddq_max
         history = (state["dq_d"], state["ddq_d"], upper, lower, a_max, j_max, out)

@@ -21,7 +21,7 @@ from franka_sim_gym.envs.client_kernel import NUMPY_RULES as NP
 from franka_sim_gym.envs.commands import CLIENT_KERNEL as C
 from franka_sim_gym.envs.commands import LIMITER_MARGIN
 from franka_sim_gym.fci.frames import from_wire, is_homogeneous, to_wire
-from franka_sim_gym.fci.tables import FR3
+from franka_sim_gym.fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
 from franka_sim_gym.sim.rotations import rotation_exp
 from tests.envs.test_client_filters_cartesian import LIBFRANKA_LOWPASS_CASES as LOWPASS_CASES
@@ -59,8 +59,8 @@ def _joint_state(rng, n: int, near_band: bool) -> np.ndarray:
 
 
 def _band(state) -> tuple[np.ndarray, np.ndarray]:
-    band = FR3.velocity_envelope_halves(np.asarray(state["q_d"], dtype=np.float64))
-    band -= LIMITER_MARGIN["dq"]
+    shift = JOINT_VELOCITY_LIMIT_TOLERANCE + LIMITER_MARGIN["dq"]  # as the env's client
+    band = FR3.velocity_envelope_halves(np.asarray(state["q_d"], dtype=np.float64), shift)
     return band[:, :7], -band[:, 7:]
 
 
@@ -69,6 +69,20 @@ def _both(name: str, *args, shape) -> tuple[np.ndarray, np.ndarray]:
     fast = getattr(C, name)(*args, np.full(shape, np.nan))
     reference = getattr(NP, name)(*args, np.full(shape, np.nan))
     return fast, reference
+
+
+@pytest.mark.parametrize("columns", [6, 7])
+@pytest.mark.parametrize("n", [1, 16])
+def test_the_lowpass_filter_is_the_numpy_rule_bit_for_bit(columns: int, n: int):
+    """Against the wire state's float32 references and float64 ones, at several cutoffs."""
+    rng = np.random.default_rng(columns + n)
+    for trial in range(100):
+        state = _joint_state(rng, n, near_band=False)
+        ref = state["q_d"] if columns == 7 else rng.normal(size=(n, 6))
+        x = rng.normal(size=(n, columns)) * (trial % 5 != 0)
+        gain = cf.lowpass_gain(float(rng.choice([1.0, 10.0, 100.0, 999.0])))
+        fast, reference = _both("lowpass_core", x, ref, gain, shape=(n, columns))
+        assert same_bits(fast, reference), trial
 
 
 @pytest.mark.parametrize("positions", [True, False])
