@@ -18,7 +18,6 @@ import pytest
 import franka_sim_gym.fci.engine as engine_module
 import franka_sim_gym.fci.tables as tables_module
 from franka_sim_gym import native
-from franka_sim_gym.envs.commands import CommandGenerator
 from franka_sim_gym.fci.tables import FER, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
 from tests.fci_helpers import make_controller
 from tests.native_helpers import joint_samples, same_bits
@@ -209,7 +208,5 @@ def test_measured_screen_kernel_gives_the_reference_row_and_verdict(n):
 def test_the_fer_keeps_its_numpy_paths():
     """The FER's envelope is constant: no kernel table, the numpy paths decide."""
     assert FER.envelope_table is None
-    gen = CommandGenerator("joint_position", "limit_rate", 40, table=FER)
-    assert gen._kernel is None
     ctrl = make_controller(1, robot="fer")
     assert ctrl.engine._envelope_kernel is None
