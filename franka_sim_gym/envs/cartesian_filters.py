@@ -1,6 +1,6 @@
 """libfranka's client-side Cartesian command filters, batch-first: the env plays the client.
 
-Each reproduces one piece of libfranka 0.21 (docs/env.md, Actions), as
+Each reproduces one piece of libfranka 0.21 (docs/limits.md §6), as
 :mod:`franka_sim_gym.envs.client_filters` does for the joint and torque interfaces:
 
 * :func:`cartesian_lowpass_filter` -- ``franka::cartesianLowpassFilter``

@@ -3,7 +3,7 @@ the client.
 
 Pure functions over float64 arrays with a leading robot axis, ``(n, 7)``; any
 shapes that broadcast work the same. Each reproduces one piece of libfranka
-0.21 operation for operation (docs/env.md, Actions), so that a command
+0.21 operation for operation (docs/limits.md §6), so that a command
 stream built here equals the one a ``franka::Robot::control(...)`` loop sends:
 
 * :func:`lowpass_filter` -- ``franka::lowpassFilter`` (include/franka/lowpass_filter.h,
@@ -246,7 +246,7 @@ def limit_rate_joint_velocities(
 
     The scalar ``franka::limitRate(upper, lower, max_acceleration, max_jerk,
     commanded_velocity, last_commanded_velocity, last_commanded_acceleration)``
-    of src/rate_limiting.cpp (libfranka >= 0.11), per joint,
+    of src/rate_limiting.cpp (libfranka >= 0.11; docs/limits.md §6.3), per joint,
     vectorised; with dt = kDeltaT::
 
         jerk = ((dq_c - dq_last) / dt - ddq_last) / dt

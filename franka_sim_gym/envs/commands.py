@@ -24,8 +24,9 @@ The Cartesian interfaces send O_T_EE_c (pose) or O_dP_EE_c (twist) with no elbow
 ``limitRate``, run against ``cartesian_limits``: libfranka's own constants
 (``"libfranka"``) keep the Cartesian derivatives legal but not the joint side — the
 robot solves every pose to joint space and refuses joint accelerations over 10 rad/s^2
-(errors 29 / 30: docs/motion-limits.md, Cartesian pose) — so the default,
-``"conservative"``, limits the Cartesian motion to what the joint side accepts.
+(errors 29 / 30: docs/fci-behaviour.md, The joint side of a Cartesian command) — so
+the default, ``"conservative"``, limits the Cartesian motion to what the joint side
+accepts.
 """
 
 from __future__ import annotations

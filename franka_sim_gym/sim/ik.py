@@ -1,7 +1,7 @@
 """The damped differential IK's rule: the pose error and the damped Gauss-Newton step.
 
-The Cartesian motion generators are judged and driven in joint space (docs/motion-limits.md,
-Cartesian pose: the joint side): every commanded pose is solved to a joint
+The Cartesian motion generators are judged and driven in joint space (docs/fci-behaviour.md,
+The joint side of a Cartesian command): every commanded pose is solved to a joint
 configuration by damped Gauss-Newton from the previous cycle's solution.
 :class:`~franka_sim_gym.sim.kinematics.ArmKinematics` runs the passes (evaluate, error,
 verdict, step) on MuJoCo's kinematics; this module holds what one pass computes, as pure
