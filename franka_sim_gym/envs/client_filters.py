@@ -44,7 +44,7 @@ in the order callback -> low-pass -> rate limiter -> finite check -> send::
     tau = lowpass_filter(tau, state.tau_J_d, cutoff)
     tau = limit_rate_torques(tau, state.tau_J_d, table.dtau_max)
 
-    # CartesianPose (row-major (n, 4, 4); the wire is column-major -- frames.from_wire):
+    # CartesianPose (cartesian_filters; row-major (n, 4, 4), the wire is column-major):
     # reference = the command on the first cycle, state.O_T_EE_c afterwards.
     ref = T_c if first_cycle else state.O_T_EE_c
     T_c = cartesian_lowpass_filter(T_c, ref, cutoff)
@@ -52,7 +52,7 @@ in the order callback -> low-pass -> rate limiter -> finite check -> send::
                                     table.v_trans_max, table.a_trans_max, table.j_trans_max,
                                     table.v_rot_max, table.a_rot_max, table.j_rot_max)
 
-    # CartesianVelocities: per-component lowpass_filter against state.O_dP_EE_c.
+    # CartesianVelocities (cartesian_filters): lowpass_filter against state.O_dP_EE_c.
     dP_c = lowpass_filter(dP_c, state.O_dP_EE_c, cutoff)
     dP_c = limit_rate_cartesian_velocity(dP_c, state.O_dP_EE_c, state.O_ddP_EE_c,
                                          table.v_trans_max, ..., table.j_rot_max)
