@@ -1,6 +1,6 @@
 """Env throughput: steps/s of FrankaFCI-v0 with random actions at a 25 Hz policy.
 
-    python benchmarks/env_rate.py [--seconds S]
+    python benchmarks/env_rate.py [--seconds S] [--shares]
 
 One row per action interface (single env, libfranka's rate-limited client, all
 checks on), with cycles/s (40 cycles per step) and the ratio to bare mj_step of
@@ -10,6 +10,11 @@ limit) are reset, and resets are counted in the time.
 Then the native batched vector env (joint position) at N = 16 and 64 arms in one
 world: env steps/s and arm-cycles/s (one core), the ratio to N single envs in a
 Gymnasium SyncVectorEnv, and to bare mj_step of the same N-arm world.
+
+With ``--shares``, a second table: for each interface (and the batched env at N = 64),
+the share of the env step's wall time spent in the client's filters
+(``CommandGenerator.command``) and in ``ArmKinematics.solve`` (zero where the
+controller solves through a fused kernel of its own), timed around those calls.
 """
 
 from __future__ import annotations
@@ -22,9 +27,10 @@ import mujoco
 import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
-from franka_sim_gym.envs.commands import INTERFACES
+from franka_sim_gym.envs.commands import INTERFACES, CommandGenerator
 from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
+from franka_sim_gym.sim.kinematics import ArmKinematics
 
 
 def env_rate(interface: str, seconds: float) -> tuple[float, int]:
@@ -65,9 +71,47 @@ def bare_rate(n: int, seconds: float) -> float:
     return calls / (time.perf_counter() - start)
 
 
+class _Timed:
+    """Wall time spent inside a method, summed over calls (a wrapper on the class)."""
+
+    def __init__(self, cls: type, name: str) -> None:
+        self.cls, self.name, self.original, self.seconds = cls, name, getattr(cls, name), 0.0
+        timed, original = self, self.original
+
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                timed.seconds += time.perf_counter() - start
+
+        setattr(cls, name, wrapper)
+
+    def restore(self) -> None:
+        setattr(self.cls, self.name, self.original)
+
+
+def shares(seconds: float) -> None:
+    """The client filters' and the IK's share of the env step, per interface."""
+    filters = _Timed(CommandGenerator, "command")
+    ik = _Timed(ArmKinematics, "solve")
+    print(f"{'share of an env step':<34}{'steps/s':>10}{'filters':>10}{'IK':>8}")
+    rows = [(name, lambda name=name: env_rate(name, seconds)[0]) for name in INTERFACES]
+    rows.append(("batched, N=64", lambda: vector_rate(64, "vector_entry_point", seconds)))
+    for name, run in rows:
+        filters.seconds = ik.seconds = 0.0
+        start = time.perf_counter()
+        rate = run()
+        total = time.perf_counter() - start
+        print(f"{name:<34}{rate:>10,.0f}{filters.seconds / total:>10.1%}{ik.seconds / total:>8.1%}")
+    filters.restore()
+    ik.restore()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--shares", action="store_true", help="time the filters and the IK")
     args = parser.parse_args()
     physics = ArmPhysics(n_arms=1)
     calls, start = 0, time.perf_counter()
@@ -106,6 +150,9 @@ def main() -> None:
         f"cycles_per_s={rates['joint_position'] * 40:.0f} "
         f"batched_arm_cycles_per_s={batched[64] * 40:.0f}"
     )
+    if args.shares:
+        print()
+        shares(args.seconds)
 
 
 if __name__ == "__main__":

@@ -24,8 +24,9 @@ The Cartesian interfaces send O_T_EE_c (pose) or O_dP_EE_c (twist) with no elbow
 ``limitRate``, run against ``cartesian_limits``: libfranka's own constants
 (``"libfranka"``) keep the Cartesian derivatives legal but not the joint side — the
 robot solves every pose to joint space and refuses joint accelerations over 10 rad/s^2
-(errors 29 / 30: seed, "The joint side of a Cartesian command") — so the default,
-``"conservative"``, limits the Cartesian motion to what the joint side accepts.
+(errors 29 / 30: docs/fci-behaviour.md, The joint side of a Cartesian command) — so
+the default, ``"conservative"``, limits the Cartesian motion to what the joint side
+accepts.
 """
 
 from __future__ import annotations
@@ -34,23 +35,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fci.frames import from_wire, to_wire
+from ..fci.frames import to_wire
 from ..fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
-from ..native import load
-from ..sim.kinematics import rotation_exp, rotation_log
+from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
+from . import client_kernel
 
 INTERFACES = ("joint_position", "joint_velocity", "cartesian_pose", "cartesian_velocity", "torque")
 CARTESIAN = ("cartesian_pose", "cartesian_velocity")
 
 #: The rate limiter's targets sit this far inside the robot's thresholds. The
-#: seed's thresholds (kMaxJointAcceleration = 10 - 1e-3, kMaxJointJerk = 5000 - 1e-3,
+#: robot's thresholds (kMaxJointAcceleration = 10 - 1e-3, kMaxJointJerk = 5000 - 1e-3,
 #: kMaxTorqueRate = 1000 - 1e-3, the URDF envelope with libfranka's 1e-3 tolerance)
 #: equal libfranka's own limiter targets, and the limiter integrates from the
 #: float32 references of the v10 state while the robot differences in float64:
 #: the rounding (half an ulp: 1.2e-7 rad at |q| ~ 3) reaches the jerk amplified by
 #: 1/dt^3, up to ~120 rad/s^3. libfranka's 1e-3 margins cannot absorb that
-#: (limits.md warns about borderline comparisons); our client keeps ~6 % inside.
+#: (a comparison at the very threshold can go either way); our client keeps ~6 % inside.
 LIMITER_MARGIN = {"ddq": 0.3, "dddq": 300.0, "dq": 0.01, "dtau": 2.0}
 FILTERS = ("none", "interpolate", "lowpass", "limit_rate")
 
@@ -151,28 +152,19 @@ class CommandGenerator:
         self.table = table
         self.scale = scale or ActionScale()
         self.cutoff = cutoff
-        # Validated once here; the per-cycle filters use the cores of client_filters.
+        # Validated once here; every cycle runs the rules' cores (client_kernel: numpy,
+        # or their C replacements, which take one gain for all robots).
         self._gain = cf.lowpass_gain(cutoff)
+        self._rules = client_kernel.rules(CLIENT_KERNEL if isinstance(self._gain, float) else None)
         m = LIMITER_MARGIN
         self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
         self._dtau_max = table.dtau_max - m["dtau"]
-        self._far = cf.FarFromTheBand(table, self._ddq_max, self._dddq_max, m["dq"])
-        # The fused C copies of _filtered's and _pose_wire's filters
-        # (envs/_client_filters.c), for one cutoff for all robots (a per-robot cutoff
-        # takes numpy): the joint path needs a position-based envelope (the FER's is
-        # constant); the pose path serves the low-pass filter alone too.
-        fused = CLIENT_KERNEL if isinstance(self._gain, float) else None
-        limited = action_filter == "limit_rate"
-        joint = limited and table.envelope_table is not None
-        self._kernel = fused if joint else None
-        self._twist_kernel = fused if limited and interface == "cartesian_velocity" else None
-        self._torque_kernel = fused if limited and interface == "torque" else None
-        pose = interface == "cartesian_pose" and action_filter in ("lowpass", "limit_rate")
-        self._pose_kernel = fused if pose else None
-        self._out = np.zeros((n, 7))
-        self._twist_limits = np.array(self.cartesian_limits, dtype=np.float64)
-        self._twist_out = np.zeros((n, 6))
-        self._pose_out = np.zeros((n, 16))
+        self._band_shift = JOINT_VELOCITY_LIMIT_TOLERANCE + m["dq"]
+        self._lowpassed = np.zeros((n, 6 if interface == "cartesian_velocity" else 7))
+        self._out = np.zeros_like(self._lowpassed)
+        self._ref_pose = np.zeros((n, 4, 4))
+        self._pose_lowpassed = np.zeros((n, 4, 4))
+        self._pose_out = np.zeros((n, 4, 4))
         # A unit twist action's twist, per component.
         self._twist_scale = np.repeat([self.scale.linear_velocity, self.scale.angular_velocity], 3)
         self._start = None
@@ -247,7 +239,7 @@ class CommandGenerator:
             self._start = state["O_dP_EE_c"].astype(np.float64)
             self._target = six * self._twist_scale
             return
-        T = _reference_pose(state)
+        T = self._rules.reference_pose(state["O_T_EE_c"], np.empty((len(a), 4, 4)))
         target = T.copy()
         target[:, :3, 3] += six[:, :3] * sc.translation
         target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
@@ -257,23 +249,6 @@ class CommandGenerator:
 
     def _pose_wire(self, state: np.ndarray, k: int) -> np.ndarray:
         """Cycle k's O_T_EE_c in the wire's column-major layout, (n, 16)."""
-        kernel = self._pose_kernel
-        if kernel is not None and kernel.limit_pose(
-            self._target,
-            state["O_T_EE_c"],
-            state["O_dP_EE_c"],
-            state["O_ddP_EE_c"],
-            self._gain,
-            self._twist_limits,
-            self.action_filter == "limit_rate",
-            self._pose_out,
-        ):
-            # _pose_command's low-pass and rate limiter in one C call
-            # (envs/_client_filters.c). Not bit for bit: the kernel takes libm's
-            # trigonometry (as libfranka's Eigen does) where numpy's SIMD versions may
-            # round an ulp apart, so the two agree to ~1e-15 (tests/envs/test_native_client.py).
-            # False where the numpy path below raises libfranka's error, or decides.
-            return self._pose_out
         return to_wire(self._pose_command(state, k))
 
     def _pose_command(self, state: np.ndarray, k: int) -> np.ndarray:
@@ -287,97 +262,51 @@ class CommandGenerator:
             out[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], target[:, :3, 3], s)
             out[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
             return out
-        ref = _reference_pose(state)
-        out = cf.cartesian_lowpass_filter(target, ref, self.cutoff)
+        rules = self._rules
+        ref = rules.reference_pose(state["O_T_EE_c"], self._ref_pose)
+        out = rules.cartesian_lowpass_core(target, ref, self._gain, self._pose_lowpassed)
         if self.action_filter != "limit_rate":
             return out
-        return cf.limit_rate_cartesian_pose(
+        return rules.limit_pose_core(
             out,
             ref,
-            state["O_dP_EE_c"].astype(np.float64),
-            state["O_ddP_EE_c"].astype(np.float64),
+            state["O_dP_EE_c"],
+            state["O_ddP_EE_c"],
             *self.cartesian_limits,
+            self._pose_out,
         )
 
     def _filtered(self, state: np.ndarray) -> np.ndarray:
-        target, interface = self._target, self.interface
-        if self._kernel is not None and interface in _JOINT_LIMITED:
-            # libfranka's low-pass and rate limiter in one fused C call: the same bits as
-            # the numpy below.
-            first = self._first if interface == "joint_position" and self._n_first else None
-            out = self._out
-            self._kernel.limit_rate(
-                interface == "joint_position",
-                target,
-                state[_REFERENCE[interface]],
-                first,
-                self._gain,
-                state["q_d"],
-                state["dq_d"],
-                state["ddq_d"],
-                self.table.envelope_table,
-                (JOINT_VELOCITY_LIMIT_TOLERANCE, LIMITER_MARGIN["dq"]),
-                self._ddq_max,
-                self._dddq_max,
-                out,
-            )
-            return out
-        if self._twist_kernel is not None:
-            # The low-pass and libfranka's twist limiter in one fused C call
-            # (envs/_client_filters.c), the same bits as below; False for a non-finite input,
-            # which the numpy path below refuses with libfranka's message.
-            fused = self._twist_kernel.limit_twist(
-                target,
-                state["O_dP_EE_c"],
-                state["O_ddP_EE_c"],
-                self._gain,
-                self._twist_limits,
-                self._twist_out,
-            )
-            if fused:
-                return self._twist_out
-        if self._torque_kernel is not None and self._torque_kernel.limit_torques(
-            target, state["tau_J_d"], self._gain, self._dtau_max, self._out
-        ):
-            # The low-pass and libfranka's torque limiter in one fused C call, the same
-            # bits as below (False for a non-finite input: the numpy path below).
-            return self._out
-        # The reference the filters run against, read off the state once.
-        ref = state[_REFERENCE[interface]].astype(np.float64)
+        """Cycle k's joint, torque or twist command: libfranka's low-pass filter against
+        the state's reference, then (``"limit_rate"``) its rate limiter."""
+        target, interface, rules = self._target, self.interface, self._rules
+        ref = state[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).
-            out = cf.lowpass_core(target, np.where(self._first[:, None], target, ref), self._gain)
-        else:
-            out = cf.lowpass_core(target, ref, self._gain)
+            ref = np.where(self._first[:, None], target, ref)
+        x = rules.lowpass_core(target, ref, self._gain, self._lowpassed)
         if self.action_filter != "limit_rate":
-            return out
+            return x
+        out = self._out
         if interface == "cartesian_velocity":
-            return cf.limit_rate_cartesian_velocity(
-                out, ref, state["O_ddP_EE_c"].astype(np.float64), *self.cartesian_limits
-            )
+            limits = self.cartesian_limits
+            return rules.limit_twist_core(x, state["O_dP_EE_c"], state["O_ddP_EE_c"], *limits, out)
         if interface == "torque":
-            return cf.limit_torques_core(out, ref, self._dtau_max)
-        q_d = ref if interface == "joint_position" else state["q_d"].astype(np.float64)
-        dq_d = ref if interface == "joint_velocity" else state["dq_d"].astype(np.float64)
-        ddq_d = state["ddq_d"].astype(np.float64)
+            return rules.limit_torques_core(x, state["tau_J_d"], self._dtau_max, out)
+        # The velocity band at the last commanded position (libfranka evaluates it at the
+        # reference), the client's margin inside libfranka's tolerance: [upper | -lower].
+        q_d = np.asarray(state["q_d"], dtype=np.float64)
+        band = self.table.velocity_envelope_halves(q_d, self._band_shift)
+        upper, lower = band[:, :7], np.negative(band[:, 7:])
         a_max, j_max = self._ddq_max, self._dddq_max
-        if self._far(q_d, dq_d):  # the band cannot bind: no envelope needed
-            upper = lower = None
-        else:
-            both = self.table.velocity_envelope_halves(q_d)  # [upper | -lower]
-            # upper - margin and -(lower + margin), in libfranka's order of operations
-            both -= LIMITER_MARGIN["dq"]
-            upper, lower = both[:, :7], -both[:, 7:]
+        history = (state["dq_d"], state["ddq_d"], upper, lower, a_max, j_max, out)
         if interface == "joint_position":
-            return cf.limit_positions_core(out, q_d, dq_d, ddq_d, upper, lower, a_max, j_max)
-        return cf.limit_velocities_core(out, dq_d, ddq_d, upper, lower, a_max, j_max)
+            return rules.limit_positions_core(x, state["q_d"], *history)
+        return rules.limit_velocities_core(x, *history)
 
 
-#: The client's filters in C (envs/_client_filters.c; None: not built, or turned off).
-CLIENT_KERNEL = load("envs._client_filters")
-
-#: The interfaces whose commands libfranka's joint rate limiter shapes.
-_JOINT_LIMITED = ("joint_position", "joint_velocity")
+#: The client filters' C replacements (envs/_client_filters.c; None: not built, or off).
+CLIENT_KERNEL = client_kernel.load()
 
 #: The state field each interface's filters run against (libfranka's ControlLoop).
 _REFERENCE = {
@@ -386,15 +315,3 @@ _REFERENCE = {
     "torque": "tau_J_d",
     "cartesian_velocity": "O_dP_EE_c",
 }
-
-
-def _reference_pose(state: np.ndarray) -> np.ndarray:
-    """The state's O_T_EE_c as (n, 4, 4) matrices, its rotation re-orthonormalised.
-
-    The v10 state carries it in float32; the nearest rotation (polar decomposition by
-    SVD) keeps every pose built on it inside libfranka's isHomogeneousTransformation.
-    """
-    T = from_wire(state["O_T_EE_c"])
-    u, _, vt = np.linalg.svd(T[:, :3, :3])
-    T[:, :3, :3] = u @ vt
-    return T

@@ -17,13 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..sim.arm import ArmPhysics
-from ..sim.kinematics import (
-    USABLE_POSITION_ERROR,
-    USABLE_ROTATION_ERROR,
-    ArmKinematics,
-    IkResult,
-    rotation_exp,
-)
+from ..sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
+from ..sim.kinematics import ArmKinematics
+from ..sim.rotations import rotation_exp
 from . import extrapolation
 from .cartesian_reference import CartesianHistory
 from .limits import cartesian as rules

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sim.kinematics import rotation_exp
+from ..sim.rotations import rotation_exp
 from .tables import DELTA_T
 
 

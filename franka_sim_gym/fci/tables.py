@@ -22,13 +22,6 @@ DELTA_T = 1e-3
 LIMIT_EPS = 1e-3
 #: libfranka joint_velocity_limits.cpp: tolerance subtracted from the envelope.
 JOINT_VELOCITY_LIMIT_TOLERANCE = 1e-3
-#: The joint speed [rad/s] up to which the client filters' envelope band passes on the
-#: interior shortcut (RobotTable.interior_bounds) instead of the envelope's square roots.
-#: Any value is exact (faster motions, or motions near a stop, take the envelope itself);
-#: 1.5 rad/s covers the motions the env's policies and the examples make, with interiors
-#: that still contain the usual workspace (joint 2 within +-1.23 rad, joint 4 in
-#: [-2.64, -0.55]). The controller's rules always evaluate the envelope itself.
-INTERIOR_SPEED = 1.5
 #: Franka docs "Control Interface Specification": >= 20 consecutive lost
 #: packets abort the motion with communication_constraints_violation.
 MAX_LOST_CYCLES = 20
@@ -91,15 +84,6 @@ class RobotTable:
         bound = np.concatenate([self.q_upper, -self.q_lower])
         return two_a, bound, np.concatenate([self.dq_offset] * 2), np.concatenate([self.dq_max] * 2)
 
-    @cached_property
-    def envelope_table(self) -> np.ndarray | None:
-        """(4, 14) the envelope's constants, upper and lower halves side by side (rows
-        2 a_dec, bound, v_off, v_max; the client filters' kernel takes them); None for a
-        constant envelope."""
-        if self.dq_offset is None:
-            return None
-        return _ro(np.stack(self._envelope_constants))
-
     def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The admissible joint velocity band at q, shape (..., 7) each.
 
@@ -134,33 +118,6 @@ class RobotTable:
         np.minimum(r, vmax, out=r)
         r -= shift
         return r
-
-    def interior_bounds(self, speed: float, shift: float) -> np.ndarray:
-        """(28,) bounds on [dq | q | -dq | -q] that imply dq is inside the envelope at q.
-
-        A conservative shortcut for the checks run every cycle: the envelope only grows
-        with the distance to the stop, and every float operation of
-        :meth:`velocity_envelope_halves` is monotone, so for any q in the interior
-        [q_lower + D, q_upper - D] each half is at least its value at the interior's
-        edge. D is the distance at which the envelope reaches ``speed``
-        ((speed + v_off)^2 / (2 a_dec), the envelope's law solved for the distance):
-        joint speeds up to about ``speed`` away from the stops pass on four comparisons
-        instead of the envelope's square roots. ``shift`` as in
-        :meth:`velocity_envelope_halves`. A joint whose range is narrower than 2 D
-        has an empty interior: the shortcut never applies to it, nothing else changes.
-        Rows of [dq | q | -dq | -q] at most these bounds are inside the envelope; rows
-        above them are undecided (the exact envelope decides).
-        """
-        if self.dq_offset is None:  # a constant envelope: no band in q
-            edge = np.concatenate([self.q_upper, self.q_lower])
-            band = np.full(7, np.inf)
-            halves = self.velocity_envelope_halves(edge, shift)
-            return np.concatenate([halves[:7], band, halves[7:], band])
-        distance = (speed + self.dq_offset) ** 2 / (2.0 * self.ddq_decel)
-        upper_edge = self.q_upper - distance
-        lower_edge = self.q_lower + distance
-        halves = self.velocity_envelope_halves(np.concatenate([upper_edge, lower_edge]), shift)
-        return np.concatenate([halves[:7], upper_edge, halves[7:], -lower_edge])
 
 
 #: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.

@@ -7,8 +7,7 @@ with the code of another layer. The numpy function stays the rule (the one the d
 describe); a test holds the kernel to it. The controller's own rules (``fci/limits``)
 have no kernel: they are numpy only (docs/architecture.md, "Fast paths", says why).
 This package holds what the kernels share: the switch, the loader and the C headers
-``_arrays.h``, ``_envelope.h`` (the joint velocity envelope's law, for the client's
-filters), ``_rotation.h`` and ``_ik_core.h``.
+``_arrays.h`` (checked array arguments), ``_rotation.h`` and ``_ik_core.h``.
 
 The kernels are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler was available

@@ -1,15 +1,15 @@
 /* The IK's damped Gauss-Newton solve, shared by sim/_ik.c (ArmKinematics.solve) and
- * fci/_cartesian_rules.c (the Cartesian generators' plain cycle): a fused copy of its
- * numpy reference, sim/kinematics.py ArmKinematics.solve.
+ * fci/_cartesian_rules.c (the Cartesian generators' plain cycle): the C replacement of its
+ * numpy reference, sim/kinematics.py ArmKinematics.solve (its rule: sim/ik.py).
  *
  * The evaluation reads the arms' rows of a private MjData (the flange site's position
  * and rotation, the joints' axes and anchors) as MuJoCo's mj_kinematics leaves them; the
  * solve calls mj_kinematics itself, through the pointer the Python bindings' own
- * libmujoco exports (sim/kinematics.py _mujoco_kinematics), so the kinematics stay
+ * libmujoco exports (sim/ik.py mj_kinematics_addresses), so the kinematics stay
  * MuJoCo's and the whole solve is one C call. The IK's products and its 6x6 solve (an
  * elimination with pivoting in place of LAPACK's) may differ from numpy's in the last
  * bits: the same passes and verdicts, the solution to ~1e-14
- * (tests/fci/test_native_cartesian.py). No rule of the robot lives here. */
+ * (tests/sim/test_ik_native.py). No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 #define FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 
@@ -18,9 +18,6 @@
 #include <string.h>
 
 #include "_arrays.h"
-
-/* sim/kinematics.py ELBOW_JOINT: joint 3, the FR3's redundancy angle. */
-#define ELBOW_JOINT 2
 
 /* A bool (n,) argument (numpy bool: one byte each), or None (data NULL). */
 typedef struct {
@@ -146,10 +143,11 @@ static void solve6(double A[6][6], double b[6])
     }
 }
 
-/* One arm's damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e (_update), joint 3's
- * column zeroed where the elbow is held. */
+/* One arm's damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e (sim/ik.py
+ * damped_step), the elbow joint's column zeroed where the elbow is held (elbow_joint:
+ * sim/ik.py ELBOW_JOINT, or -1). */
 static void damped_step(const F64 *axes, const F64 *anchors, Py_ssize_t i, const Pose *pose,
-                        int fixed, const double e[6], double damping2, double step[7])
+                        int elbow_joint, const double e[6], double damping2, double step[7])
 {
     double J[6][7];
     for (int j = 0; j < 7; j++) {
@@ -164,8 +162,8 @@ static void damped_step(const F64 *axes, const F64 *anchors, Py_ssize_t i, const
         J[2][j] = ax[0] * lever[1] - ax[1] * lever[0];
         for (int k = 0; k < 3; k++) J[3 + k][j] = ax[k];
     }
-    if (fixed)
-        for (int r = 0; r < 6; r++) J[r][ELBOW_JOINT] = 0.0;
+    if (elbow_joint >= 0)
+        for (int r = 0; r < 6; r++) J[r][elbow_joint] = 0.0;
     double A[6][6], x[6];
     for (int r = 0; r < 6; r++) {
         for (int c = 0; c < 6; c++) {
@@ -227,7 +225,7 @@ typedef struct {
     char *converged;
     Py_ssize_t converged_stride;
     double damping2, tol2, max_step;
-    int max_iterations;
+    int max_iterations, elbow_joint;
 } IkProblem;
 
 /* sim/kinematics.py ArmKinematics.native_solve, borrowed: the solver's own arrays (its
@@ -236,7 +234,7 @@ typedef struct {
     F64 cached_q, qpos, site_pos, site_mat, axes, anchors, base, errors;
     Mask converged;
     double damping2, tol2, max_step;
-    int max_iterations;
+    int max_iterations, elbow_joint;
     Kinematics kin;
 } IkSolver;
 
@@ -254,12 +252,13 @@ static void ik_solver_release(IkSolver *s)
 }
 
 /* Borrow native_solve's tuple (cached_q, qpos, site_pos, site_mat, axes, anchors, base,
- * errors, converged, damping2, tol2, max_step, max_iterations, kinematics) for n arms.
+ * errors, converged, damping2, tol2, max_step, max_iterations, kinematics, elbow_joint)
+ * for n arms (every setting and constant from sim/kinematics.py and sim/ik.py).
  * Returns 0, or -1 with a ValueError (release with ik_solver_release either way). */
 static int ik_solver_get(PyObject *obj, Py_ssize_t n, IkSolver *s)
 {
     memset(s, 0, sizeof(*s));
-    if (!PyTuple_Check(obj) || PyTuple_GET_SIZE(obj) != 14) {
+    if (!PyTuple_Check(obj) || PyTuple_GET_SIZE(obj) != 15) {
         PyErr_SetString(PyExc_ValueError, "ik: expected ArmKinematics.native_solve's tuple");
         return -1;
     }
@@ -290,6 +289,13 @@ static int ik_solver_get(PyObject *obj, Py_ssize_t n, IkSolver *s)
         return -1;
     }
     s->max_iterations = (int)iterations;
+    long elbow_joint = PyLong_AsLong(t[14]);
+    if (PyErr_Occurred()) return -1;
+    if (elbow_joint < 0 || elbow_joint > 6) {
+        PyErr_SetString(PyExc_ValueError, "elbow_joint: expected a joint index 0 to 6");
+        return -1;
+    }
+    s->elbow_joint = (int)elbow_joint;
     return kinematics_get(t[13], &s->kin);
 }
 
@@ -303,7 +309,7 @@ static IkProblem ik_problem(const IkSolver *s, const F64 *q_init, const F64 *q,
         q_init, q, &s->cached_q, &s->qpos, &s->site_pos, &s->site_mat, &s->axes,
         &s->anchors, &s->base, target, F, elbow, active, &s->errors,
         (char *)s->converged.data, s->converged.stride, s->damping2, s->tol2, s->max_step,
-        s->max_iterations,
+        s->max_iterations, s->elbow_joint,
     };
     return p;
 }
@@ -344,8 +350,9 @@ static Py_ssize_t ik_pass(const IkProblem *p, Py_ssize_t n, int last, double *st
         double e[6];
         arm_pose(p->site_pos, p->site_mat, p->base, F, i, &pose);
         pose_error(p->target, i, &pose, e);
-        int fixed = p->elbow && p->elbow->data && isfinite(AT1(*p->elbow, i));
-        damped_step(p->axes, p->anchors, i, &pose, fixed, e, p->damping2, &steps[7 * i]);
+        int held = p->elbow && p->elbow->data && isfinite(AT1(*p->elbow, i));
+        damped_step(p->axes, p->anchors, i, &pose, held ? p->elbow_joint : -1, e, p->damping2,
+                    &steps[7 * i]);
         for (int j = 0; j < 7; j++) any_big |= fabs(steps[7 * i + j]) > p->max_step;
     }
     /* The cap (_update): where any joint of any arm would move more than max_step, every
@@ -386,7 +393,7 @@ static int ik_solve_core(const IkProblem *p, const Kinematics *kin, Py_ssize_t n
         for (int j = 0; j < 7; j++) AT2(*p->q, i, j) = AT2(*p->q_init, i, j);
         if (p->elbow && p->elbow->data && mask_at(p->active, i, 1) &&
             isfinite(AT1(*p->elbow, i)))
-            AT2(*p->q, i, ELBOW_JOINT) = AT1(*p->elbow, i);
+            AT2(*p->q, i, p->elbow_joint) = AT1(*p->elbow, i);
         for (int j = 0; j < 7; j++) {
             double v = AT2(*p->q, i, j);
             if (!(v == AT2(*p->cached_q, i, j))) moved = 1;

@@ -20,7 +20,7 @@ static inline void mat3_mul(const double *a, const double *b, int transpose_b, d
 /* out = ((I + a K) + b K^2) @ R with K = skew(v): Rodrigues' rotation composed on the
  * left, its coefficients left to the caller (v a unit axis with a = sin t,
  * b = 1 - cos t; or v the rotation vector itself with a = sin t / t, b = (1 - cos t) / t^2,
- * as sim/kinematics.py rotation_exp). */
+ * as sim/rotations.py rotation_exp). */
 static inline void rotate_left(const double v[3], double a, double b, const double *R,
                                double *out)
 {

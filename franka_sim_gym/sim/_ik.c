@@ -1,5 +1,5 @@
-/* The IK of the Cartesian generators, a fused copy of its numpy reference
- * (sim/kinematics.py ArmKinematics.solve):
+/* The C replacement of the IK solve, sim/kinematics.py ArmKinematics.solve (its rule:
+ * sim/ik.py), chosen by the backend switch (native.load):
  *
  *   ik_solve(q_init, q, target, F_T_EE, elbow, active, rows_valid, ik)
  *       the whole solve in one call: q = q_init (the held elbows set), then damped
@@ -11,7 +11,7 @@
  * The solve itself is native/_ik_core.h, which the Cartesian generators' plain cycle
  * (fci/_cartesian_rules.c) shares. The IK's products and its 6x6 solve (an elimination
  * with pivoting in place of LAPACK's) may differ from numpy's in the last bits: the same
- * passes and verdicts, the solution to ~1e-14 (tests/fci/test_native_cartesian.py). */
+ * passes and verdicts, the solution to ~1e-14 (tests/sim/test_ik_native.py). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -67,4 +67,4 @@ static PyMethodDef METHODS[] = {
 };
 
 KERNEL_MODULE(_ik,
-              "The Cartesian generators' damped differential IK (a fused copy of numpy code).")
+              "The damped differential IK solve (the C replacement of ArmKinematics.solve).")

@@ -8,10 +8,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from franka_sim_gym.envs import cartesian_filters as cart
 from franka_sim_gym.envs import client_filters as cf
 from franka_sim_gym.fci.frames import is_homogeneous
 from franka_sim_gym.fci.tables import FR3
-from franka_sim_gym.sim.kinematics import rotation_exp, rotation_log
+from franka_sim_gym.sim.rotations import (
+    quaternion_to_rotation,
+    rotation_exp,
+    rotation_log,
+    rotation_to_quaternion,
+)
 
 DT = 1e-3
 #: kMaxTranslational* / kMaxRotational* (include/franka/rate_limiting.h): limit - 1e-3.
@@ -66,7 +72,7 @@ def test_cartesian_limits_are_fr3_rate_limiting_h_values():
 
 def test_cartesian_lowpass_translation_is_the_100hz_gain_mix():
     T_c, T_ref = _pose(t=(1.0, -2.0, 0.5)), _pose(t=(0.0, 1.0, 0.25))
-    out = cf.cartesian_lowpass_filter(T_c[None], T_ref[None], 100.0)[0]
+    out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], 100.0)[0]
     g = 0.385870  # limits.md's table value at 100 Hz
     np.testing.assert_allclose(out[:3, 3], g * T_c[:3, 3] + (1 - g) * T_ref[:3, 3], atol=2e-6)
     np.testing.assert_allclose(out[:3, :3], np.eye(3), atol=1e-15)
@@ -84,7 +90,7 @@ def test_cartesian_lowpass_rotates_gain_times_the_angle_about_the_same_axis(seed
     axis = _unit(rng)
     T_ref = _random_pose(rng)
     T_c = _pose(_rot(axis, angle) @ T_ref[:3, :3], T_ref[:3, 3])
-    out = cf.cartesian_lowpass_filter(T_c[None], T_ref[None], cutoff)[0]
+    out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], cutoff)[0]
     g = cf.lowpass_gain(cutoff)
     np.testing.assert_allclose(out[:3, :3], _rot(axis, g * angle) @ T_ref[:3, :3], atol=1e-12)
     _assert_rotation(out[:3, :3])
@@ -96,7 +102,7 @@ def test_cartesian_lowpass_rotates_gain_times_the_angle_about_the_same_axis(seed
 def test_cartesian_lowpass_takes_the_shorter_arc_between_any_two_orientations(seed):
     rng = np.random.default_rng(seed)
     T_c, T_ref = _random_pose(rng), _random_pose(rng)
-    out = cf.cartesian_lowpass_filter(T_c[None], T_ref[None], 50.0)[0]
+    out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], 50.0)[0]
     g = cf.lowpass_gain(50.0)
     step = rotation_log(T_c[:3, :3] @ T_ref[:3, :3].T)  # angle in [0, pi]
     expected = rotation_exp(g * step) @ T_ref[:3, :3]
@@ -110,9 +116,9 @@ def test_cartesian_lowpass_flips_the_quaternion_sign_for_the_shorter_arc():
     # way from the reference is +160 deg, not -200 deg.
     z = np.array([0.0, 0.0, 1.0])
     R_ref, R_c = _rot(z, np.radians(100.0)), _rot(z, np.radians(-100.0))
-    q_ref, q_c = cf._rotation_to_quaternion(np.stack([R_ref, R_c]))
+    q_ref, q_c = rotation_to_quaternion(np.stack([R_ref, R_c]))
     assert q_ref[0] > 0 and q_c[0] > 0 and q_ref @ q_c < 0  # the case under test
-    out = cf.cartesian_lowpass_filter(_pose(R_c)[None], _pose(R_ref)[None], 100.0)[0]
+    out = cart.cartesian_lowpass_filter(_pose(R_c)[None], _pose(R_ref)[None], 100.0)[0]
     g = cf.lowpass_gain(100.0)
     np.testing.assert_allclose(out[:3, :3], _rot(z, np.radians(100.0 + g * 160.0)), atol=1e-12)
 
@@ -121,7 +127,7 @@ def test_cartesian_lowpass_of_a_settled_pose_returns_it():
     rng = np.random.default_rng(3)
     T = np.stack([_random_pose(rng) for _ in range(4)])
     with np.errstate(all="raise"):
-        out = cf.cartesian_lowpass_filter(T, T, 100.0)
+        out = cart.cartesian_lowpass_filter(T, T, 100.0)
     np.testing.assert_allclose(out, T, atol=1e-15)
 
 
@@ -132,7 +138,7 @@ def test_cartesian_lowpass_nearly_equal_orientations_interpolate_linearly_withou
     axis = _unit(rng)
     T_c = _pose(_rot(axis, 1e-9) @ T_ref[:3, :3], T_ref[:3, 3])
     with np.errstate(all="raise"):
-        out = cf.cartesian_lowpass_filter(T_c[None], T_ref[None], 100.0)[0]
+        out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], 100.0)[0]
     _assert_rotation(out[:3, :3], atol=1e-15)
     step = rotation_log(out[:3, :3] @ T_ref[:3, :3].T)
     np.testing.assert_allclose(step, cf.lowpass_gain(100.0) * 1e-9 * axis, atol=1e-15)
@@ -143,9 +149,9 @@ def test_cartesian_lowpass_per_robot_cutoff_and_rows_are_independent():
     T_c = np.stack([_random_pose(rng) for _ in range(3)])
     T_ref = np.stack([_random_pose(rng) for _ in range(3)])
     cutoffs = np.array([10.0, 100.0, 500.0])
-    out = cf.cartesian_lowpass_filter(T_c, T_ref, cutoffs)
+    out = cart.cartesian_lowpass_filter(T_c, T_ref, cutoffs)
     for i in range(3):
-        single = cf.cartesian_lowpass_filter(T_c[i : i + 1], T_ref[i : i + 1], cutoffs[i])
+        single = cart.cartesian_lowpass_filter(T_c[i : i + 1], T_ref[i : i + 1], cutoffs[i])
         np.testing.assert_allclose(out[i], single[0], atol=1e-15)
 
 
@@ -156,10 +162,10 @@ def test_cartesian_lowpass_rejects_cutoff_not_positive_finite(cutoff):
         ValueError,
         match="Cartesian lowpass-filter: cutoff_frequency is zero, negative, infinite or NaN.",
     ):
-        cf.cartesian_lowpass_filter(T, T, cutoff)
+        cart.cartesian_lowpass_filter(T, T, cutoff)
     # libfranka checks the cutoff before the signal.
     with pytest.raises(ValueError, match="cutoff_frequency"):
-        cf.cartesian_lowpass_filter(np.full((1, 4, 4), np.nan), T, cutoff)
+        cart.cartesian_lowpass_filter(np.full((1, 4, 4), np.nan), T, cutoff)
 
 
 @pytest.mark.parametrize("which", ["T_c", "T_ref"])
@@ -174,7 +180,7 @@ def test_cartesian_lowpass_rejects_non_finite_signal(which, bad):
         "filtered is infinite or NaN."
     )
     with pytest.raises(ValueError, match=f"^{which}: {msg}"):
-        cf.cartesian_lowpass_filter(*args, 100.0)
+        cart.cartesian_lowpass_filter(*args, 100.0)
 
 
 # --- rotations (Shepperd conversion, logarithm) -------------------------------------------
@@ -192,10 +198,10 @@ def test_quaternion_round_trip_and_rotation_vector_are_exact_up_to_a_half_turn(s
     rng = np.random.default_rng(seed)
     axis = _unit(rng)
     R = _rot(axis, angle)
-    q = cf._rotation_to_quaternion(R[None])[0]
+    q = rotation_to_quaternion(R[None])[0]
     assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-15)
-    np.testing.assert_allclose(cf._quaternion_to_rotation(q[None])[0], R, atol=1e-15)
-    rotvec = cf._rotation_vector(R[None])[0]
+    np.testing.assert_allclose(quaternion_to_rotation(q[None])[0], R, atol=1e-15)
+    rotvec = rotation_log(R[None])[0]
     if angle < np.pi - 1e-6:
         np.testing.assert_allclose(rotvec, angle * axis, atol=1e-13)
     else:  # a half turn: axis and -axis are the same rotation
@@ -212,7 +218,7 @@ def _run_velocity(targets, steps):
     v, a = np.zeros((n, 6)), np.zeros((n, 6))
     out = [v]
     for k in range(steps):
-        v_new = cf.limit_rate_cartesian_velocity(targets(k), v, a, *LIMITS)
+        v_new = cart.limit_rate_cartesian_velocity(targets(k), v, a, *LIMITS)
         a = (v_new - v) / DT
         v = v_new
         out.append(v)
@@ -230,7 +236,7 @@ def test_velocity_step_from_rest_gives_one_jerk_limited_increment():
     u, w = _unit(rng), _unit(rng)
     target = np.concatenate([u, w])[None]  # 1 m/s and 1 rad/s
     zero = np.zeros((1, 6))
-    out = cf.limit_rate_cartesian_velocity(target, zero, zero, *LIMITS)[0]
+    out = cart.limit_rate_cartesian_velocity(target, zero, zero, *LIMITS)[0]
     np.testing.assert_allclose(out[:3], J * DT * DT * u, rtol=1e-14, atol=1e-18)
     np.testing.assert_allclose(out[3:], J_ROT * DT * DT * w, rtol=1e-14, atol=1e-18)
 
@@ -281,7 +287,7 @@ def test_velocity_command_within_reach_passes_unchanged(seed):
     a_last = rng.uniform(-2.0, 2.0, size=(1, 6))
     jerk = rng.uniform(-1000.0, 1000.0, size=(1, 6))
     v_c = v_last + (a_last + jerk * DT) * DT
-    out = cf.limit_rate_cartesian_velocity(v_c, v_last, a_last, *LIMITS)
+    out = cart.limit_rate_cartesian_velocity(v_c, v_last, a_last, *LIMITS)
     np.testing.assert_allclose(out, v_c, rtol=0, atol=1e-15)
 
 
@@ -289,9 +295,9 @@ def test_velocity_limiter_negligible_acceleration_returns_last_velocity_exactly(
     v_last = np.array([[0.2, -0.1, 0.3, 0.5, 0.0, -0.4]])
     zero = np.zeros((1, 6))
     with np.errstate(all="raise"):  # libfranka's 0/0 unit vector must not surface
-        settled = cf.limit_rate_cartesian_velocity(v_last, v_last, zero, *LIMITS)
+        settled = cart.limit_rate_cartesian_velocity(v_last, v_last, zero, *LIMITS)
         # jerk 1e-14 > kNormEps, but the acceleration it integrates to, 1e-17, is not.
-        nudged = cf.limit_rate_cartesian_velocity(zero + 1e-20, zero, zero, *LIMITS)
+        nudged = cart.limit_rate_cartesian_velocity(zero + 1e-20, zero, zero, *LIMITS)
     np.testing.assert_array_equal(settled, v_last)
     np.testing.assert_array_equal(nudged, zero)
 
@@ -303,7 +309,7 @@ def test_velocity_limiter_outside_the_sphere_only_limits_jerk():
     a_last = np.array([[20.0, 0.0, 0.0, 0.0, 0.0, 0.0]])  # > A, kept (zero jerk)
     v_c = v_last + a_last * DT
     with np.errstate(all="raise"):
-        out = cf.limit_rate_cartesian_velocity(v_c, v_last, a_last, *LIMITS)
+        out = cart.limit_rate_cartesian_velocity(v_c, v_last, a_last, *LIMITS)
     np.testing.assert_allclose(out, v_c, rtol=1e-15)
     assert np.isfinite(out).all()
 
@@ -313,9 +319,9 @@ def test_velocity_limiter_rows_and_per_robot_limits_are_independent():
     v_c, v_last, a_last = (rng.normal(size=(3, 6)) * s for s in (3.0, 1.0, 5.0))
     scale = np.array([1.0, 0.5, 2.0])
     limits = [lim * scale for lim in LIMITS]
-    out = cf.limit_rate_cartesian_velocity(v_c, v_last, a_last, *limits)
+    out = cart.limit_rate_cartesian_velocity(v_c, v_last, a_last, *limits)
     for i in range(3):
-        single = cf.limit_rate_cartesian_velocity(
+        single = cart.limit_rate_cartesian_velocity(
             v_c[i : i + 1], v_last[i : i + 1], a_last[i : i + 1], *(lim[i] for lim in limits)
         )
         np.testing.assert_array_equal(out[i], single[0])
@@ -327,9 +333,9 @@ def test_velocity_limiter_rejects_non_finite_command(bad):
     v_c = zero.copy()
     v_c[1, 4] = bad
     with pytest.raises(ValueError, match="O_dP_EE_c is infinite or NaN."):
-        cf.limit_rate_cartesian_velocity(v_c, zero, zero, *LIMITS)
+        cart.limit_rate_cartesian_velocity(v_c, zero, zero, *LIMITS)
     with pytest.raises(ValueError, match="twist_last"):
-        cf.limit_rate_cartesian_velocity(zero, v_c, zero, *LIMITS)
+        cart.limit_rate_cartesian_velocity(zero, v_c, zero, *LIMITS)
 
 
 # --- Cartesian pose limiter ----------------------------------------------------------------
@@ -346,7 +352,7 @@ def _run_pose(T_start, T_target, steps):
     T, twist, dtwist = T_start, np.zeros((len(T_start), 6)), np.zeros((len(T_start), 6))
     out = [T]
     for _ in range(steps):
-        T_new = cf.limit_rate_cartesian_pose(T_target, T, twist, dtwist, *LIMITS)
+        T_new = cart.limit_rate_cartesian_pose(T_target, T, twist, dtwist, *LIMITS)
         twist_new = _twist_between(T, T_new)
         dtwist = (twist_new - twist) / DT
         twist, T = twist_new, T_new
@@ -359,7 +365,7 @@ def test_pose_limiter_settled_pose_is_returned():
     T = np.stack([_pose(t=(0.3, 0.0, 0.5))] + [_random_pose(rng) for _ in range(3)])
     zero = np.zeros((4, 6))
     with np.errstate(all="raise"):
-        out = cf.limit_rate_cartesian_pose(T, T, zero, zero, *LIMITS)
+        out = cart.limit_rate_cartesian_pose(T, T, zero, zero, *LIMITS)
     # Exactly for the identity orientation; otherwise R R^T is I only to rounding, and
     # that ~1e-16 rad "error" is a (tiny, allowed) command, as in libfranka.
     np.testing.assert_array_equal(out[0], T[0])
@@ -372,7 +378,7 @@ def test_pose_limiter_first_step_from_rest_is_jerk_limited_with_the_rotation_fac
     u, axis = _unit(rng), _unit(rng)
     T_c = _pose(_rot(axis, 0.1) @ T_last[:3, :3], T_last[:3, 3] + 0.01 * u)
     zero = np.zeros((1, 6))
-    out = cf.limit_rate_cartesian_pose(T_c[None], T_last[None], zero, zero, *LIMITS)[0]
+    out = cart.limit_rate_cartesian_pose(T_c[None], T_last[None], zero, zero, *LIMITS)[0]
     np.testing.assert_allclose(out[:3, 3] - T_last[:3, 3], J * DT**3 * u, rtol=1e-9)
     step = rotation_log(out[:3, :3] @ T_last[:3, :3].T)
     np.testing.assert_allclose(step, POSE_FACTOR * J_ROT * DT**3 * axis, rtol=1e-9)
@@ -387,7 +393,7 @@ def test_pose_limiter_differentiates_a_near_half_turn_about_the_right_axis(offse
     T_c = _pose(_rot(axis, np.pi - offset) @ T_last[:3, :3], T_last[:3, 3])
     zero = np.zeros((1, 6))
     with np.errstate(all="raise"):
-        out = cf.limit_rate_cartesian_pose(T_c[None], T_last[None], zero, zero, *LIMITS)[0]
+        out = cart.limit_rate_cartesian_pose(T_c[None], T_last[None], zero, zero, *LIMITS)[0]
     step = rotation_log(out[:3, :3] @ T_last[:3, :3].T)
     expected = POSE_FACTOR * J_ROT * DT**3 * axis
     if offset == 0.0:  # exactly a half turn: either direction is the shortest
@@ -448,10 +454,10 @@ def test_pose_limiter_rows_are_independent_of_the_batch():
         ]
     )
     twist, dtwist = rng.normal(size=(3, 6)) * 0.3, rng.normal(size=(3, 6)) * 2.0
-    out = cf.limit_rate_cartesian_pose(T_c, T_last, twist, dtwist, *LIMITS)
+    out = cart.limit_rate_cartesian_pose(T_c, T_last, twist, dtwist, *LIMITS)
     for i in range(3):
         row = slice(i, i + 1)
-        single = cf.limit_rate_cartesian_pose(
+        single = cart.limit_rate_cartesian_pose(
             T_c[row], T_last[row], twist[row], dtwist[row], *LIMITS
         )
         np.testing.assert_array_equal(out[i], single[0])
@@ -464,20 +470,20 @@ def test_pose_limiter_rejects_non_finite_then_invalid_transforms():
     nan = T.copy()
     nan[0, 0, 0] = np.nan  # also not a valid rotation: the finite check comes first
     with pytest.raises(ValueError, match="O_T_EE_c is infinite or NaN."):
-        cf.limit_rate_cartesian_pose(nan, T, zero, zero, *LIMITS)
+        cart.limit_rate_cartesian_pose(nan, T, zero, zero, *LIMITS)
     for broken in (np.diag([1.0, 1.0, 1.1, 1.0]), _pose(t=(1, 2, 3)).T):  # scaled / transposed
         with pytest.raises(
             ValueError, match="O_T_EE_c is invalid transformation matrix. Has to be column major!"
         ):
-            cf.limit_rate_cartesian_pose(broken[None], T, zero, zero, *LIMITS)
+            cart.limit_rate_cartesian_pose(broken[None], T, zero, zero, *LIMITS)
     # Within libfranka's 1e-5 tolerance a slightly denormalised rotation is accepted, and
     # the limiter's output (built from a unit quaternion) is homogeneous again.
-    out = cf.limit_rate_cartesian_pose(
+    out = cart.limit_rate_cartesian_pose(
         np.diag([1.0, 1.0, 1.0 + 5e-6, 1.0])[None], T, zero, zero, *LIMITS
     )
     assert is_homogeneous(out, 1e-9).all()
     with pytest.raises(ValueError, match="T_last"):
-        cf.limit_rate_cartesian_pose(T, nan, zero, zero, *LIMITS)
+        cart.limit_rate_cartesian_pose(T, nan, zero, zero, *LIMITS)
 
 
 # --- against libfranka itself ----------------------------------------------------------------
@@ -515,7 +521,7 @@ def _pose_rv(rotvec, t):
     ],
 )  # fmt: skip
 def test_velocity_limiter_matches_libfranka(v_c, v_last, a_last, expected):
-    out = cf.limit_rate_cartesian_velocity(
+    out = cart.limit_rate_cartesian_velocity(
         np.array([v_c]), np.array([v_last]), np.array([a_last]), *LIMITS
     )
     np.testing.assert_allclose(out[0], expected, rtol=1e-13, atol=1e-16)
@@ -551,7 +557,7 @@ LIBFRANKA_POSE_LIMITER_CASES = [
     ("T_c", "T_last", "twist", "dtwist", "expected"), LIBFRANKA_POSE_LIMITER_CASES
 )
 def test_pose_limiter_matches_libfranka(T_c, T_last, twist, dtwist, expected):
-    out = cf.limit_rate_cartesian_pose(
+    out = cart.limit_rate_cartesian_pose(
         T_c[None], T_last[None], np.array([twist]), np.array([dtwist]), *LIMITS
     )
     np.testing.assert_allclose(out[0], expected, rtol=0, atol=1e-14)
@@ -592,5 +598,5 @@ LIBFRANKA_LOWPASS_CASES = [
 
 @pytest.mark.parametrize(("T_c", "T_ref", "cutoff", "expected"), LIBFRANKA_LOWPASS_CASES)
 def test_cartesian_lowpass_matches_libfranka(T_c, T_ref, cutoff, expected):
-    out = cf.cartesian_lowpass_filter(T_c[None], T_ref[None], cutoff)
+    out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], cutoff)
     np.testing.assert_allclose(out[0], expected, rtol=0, atol=1e-14)

@@ -16,7 +16,7 @@ import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.commands import CARTESIAN_LIMITS, CommandGenerator
 from franka_sim_gym.fci.frames import from_wire, is_homogeneous
 from franka_sim_gym.fci.tables import FER, FR3
-from franka_sim_gym.sim.kinematics import rotation_log
+from franka_sim_gym.sim.rotations import rotation_log
 
 IDS = ("FrankaFCICartesianPose-v0", "FrankaFCICartesianVelocity-v0")
 

@@ -1,12 +1,14 @@
-"""The env client's libfranka filters in C (envs/_client_filters.c) against their numpy
-references, bit for bit: the low-pass filter with the joint rate limiter, and with the
-twist rate limiter.
+"""envs/_client_filters.c, the C replacements of the client's filter rules
+(envs/client_kernel.py), held to the numpy rules they replace: the joint, torque and twist
+limiters bit for bit, the Cartesian low-pass, the pose limiter and the reference pose to
+rounding, and libfranka's own values for the pose rules.
 
 Joint states sweep the ranges and head into the stops with the band binding; twist
 states sweep the corners of the norm limiter: at rest (no jerk, no acceleration),
 inside the velocity ball, at its surface and outside it (the square root's negative
 argument), and jerks far past the limit, on both halves of the twist. End to end,
-random-action episodes are the same bit for bit with and without the kernels.
+random-action episodes are the same bit for bit with and without the kernels (the pose
+interface to rounding).
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from franka_sim_gym import native
 from franka_sim_gym.envs import client_filters as cf
-from franka_sim_gym.envs.commands import CommandGenerator
+from franka_sim_gym.envs.client_kernel import NUMPY_RULES as NP
+from franka_sim_gym.envs.commands import CLIENT_KERNEL as C
+from franka_sim_gym.envs.commands import LIMITER_MARGIN
 from franka_sim_gym.fci.frames import from_wire, is_homogeneous, to_wire
-from franka_sim_gym.fci.tables import FR3
+from franka_sim_gym.fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
-from franka_sim_gym.sim.kinematics import rotation_exp
+from franka_sim_gym.sim.rotations import rotation_exp
 from tests.envs.test_client_filters_cartesian import LIBFRANKA_LOWPASS_CASES as LOWPASS_CASES
 from tests.envs.test_client_filters_cartesian import (
     LIBFRANKA_POSE_LIMITER_CASES as POSE_LIMITER_CASES,
@@ -28,11 +31,18 @@ from tests.envs.test_client_filters_cartesian import (
 from tests.envs.test_client_filters_cartesian import LIMITS as LIBFRANKA_LIMITS
 from tests.native_helpers import joint_and_client_kernels_off, joint_samples, rollout, same_bits
 
-kernel = native.load("envs._client_filters")
-pytestmark = pytest.mark.skipif(kernel is None, reason="envs/_client_filters.c not built")
+pytestmark = pytest.mark.skipif(C is None, reason="envs/_client_filters.c not built / off")
+
+A_MAX, J_MAX = FR3.ddq_max - LIMITER_MARGIN["ddq"], FR3.dddq_max - LIMITER_MARGIN["dddq"]
+#: The conservative Cartesian limits the env uses by default (commands.CARTESIAN_LIMITS).
+TWIST_LIMITS = (0.5, 1.0, 200.0, 1.0, 2.0, 400.0)
+#: How far the pose rules' C replacements may be from numpy and from libfranka: rounding
+#: (their acos, atan2, sin, cos are libm's, as Eigen's are; numpy's SIMD ones may differ
+#: by an ulp; their 3x3 products sum in another order than BLAS's).
+POSE_ATOL = 1e-13
 
 
-def _random_state(rng, n: int, near_band: bool) -> np.ndarray:
+def _joint_state(rng, n: int, near_band: bool) -> np.ndarray:
     """A wire state (float32 fields, packed records) with q_d, dq_d, ddq_d: anywhere, or
     heading into a stop with the band binding."""
     s = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
@@ -44,74 +54,69 @@ def _random_state(rng, n: int, near_band: bool) -> np.ndarray:
     s["q_d"] = q
     s["dq_d"] = dq
     s["ddq_d"] = rng.normal(0, 6.0, (n, 7))
-    s["tau_J_d"] = rng.normal(0, 5.0, (n, 7))
+    s["tau_J_d"] = rng.normal(0, 20.0, (n, 7))
     return s
 
 
-@pytest.mark.parametrize("interface", ["joint_position", "joint_velocity"])
+def _band(state) -> tuple[np.ndarray, np.ndarray]:
+    shift = JOINT_VELOCITY_LIMIT_TOLERANCE + LIMITER_MARGIN["dq"]  # as the env's client
+    band = FR3.velocity_envelope_halves(np.asarray(state["q_d"], dtype=np.float64), shift)
+    return band[:, :7], -band[:, 7:]
+
+
+def _both(name: str, *args, shape) -> tuple[np.ndarray, np.ndarray]:
+    """Rule ``name`` in C and in numpy on the same arguments, out given to each."""
+    fast = getattr(C, name)(*args, np.full(shape, np.nan))
+    reference = getattr(NP, name)(*args, np.full(shape, np.nan))
+    return fast, reference
+
+
+@pytest.mark.parametrize("columns", [6, 7])
 @pytest.mark.parametrize("n", [1, 16])
-def test_rate_limiter_kernel_is_libfrankas_filter_bit_for_bit(interface, n):
-    gen = CommandGenerator(interface, "limit_rate", 40, n=n)
-    assert gen._kernel is not None
-    rng = np.random.default_rng(11 + n)
+def test_the_lowpass_filter_is_the_numpy_rule_bit_for_bit(columns: int, n: int):
+    """Against the wire state's float32 references and float64 ones, at several cutoffs."""
+    rng = np.random.default_rng(columns + n)
+    for trial in range(100):
+        state = _joint_state(rng, n, near_band=False)
+        ref = state["q_d"] if columns == 7 else rng.normal(size=(n, 6))
+        x = rng.normal(size=(n, columns)) * (trial % 5 != 0)
+        gain = cf.lowpass_gain(float(rng.choice([1.0, 10.0, 100.0, 999.0])))
+        fast, reference = _both("lowpass_core", x, ref, gain, shape=(n, columns))
+        assert same_bits(fast, reference), trial
+
+
+@pytest.mark.parametrize("positions", [True, False])
+@pytest.mark.parametrize("n", [1, 16])
+def test_the_joint_limiters_are_the_numpy_rules_bit_for_bit(positions: bool, n: int):
+    rng = np.random.default_rng(11 + n + positions)
     for trial in range(300):
-        state = _random_state(rng, n, near_band=trial % 3 == 0)
-        gen.reset()
-        gen.begin_step(rng.uniform(-1, 1, (n, 7)), state)
-        if trial % 2:
-            gen._first[: n // 2 + 1] = False  # a mix of first commands and filtered ones
-            gen._n_first = int(np.count_nonzero(gen._first))
+        state = _joint_state(rng, n, near_band=trial % 3 == 0)
+        upper, lower = _band(state)
+        history = (state["dq_d"], state["ddq_d"], upper, lower, A_MAX, J_MAX)
+        if positions:
+            q_c = state["q_d"] + rng.uniform(-0.1, 0.1, (n, 7)) * (trial % 5 != 0)
+            fast, reference = _both(
+                "limit_positions_core", q_c, state["q_d"], *history, shape=(n, 7)
+            )
         else:
-            gen._first[...] = False
-            gen._n_first = 0
-        fast = gen._filtered(state).copy()
-        kernel_fn, gen._kernel = gen._kernel, None
-        reference = gen._filtered(state)
-        gen._kernel = kernel_fn
+            dq_c = rng.uniform(-1, 1, (n, 7)) * (trial % 5 != 0)
+            fast, reference = _both("limit_velocities_core", dq_c, *history, shape=(n, 7))
         assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
 
 
 @pytest.mark.parametrize("n", [1, 16])
-def test_torque_limiter_kernel_is_libfrankas_filter_bit_for_bit(n):
+def test_the_torque_limiter_is_the_numpy_rule_bit_for_bit(n: int):
     """Torque commands within the rate bound, far past it either way, and at rest."""
-    gen = CommandGenerator("torque", "limit_rate", 40, n=n)
-    assert gen._torque_kernel is not None
     rng = np.random.default_rng(21 + n)
+    d_max = FR3.dtau_max - LIMITER_MARGIN["dtau"]
     for trial in range(300):
-        state = _random_state(rng, n, near_band=False)
-        state["tau_J_d"] = rng.normal(0, 20.0, (n, 7)) * (trial % 4 != 0)
-        gen.begin_step(rng.uniform(-1, 1, (n, 7)) * (trial % 5 != 0), state)
-        fast = gen._filtered(state).copy()
-        kernel_fn, gen._torque_kernel = gen._torque_kernel, None
-        reference = gen._filtered(state)
-        gen._torque_kernel = kernel_fn
+        state = _joint_state(rng, n, near_band=False)
+        state["tau_J_d"] *= trial % 4 != 0
+        tau_c = state["tau_J_d"] + rng.uniform(-2, 2, (n, 7)) * (trial % 5 != 0)
+        fast, reference = _both("limit_torques_core", tau_c, state["tau_J_d"], d_max, shape=(n, 7))
         assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
-        if trial % 4 == 0:  # from rest, a full action asks ~20 Nm at once: rate-limited
-            steps = np.abs(fast - state["tau_J_d"]) / gen._dtau_max / 1e-3
-            assert np.all(steps <= 1.0 + 1e-9)
-
-
-def test_a_non_finite_torque_takes_the_reference_path():
-    gen = CommandGenerator("torque", "limit_rate", 40)
-    state = np.zeros(1, dtype=ROBOT_STATE_DTYPE)
-    gen.begin_step(np.zeros((1, 7)), state)
-    target = gen._target.copy()
-    target[0, 3] = np.nan
-    out = np.full((1, 7), 7.0)
-    assert kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0, out) is False
-    assert np.all(out == 7.0)  # untouched
-    # The generator then answers with numpy's path: the NaN on joint 3 alone, as numpy's
-    # minimum and maximum propagate it, the other joints filtered as ever.
-    gen._target = target
-    answered = gen._filtered(state)
-    assert answered is not gen._out
-    kernel_fn, gen._torque_kernel = gen._torque_kernel, None
-    reference = gen._filtered(state)
-    gen._torque_kernel = kernel_fn
-    assert np.isnan(answered[0, 3]) and np.isfinite(np.delete(answered[0], 3)).all()
-    assert np.array_equal(answered, reference, equal_nan=True)
-    with pytest.raises(TypeError, match=r"limit_torques\(\) takes 5 arguments"):
-        kernel.limit_torques(target, state["tau_J_d"], gen._gain, 998.0)
+        steps = np.abs(fast - state["tau_J_d"]) / d_max / 1e-3
+        assert np.all(steps <= 1.0 + 1e-9)  # the rate bound holds
 
 
 def _twist_state(rng, n: int, regime: str) -> np.ndarray:
@@ -131,64 +136,45 @@ def _twist_state(rng, n: int, regime: str) -> np.ndarray:
 
 @pytest.mark.parametrize("n", [1, 16])
 @pytest.mark.parametrize("regime", ["rest", "inside", "surface", "outside"])
-def test_twist_limiter_kernel_is_libfrankas_filter_bit_for_bit(n, regime):
-    gen = CommandGenerator("cartesian_velocity", "limit_rate", 40, n=n)
-    assert gen._twist_kernel is not None
+def test_the_twist_limiter_is_the_numpy_rule_bit_for_bit(n: int, regime: str):
     rng = np.random.default_rng(n + len(regime))
     for trial in range(200):
         state = _twist_state(rng, n, regime)
-        action = rng.uniform(-1, 1, (n, 6)) * (0.0 if trial % 5 == 0 else 1.0)
-        gen.begin_step(action, state)
-        fast = gen._filtered(state).copy()
-        kernel_fn, gen._twist_kernel = gen._twist_kernel, None
-        reference = gen._filtered(state)
-        gen._twist_kernel = kernel_fn
+        twist_c = rng.uniform(-1, 1, (n, 6)) * (0.0 if trial % 5 == 0 else 1.0)
+        args = (twist_c, state["O_dP_EE_c"], state["O_ddP_EE_c"], *TWIST_LIMITS)
+        fast, reference = _both("limit_twist_core", *args, shape=(n, 6))
         assert same_bits(fast, reference), (trial, np.max(np.abs(fast - reference)))
 
 
 def test_an_acceleration_that_rounds_to_nothing_leaves_the_twist_as_it_was():
     """At rest with a last acceleration of ~1e-13: the jerk takes it back to |a| <= eps,
     where libfranka returns v_last itself (its kNormEps branch)."""
-    gen = CommandGenerator("cartesian_velocity", "limit_rate", 40, n=16)
     rng = np.random.default_rng(2)
     for _ in range(50):
         state = np.zeros(16, dtype=ROBOT_STATE_DTYPE)
         state["O_ddP_EE_c"] = rng.normal(0, 1e-13, (16, 6))
-        gen.begin_step(np.zeros((16, 6)), state)
-        fast = gen._filtered(state).copy()
-        kernel_fn, gen._twist_kernel = gen._twist_kernel, None
-        reference = gen._filtered(state)
-        gen._twist_kernel = kernel_fn
+        args = (np.zeros((16, 6)), state["O_dP_EE_c"], state["O_ddP_EE_c"], *TWIST_LIMITS)
+        fast, reference = _both("limit_twist_core", *args, shape=(16, 6))
         assert same_bits(fast, reference)
-
-
-def test_a_non_finite_input_takes_the_reference_path_and_its_error():
-    gen = CommandGenerator("cartesian_velocity", "limit_rate", 40)
-    state = np.zeros(1, dtype=ROBOT_STATE_DTYPE)
-    gen.begin_step(np.zeros((1, 6)), state)
-    state["O_ddP_EE_c"][0, 4] = np.nan
-    out = np.full((1, 6), 7.0)
-    assert (
-        kernel.limit_twist(
-            gen._target, state["O_dP_EE_c"], state["O_ddP_EE_c"], 1.0, gen._twist_limits, out
-        )
-        is False
-    )
-    assert np.all(out == 7.0)  # untouched
-    with pytest.raises(ValueError, match="dtwist_last"):
-        gen._filtered(state)
+        assert not fast.any()
 
 
 def test_the_kernel_names_a_bad_argument():
-    limits = np.ones(6)
-    with pytest.raises(ValueError, match="ref: axis 0 has length 1, expected 2"):
-        kernel.limit_twist(
-            np.zeros((2, 6)), np.zeros((1, 6)), np.zeros((2, 6)), 1.0, limits, np.zeros((2, 6))
-        )
-    with pytest.raises(ValueError, match="limits"):
-        kernel.limit_twist(
-            np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)), 1.0, limits[:5], np.zeros((2, 6))
-        )
+    six = np.zeros((2, 6))
+    with pytest.raises(ValueError, match="^twist_last: axis 0 has length 1, expected 2"):
+        C.limit_twist_core(six, six[:1], six, *TWIST_LIMITS, np.zeros((2, 6)))
+    with pytest.raises(ValueError, match="^out: expected a 2-D float64 array"):
+        C.limit_twist_core(six, six, six, *TWIST_LIMITS, np.zeros((2, 6)).astype(int))
+    seven = np.zeros((2, 7))
+    with pytest.raises(ValueError, match="^a_max: axis 0 has length 6, expected 7"):
+        C.limit_velocities_core(seven, seven, seven, seven, seven, np.ones(6), np.ones(7), seven)
+    with pytest.raises(TypeError, match=r"limit_torques_core\(\) takes 4 arguments \(3 given\)"):
+        C.limit_torques_core(seven, seven, 1.0)
+    T, wire = np.tile(np.eye(4), (2, 1, 1)), np.zeros((2, 16))
+    with pytest.raises(ValueError, match="^dtwist_last: axis 1 has length 5, expected 6"):
+        C.limit_pose_core(T, T, six, six[:, :5], *TWIST_LIMITS, np.zeros((2, 4, 4)))
+    with pytest.raises(ValueError, match="^out: expected a 3-D float64 array"):
+        C.reference_pose(wire, np.zeros((2, 16)))
 
 
 @pytest.mark.parametrize(
@@ -203,14 +189,6 @@ def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypa
     assert len(fast) == len(reference)
     for a, b in zip(fast, reference, strict=True):
         assert same_bits(a, b)
-
-
-# -- the Cartesian pose path: to rounding (libm's trigonometry, an iterated polar factor) ----
-
-#: How far the pose kernel may be from its numpy reference and from libfranka: rounding
-#: (its acos, atan2, sin, cos are libm's, as Eigen's are; numpy's SIMD ones may differ by
-#: an ulp; its 3x3 products sum in another order than BLAS's).
-POSE_ATOL = 1e-13
 
 
 def _pose_state(rng, n: int, regime: str) -> np.ndarray:
@@ -235,101 +213,63 @@ def _moved(rng, state: np.ndarray, step: float) -> np.ndarray:
     return s
 
 
-@pytest.mark.parametrize("action_filter", ["lowpass", "limit_rate"])
 @pytest.mark.parametrize("n", [1, 16])
 @pytest.mark.parametrize("regime", ["rest", "inside", "surface", "outside"])
-def test_pose_kernel_is_libfrankas_filter_to_rounding(action_filter, n, regime):
-    gen = CommandGenerator("cartesian_pose", action_filter, 40, n=n)
-    assert gen._pose_kernel is not None
+def test_the_pose_rules_are_the_numpy_rules_to_rounding(n: int, regime: str):
+    """The reference pose read off the state, the Cartesian low-pass toward it and the pose
+    limiter, at poses of every orientation and motions under way."""
     rng = np.random.default_rng(7 * n + len(regime))
+    gain = cf.lowpass_gain(100.0)
     for trial in range(150):
-        state = _pose_state(rng, n, regime)
-        action = rng.uniform(-1, 1, (n, 6)) * (0.0 if trial % 5 == 0 else 1.0)
-        gen.begin_step(action, state)
-        # the step's first cycle (the state where the step began), then a motion under way
-        for now in (state, _moved(rng, state, 1e-3 if trial % 2 else 0.05)):
-            fast = gen._pose_wire(now, 0)
-            assert fast is gen._pose_out  # the kernel's answer, not the fallback's
-            fast = fast.copy()
-            reference = to_wire(gen._pose_command(now, 0))
-            np.testing.assert_allclose(fast, reference, rtol=0, atol=POSE_ATOL, err_msg=trial)
-            assert is_homogeneous(from_wire(fast)).all()
+        state = _moved(rng, _pose_state(rng, n, regime), 1e-3 if trial % 2 else 0.05)
+        fast_ref, ref = _both("reference_pose", state["O_T_EE_c"], shape=(n, 4, 4))
+        np.testing.assert_allclose(fast_ref, ref, rtol=0, atol=POSE_ATOL, err_msg=trial)
+        target = ref.copy()
+        target[:, :3, 3] += rng.normal(0, 0.05, (n, 3))
+        target[:, :3, :3] = rotation_exp(rng.normal(0, 0.2, (n, 3))) @ ref[:, :3, :3]
+        fast, lowpassed = _both("cartesian_lowpass_core", target, ref, gain, shape=(n, 4, 4))
+        np.testing.assert_allclose(fast, lowpassed, rtol=0, atol=POSE_ATOL, err_msg=trial)
+        args = (lowpassed, ref, state["O_dP_EE_c"], state["O_ddP_EE_c"], *TWIST_LIMITS)
+        fast, reference = _both("limit_pose_core", *args, shape=(n, 4, 4))
+        np.testing.assert_allclose(fast, reference, rtol=0, atol=POSE_ATOL, err_msg=trial)
+        assert is_homogeneous(fast).all()
 
 
-def _kernel_pose(T_c, T_ref, twist, dtwist, gain: float, rate_limit: bool) -> np.ndarray:
-    out = np.full((1, 16), np.nan)
-    limits = np.array(LIBFRANKA_LIMITS)
-    ok = kernel.limit_pose(
-        T_c[None], to_wire(T_ref[None]), np.array([twist], dtype=float),
-        np.array([dtwist], dtype=float), gain, limits, rate_limit, out,
-    )  # fmt: skip
-    assert ok is True
-    return from_wire(out)[0]
+@pytest.mark.parametrize("offset", [0.5, 2e-3, 5e-4, 1e-6, 1e-9])
+def test_the_c_pose_limiter_differentiates_a_near_half_turn_as_numpy(offset: float):
+    """A command a half turn minus ``offset`` from the last pose: the rotation's logarithm
+    takes its axis from the quaternion within 1e-3 of pi, from the skew part farther."""
+    rng = np.random.default_rng(3)
+    n = 8
+    T_last = np.tile(np.eye(4), (n, 1, 1))
+    T_last[:, :3, :3] = rotation_exp(rng.normal(size=(n, 3)))
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    T_c = T_last.copy()
+    T_c[:, :3, :3] = rotation_exp(axes * (np.pi - offset)) @ T_last[:, :3, :3]
+    zero = np.zeros((n, 6))
+    fast, reference = _both(
+        "limit_pose_core", T_c, T_last, zero, zero, *TWIST_LIMITS, shape=(n, 4, 4)
+    )
+    np.testing.assert_allclose(fast, reference, rtol=0, atol=POSE_ATOL)
+    step = np.einsum("nij,nkj->nik", fast[:, :3, :3], T_last[:, :3, :3])  # R R_last^T
+    assert (np.einsum("nii->n", step) < 3.0).all()  # it turned
 
 
 @pytest.mark.parametrize(("T_c", "T_last", "twist", "dtwist", "expected"), POSE_LIMITER_CASES)
-def test_pose_kernel_limits_as_libfranka_does(T_c, T_last, twist, dtwist, expected):
-    """Gain 1 (no low-pass): libfranka 0.21.2's limitRate values, computed with Eigen."""
-    out = _kernel_pose(T_c, T_last, twist, dtwist, 1.0, True)
-    np.testing.assert_allclose(out, expected, rtol=0, atol=POSE_ATOL)
+def test_the_c_pose_limiter_limits_as_libfranka_does(T_c, T_last, twist, dtwist, expected):
+    """libfranka 0.21.2's limitRate values, computed with Eigen."""
+    args = (T_c[None], T_last[None], np.array([twist], float), np.array([dtwist], float))
+    out = C.limit_pose_core(*args, *LIBFRANKA_LIMITS, np.zeros((1, 4, 4)))
+    np.testing.assert_allclose(out[0], expected, rtol=0, atol=POSE_ATOL)
 
 
 @pytest.mark.parametrize(("T_c", "T_ref", "cutoff", "expected"), LOWPASS_CASES)
-def test_pose_kernel_filters_as_libfranka_does(T_c, T_ref, cutoff, expected):
-    """No rate limiter: libfranka 0.21.2's cartesianLowpassFilter values."""
-    out = _kernel_pose(T_c, T_ref, [0.0] * 6, [0.0] * 6, cf.lowpass_gain(cutoff), False)
-    np.testing.assert_allclose(out, expected, rtol=0, atol=POSE_ATOL)
-
-
-@pytest.mark.parametrize(
-    ("field", "index", "message"),
-    [
-        ("O_T_EE_c", 13, "T_ref: Cartesian lowpass-filter: current or past input value"),
-        ("O_dP_EE_c", 2, "twist_last"),
-        ("O_ddP_EE_c", 5, "dtwist_last"),
-    ],
-)
-def test_a_non_finite_pose_input_takes_the_reference_path_and_its_error(field, index, message):
-    gen = CommandGenerator("cartesian_pose", "limit_rate", 40)
-    state = _pose_state(np.random.default_rng(1), 1, "inside")
-    gen.begin_step(np.zeros((1, 6)), state)
-    state[field][0, index] = np.inf
-    out = np.full((1, 16), 7.0)
-    args = (gen._target, state["O_T_EE_c"], state["O_dP_EE_c"], state["O_ddP_EE_c"])
-    assert kernel.limit_pose(*args, gen._gain, gen._twist_limits, True, out) is False
-    with pytest.raises(ValueError, match=message):
-        gen._pose_wire(state, 0)
-
-
-def test_a_reference_far_from_a_rotation_is_left_to_the_svd():
-    """A state whose rotation is 30 % off orthonormal: Newton-Schulz has not converged in
-    its three passes, the kernel declines, and the numpy path (SVD) gives the command."""
-    gen = CommandGenerator("cartesian_pose", "limit_rate", 40)
-    state = _pose_state(np.random.default_rng(2), 1, "inside")
-    gen.begin_step(np.full((1, 6), 0.5), state)
-    T = from_wire(state["O_T_EE_c"])
-    T[:, :3, :3] *= 1.3
-    state["O_T_EE_c"] = to_wire(T)
-    args = (gen._target, state["O_T_EE_c"], state["O_dP_EE_c"], state["O_ddP_EE_c"])
-    assert kernel.limit_pose(*args, gen._gain, gen._twist_limits, True, np.zeros((1, 16))) is False
-    assert same_bits(gen._pose_wire(state, 0), to_wire(gen._pose_command(state, 0)))
-
-
-def test_the_pose_kernel_names_a_bad_argument():
-    T, wire, six, limits = (
-        np.tile(np.eye(4), (2, 1, 1)),
-        np.zeros((2, 16)),
-        np.zeros((2, 6)),
-        np.ones(6),
-    )
-    with pytest.raises(ValueError, match="ref: axis 0 has length 1, expected 2"):
-        kernel.limit_pose(T, wire[:1], six, six, 1.0, limits, True, np.zeros((2, 16)))
-    with pytest.raises(ValueError, match="ddref: axis 1 has length 5, expected 6"):
-        kernel.limit_pose(T, wire, six, six[:, :5], 1.0, limits, True, np.zeros((2, 16)))
-    with pytest.raises(ValueError, match="out: expected a 2-D float64 array"):
-        kernel.limit_pose(T, wire, six, six, 1.0, limits, True, np.zeros((2, 16), np.float32))
-    with pytest.raises(TypeError, match=r"limit_pose\(\) takes 8 arguments \(7 given\)"):
-        kernel.limit_pose(T, wire, six, six, 1.0, limits, True)
+def test_the_c_cartesian_lowpass_filters_as_libfranka_does(T_c, T_ref, cutoff, expected):
+    """libfranka 0.21.2's cartesianLowpassFilter values."""
+    gain = cf.lowpass_gain(cutoff)
+    out = C.cartesian_lowpass_core(T_c[None], T_ref[None], gain, np.zeros((1, 4, 4)))
+    np.testing.assert_allclose(out[0], expected, rtol=0, atol=POSE_ATOL)
 
 
 @pytest.mark.parametrize("action_filter", ["lowpass", "limit_rate"])

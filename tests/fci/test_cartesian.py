@@ -14,7 +14,7 @@ from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.errors import ERROR_NAMES, Error, error_names
 from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import MoveMotionGeneratorMode, RobotMode
-from franka_sim_gym.sim.kinematics import rotation_exp
+from franka_sim_gym.sim.rotations import rotation_exp
 from tests.fci_helpers import LoopClient, make_controller
 
 CP = MoveMotionGeneratorMode.kCartesianPosition

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.frames import from_wire, is_homogeneous, is_homogeneous_wire, to_wire
-from franka_sim_gym.sim.kinematics import rotation_exp
+from franka_sim_gym.sim.rotations import rotation_exp
 
 
 def _poses(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -5,18 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from franka_sim_gym.sim.arm import ArmPhysics
-from franka_sim_gym.sim.kinematics import (
-    ArmKinematics,
-    relative_rotation_log,
-    rotation_exp,
-    rotation_log,
-)
+from franka_sim_gym.sim.kinematics import ArmKinematics
+from franka_sim_gym.sim.rotations import relative_rotation_log, rotation_exp, rotation_log
 from franka_sim_gym.sim.world import HOME_Q
 
 
 def _setup(n: int = 1):
     physics = ArmPhysics(n_arms=n)
-    return physics, ArmKinematics(physics.model, physics.layout)
+    return physics, ArmKinematics(physics.model, physics.layout, kernel=False)  # numpy
 
 
 def test_forward_kinematics_is_the_physics_flange_pose():

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import rotation_log
+from ...sim.rotations import rotation_log
 from ..errors import Error
 from ..frames import from_wire
 from ..tables import RobotTable

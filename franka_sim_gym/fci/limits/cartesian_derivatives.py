@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.kinematics import relative_rotation_log
+from ...sim.rotations import relative_rotation_log
 from .precedence import interval
 
 

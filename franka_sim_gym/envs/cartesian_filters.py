@@ -1,0 +1,335 @@
+"""libfranka's client-side Cartesian command filters, batch-first: the env plays the client.
+
+Each reproduces one piece of libfranka 0.21 (docs/limits.md §6), as
+:mod:`franka_sim_gym.envs.client_filters` does for the joint and torque interfaces:
+
+* :func:`cartesian_lowpass_filter` -- ``franka::cartesianLowpassFilter``
+  (src/lowpass_filter.cpp): translation mixed like ``lowpass_filter``, orientation by
+  quaternion slerp;
+* :func:`limit_rate_cartesian_velocity` / :func:`limit_rate_cartesian_pose` -- the
+  twist and pose overloads of ``franka::limitRate`` (src/rate_limiting.cpp), which
+  limit the translational and rotational 3-vectors by their norms;
+* :func:`reference_pose` -- the state's ``O_T_EE_c`` as the client reads it.
+
+Poses are row-major ``(n, 4, 4)`` numpy matrices, not the column-major 16-value wire
+layout (``fci.frames.from_wire`` / ``to_wire``); rotations go through the package's one
+rotation library, :mod:`franka_sim_gym.sim.rotations`. The public functions validate
+their arguments as libfranka does (ValueError with libfranka's message); each rule's
+arithmetic is one ``*_core`` function, the one the env's client calls every cycle, with
+C replacements of the same signatures in ``envs/_client_filters.c``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..fci.frames import from_wire, is_homogeneous
+from ..fci.tables import DELTA_T
+from ..sim.rotations import (
+    nearest_rotation,
+    quaternion_slerp,
+    quaternion_to_rotation,
+    rotation_exp,
+    rotation_log,
+    rotation_to_quaternion,
+)
+from .client_filters import LOWPASS_DEFAULT_CUTOFF, check_cutoff, finite, lowpass_gain
+
+__all__ = [
+    "NORM_EPS",
+    "ROTATION_POSE_FACTOR",
+    "cartesian_lowpass_core",
+    "cartesian_lowpass_filter",
+    "limit_pose_core",
+    "limit_rate_cartesian_pose",
+    "limit_rate_cartesian_velocity",
+    "limit_twist_core",
+    "reference_pose",
+]
+
+#: include/franka/rate_limiting.h kNormEps: below this norm a Cartesian jerk,
+#: acceleration or angular velocity counts as zero.
+NORM_EPS = float(np.finfo(np.float64).eps)
+#: include/franka/rate_limiting.h kFactorCartesianRotationPoseInterface: the pose
+#: overload of limitRate scales the rotational limits by this factor.
+ROTATION_POSE_FACTOR = 0.99
+
+#: src/lowpass_filter.cpp cartesianLowpassFilter.
+_MSG_CARTESIAN_CUTOFF = (
+    "Cartesian lowpass-filter: cutoff_frequency is zero, negative, infinite or NaN."
+)
+_MSG_CARTESIAN_SIGNAL = (
+    "Cartesian lowpass-filter: current or past input value of the signal to be filtered is "
+    "infinite or NaN."
+)
+#: src/rate_limiting.cpp, the twist and pose overloads of limitRate.
+_MSG_TWIST = "O_dP_EE_c is infinite or NaN."
+_MSG_POSE = "O_T_EE_c is infinite or NaN."
+_MSG_POSE_INVALID = "O_T_EE_c is invalid transformation matrix. Has to be column major!"
+_LIMIT_NAMES = ("v_max", "a_max", "j_max", "v_rot_max", "a_rot_max", "j_rot_max")
+
+
+def cartesian_lowpass_filter(
+    T_c: ArrayLike, T_ref: ArrayLike, cutoff: ArrayLike = LOWPASS_DEFAULT_CUTOFF
+) -> np.ndarray:
+    """Low-pass a commanded pose toward the reference pose, (n, 4, 4) -> (n, 4, 4).
+
+    ``franka::cartesianLowpassFilter(kDeltaT, O_T_EE_c, reference, cutoff)``
+    (src/lowpass_filter.cpp), as ``ControlLoop<CartesianPose>::convertMotion``
+    applies it. With ``g = lowpass_gain(cutoff)``:
+
+    * translation ``g * t_c + (1 - g) * t_ref``;
+    * orientation: Eigen's ``Quaterniond::slerp`` from the reference's quaternion
+      toward the command's with parameter ``g`` -- along the shorter arc (the
+      command's quaternion is negated when the dot product is negative), linear
+      in the coefficients once ``|dot| >= 1 - eps`` -- then normalised and turned
+      back into a rotation matrix;
+    * the bottom row is the command's (libfranka's ``Affine3d`` keeps it).
+
+    libfranka first takes the rotation part of each pose by polar decomposition
+    (``Affine3d::rotation()``); for the orthonormal blocks a valid pose carries that is
+    the block itself to rounding, so the block is used as is. ``cutoff`` is a scalar or
+    one per robot, (n,). This is the arithmetic only: ControlLoop skips it when
+    ``cutoff >= MAX_CUTOFF_FREQUENCY``.
+
+    Raises:
+        ValueError: cutoff zero, negative or not finite; ``T_c`` or ``T_ref`` with a
+            NaN or infinite entry (libfranka throws std::invalid_argument, in this order).
+    """
+    cutoff = check_cutoff(cutoff, _MSG_CARTESIAN_CUTOFF)
+    T_c = finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
+    T_ref = finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
+    return cartesian_lowpass_core(T_c, T_ref, np.asarray(lowpass_gain(cutoff)))
+
+
+def cartesian_lowpass_core(
+    T_c: np.ndarray, T_ref: np.ndarray, gain, out: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`cartesian_lowpass_filter`'s arithmetic, ``gain`` from ``lowpass_gain`` (a
+    scalar or (n,))."""
+    gain = np.asarray(gain, dtype=np.float64)
+    q_ref = rotation_to_quaternion(T_ref[..., :3, :3])
+    q = quaternion_slerp(q_ref, rotation_to_quaternion(T_c[..., :3, :3]), gain)
+    q /= np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
+    if out is None:
+        out = np.empty(np.broadcast_shapes(T_c.shape, T_ref.shape))
+    out[...] = T_c
+    g = gain[..., None]
+    out[..., :3, 3] = g * T_c[..., :3, 3] + (1.0 - g) * T_ref[..., :3, 3]
+    out[..., :3, :3] = quaternion_to_rotation(q)
+    return out
+
+
+def limit_rate_cartesian_velocity(
+    twist_c: ArrayLike,
+    twist_last: ArrayLike,
+    dtwist_last: ArrayLike,
+    v_max: ArrayLike,
+    a_max: ArrayLike,
+    j_max: ArrayLike,
+    v_rot_max: ArrayLike,
+    a_rot_max: ArrayLike,
+    j_rot_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit a commanded end-effector twist, (n, 6) -> (n, 6).
+
+    The ``O_dP_EE_c`` overload of ``franka::limitRate`` (src/rate_limiting.cpp).
+    The twist is (vx, vy, vz, wx, wy, wz); the translational half is limited with
+    ``(v_max, a_max, j_max)``, the rotational half with ``(v_rot_max, a_rot_max,
+    j_rot_max)``, each by the 3-vector limiter that bounds *norms* (dt = kDeltaT,
+    eps = kNormEps = float64 machine epsilon)::
+
+        jerk = ((v_c - v_last) / dt - a_last) / dt
+        a    = a_last + jerk / |jerk| * min(|jerk|, J) * dt   if |jerk| > eps else a_last
+        u    = a / |a|
+        d    = -(u . v_last) + sqrt((u . v_last)^2 - |v_last|^2 + V^2)
+        out  = v_last + u * min(|a|, min(J / A * d, A)) * dt  if |a| > eps else v_last
+
+    ``d`` is how far ``v_last`` may move along ``u`` before leaving the ball of
+    radius V. Two C++ corners are reproduced without producing NaN: for
+    ``|a| <= eps`` the result is ``v_last`` exactly (libfranka computes ``u`` as
+    0/0 but never uses it), and outside the ball, where the square root's
+    argument can be negative, libfranka's ``std::min(|a|, NaN)`` yields ``|a|``:
+    the acceleration is then only jerk-limited.
+
+    With a last state inside the limits the output keeps ``|v| <= V`` (as
+    ``J / A * dt <= 1``, a step never crosses the sphere) and ``|a| <= A``; along
+    a straight line also ``|jerk| <= J``. That last bound is not guaranteed when
+    the direction changes abruptly near ``|v| = V`` (the admissible acceleration
+    depends on the direction) -- libfranka behaves the same. A command within
+    reach (jerk <= J and far enough inside the ball that ``|a| <= J / A * d``)
+    comes back unchanged up to rounding.
+
+    Args:
+        twist_c: the (filtered) twist command, (n, 6).
+        twist_last, dtwist_last: the last commanded twist and its derivative
+            (``state.O_dP_EE_c``, ``state.O_ddP_EE_c``).
+        v_max, a_max, j_max: kMaxTranslationalVelocity / Acceleration / Jerk.
+        v_rot_max, a_rot_max, j_rot_max: kMaxRotationalVelocity / Acceleration / Jerk.
+            Each limit is a scalar or one per robot, (n,).
+
+    Raises:
+        ValueError: any NaN or infinite entry in the inputs (for the command,
+            libfranka's message).
+    """
+    twist_c = finite("twist_c", twist_c, _MSG_TWIST)
+    twist_last = finite("twist_last", twist_last)
+    dtwist_last = finite("dtwist_last", dtwist_last)
+    limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
+    return limit_twist_core(twist_c, twist_last, dtwist_last, *limits)
+
+
+def limit_twist_core(
+    twist_c, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out=None
+) -> np.ndarray:
+    """:func:`limit_rate_cartesian_velocity`'s arithmetic: both halves of the twist through
+    the 3-vector limiter at once, as (..., 2, 3) with the limits paired as (..., 2)."""
+    twist_last = np.asarray(twist_last, dtype=np.float64)
+    dtwist_last = np.asarray(dtwist_last, dtype=np.float64)
+    shape = np.broadcast_shapes(twist_c.shape, twist_last.shape, dtwist_last.shape)
+    halves = (*shape[:-1], 2, 3)
+    dx, dx_last, ddx_last = (
+        np.broadcast_to(x, shape).reshape(halves) for x in (twist_c, twist_last, dtwist_last)
+    )
+    limited = _limit_norm(dx, dx_last, ddx_last, _pair(v, v_rot), _pair(a, a_rot), _pair(j, j_rot))
+    if out is None:
+        return limited.reshape(shape)
+    out[...] = limited.reshape(shape)
+    return out
+
+
+def limit_rate_cartesian_pose(
+    T_c: ArrayLike,
+    T_last: ArrayLike,
+    twist_last: ArrayLike,
+    dtwist_last: ArrayLike,
+    v_max: ArrayLike,
+    a_max: ArrayLike,
+    j_max: ArrayLike,
+    v_rot_max: ArrayLike,
+    a_rot_max: ArrayLike,
+    j_rot_max: ArrayLike,
+) -> np.ndarray:
+    """Rate-limit a commanded pose, (n, 4, 4) -> (n, 4, 4).
+
+    The ``O_T_EE_c`` overload of ``franka::limitRate`` (src/rate_limiting.cpp):
+
+    1. the command is differentiated against the last pose: translation
+       ``(t_c - t_last) / dt``, rotation ``log(R_c R_last^T) / dt`` (Eigen's
+       ``AngleAxisd`` of the difference: axis * angle, the angle in [0, pi];
+       ``sim.rotations.rotation_log``);
+    2. that twist goes through :func:`limit_rate_cartesian_velocity` against
+       ``twist_last`` / ``dtwist_last``, with the rotational limits scaled by
+       kFactorCartesianRotationPoseInterface = 0.99 (include/franka/rate_limiting.h)
+       here -- pass the robot's plain kMaxRotational* values, as ControlLoop does;
+    3. the limited twist ``(v, w)`` is integrated over one cycle: ``t_last + v dt``,
+       and, if ``|w| > kNormEps``, ``R = exp(w dt) @ R_last`` (Rodrigues,
+       ``sim.rotations.rotation_exp``); otherwise ``R = R_last``.
+
+    The result's bottom row is [0, 0, 0, 1]. libfranka takes each rotation block by
+    polar decomposition first (``Affine3d::rotation()``); the blocks are used as they
+    are here, which differs only by rounding for orthonormal blocks.
+
+    Args:
+        T_c: the (filtered) pose command.
+        T_last: the filter reference -- ``state.O_T_EE_c``, or the command itself
+            on the motion's first cycle (ControlLoop<CartesianPose>::convertMotion).
+        twist_last, dtwist_last: ``state.O_dP_EE_c``, ``state.O_ddP_EE_c``, (n, 6).
+        v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max: as for
+            :func:`limit_rate_cartesian_velocity` (rotational ones unscaled).
+
+    Raises:
+        ValueError: ``T_c`` with a NaN or infinite entry, or not a homogeneous
+            transform (``fci.frames.is_homogeneous``: bottom row [0, 0, 0, 1],
+            rotation rows and columns of unit norm within 1e-5) -- libfranka's
+            messages, in this order; any other NaN or infinite input.
+    """
+    T_c = finite("T_c", T_c, _MSG_POSE)
+    if not is_homogeneous(T_c.reshape(-1, 4, 4)).all():
+        raise ValueError(f"T_c: {_MSG_POSE_INVALID} (libfranka throws std::invalid_argument)")
+    T_last = finite("T_last", T_last)
+    twist_last = finite("twist_last", twist_last)
+    dtwist_last = finite("dtwist_last", dtwist_last)
+    limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
+    return limit_pose_core(T_c, T_last, twist_last, dtwist_last, *limits)
+
+
+def limit_pose_core(
+    T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out=None
+) -> np.ndarray:
+    """:func:`limit_rate_cartesian_pose`'s arithmetic."""
+    dt = DELTA_T
+    t_last, R_last = T_last[..., :3, 3], T_last[..., :3, :3]
+    twist = np.empty((*np.broadcast_shapes(T_c.shape, T_last.shape)[:-2], 6))
+    np.divide(T_c[..., :3, 3] - t_last, dt, out=twist[..., :3])
+    R_diff = T_c[..., :3, :3] @ np.swapaxes(R_last, -1, -2)
+    np.divide(rotation_log(R_diff), dt, out=twist[..., 3:])
+    f = ROTATION_POSE_FACTOR
+    twist = limit_twist_core(
+        twist, twist_last, dtwist_last, v, a, j, f * v_rot, f * a_rot, f * j_rot
+    )
+    w = twist[..., 3:]
+    rotating = np.sqrt(np.einsum("...i,...i->...", w, w)) > NORM_EPS
+    if out is None:
+        out = np.empty(twist.shape[:-1] + (4, 4))
+    out[...] = 0.0
+    out[..., 3, 3] = 1.0
+    out[..., :3, 3] = t_last + twist[..., :3] * dt
+    out[..., :3, :3] = np.where(rotating[..., None, None], rotation_exp(w * dt) @ R_last, R_last)
+    return out
+
+
+def reference_pose(O_T_EE_c: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """The state's (n, 16) column-major O_T_EE_c as (n, 4, 4) row-major matrices, each
+    rotation its nearest rotation (``sim.rotations.nearest_rotation``).
+
+    The v10 state carries the pose in float32; libfranka reads it into an ``Affine3d``
+    and its filters take ``rotation()``, the polar factor. Its orthonormal rotation
+    keeps every pose built on it inside libfranka's ``isHomogeneousTransformation``.
+    """
+    T = from_wire(np.asarray(O_T_EE_c, dtype=np.float64))
+    T[:, :3, :3] = nearest_rotation(T[:, :3, :3])
+    if out is None:
+        return T
+    out[...] = T
+    return out
+
+
+def _finite_limits(*limits: ArrayLike) -> list[np.ndarray]:
+    return [finite(name, value) for name, value in zip(_LIMIT_NAMES, limits, strict=True)]
+
+
+def _pair(translational, rotational) -> np.ndarray:
+    """Two limits side by side on a new last axis: (2,) for scalars, else (..., 2)."""
+    return np.stack(np.broadcast_arrays(translational, rotational), axis=-1)
+
+
+def _limit_norm(v_c, v_last, a_last, v_max, a_max, j_max) -> np.ndarray:
+    """The 3-vector limiter of src/rate_limiting.cpp: vectors (..., 3), limits (...)."""
+    dt = DELTA_T
+    eps = NORM_EPS
+    # Jerk by differentiation; its norm clamped to J (direction kept) and integrated.
+    jerk = ((v_c - v_last) / dt - a_last) / dt
+    jerk_norm = _norm(jerk)
+    jerking = jerk_norm > eps
+    jerk_step = np.minimum(jerk_norm, j_max)  # (libfranka also clamps at -J: a norm never is)
+    acc = a_last + jerk / np.where(jerking, jerk_norm, 1.0)[..., None] * jerk_step[..., None] * dt
+    acc = np.where(jerking[..., None], acc, a_last)
+    # Distance from v_last, along the acceleration's direction, to the sphere |v| = V.
+    acc_norm = _norm(acc)
+    moving = acc_norm > eps
+    unit = acc / np.where(moving, acc_norm, 1.0)[..., None]
+    dot = np.einsum("...i,...i->...", unit, v_last)
+    disc = dot * dot - np.einsum("...i,...i->...", v_last, v_last) + v_max * v_max
+    distance = np.sqrt(np.maximum(disc, 0.0)) - dot
+    safe = np.minimum(j_max / a_max * distance, a_max)
+    # disc < 0 (v_last outside the ball): libfranka's sqrt gives NaN and
+    # std::min(|a|, NaN) returns |a| -- the acceleration norm goes through unlimited.
+    size = np.where(disc < 0.0, acc_norm, np.minimum(acc_norm, safe))
+    return np.where(moving[..., None], v_last + unit * size[..., None] * dt, v_last)
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis."""
+    return np.sqrt(np.einsum("...i,...i->...", x, x))
