@@ -14,11 +14,12 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .core import FciBatch, info_row
+from .core import FciBatch
+from .infos import info_row
 
 
 class FrankaFCIVectorEnv(VectorEnv):
-    """N FrankaFCI reach episodes stepped together (Gymnasium 1.x ``VectorEnv``).
+    """N FrankaFCI episodes stepped together (Gymnasium 1.x ``VectorEnv``).
 
     Args:
         num_envs: the number of arms.
