@@ -8,6 +8,7 @@ import os
 import pickle
 import subprocess
 import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -18,6 +19,7 @@ from gymnasium.utils.passive_env_checker import env_render_passive_checker
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs import EPISODE_STEPS, IDS
 from franka_sim_gym.envs.fci_env import FrankaFCIEnv
+from franka_sim_gym.sim.render import BACKGROUND
 
 
 @pytest.mark.parametrize("env_id", list(IDS))
@@ -160,3 +162,55 @@ def test_gymnasium_check_env_with_the_render_check(env_id):
 def test_sb3_check_env(env_id):
     sb3_env_checker = pytest.importorskip("stable_baselines3.common.env_checker")
     sb3_env_checker.check_env(gym.make(env_id).unwrapped, warn=True)
+
+
+def test_frames_have_no_black_band_at_the_top():
+    env = gym.make("FrankaFCI-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    frame = env.render()
+    # The camera sees past the floor there: the background, not MuJoCo's black.
+    assert frame[:20].reshape(-1, 3).min(axis=0).tolist() == list(BACKGROUND)
+    env.close()
+
+
+def test_record_video_wraps_the_env_out_of_the_box(tmp_path):
+    pytest.importorskip("moviepy", reason="RecordVideo's dependency (the train extra)")
+    env = gym.make(
+        "FrankaFCICartesianVelocity-v0",
+        render_mode="rgb_array",
+        width=96,
+        height=72,
+        max_episode_steps=6,
+    )
+    env = gym.wrappers.RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda _: True)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        done = terminated or truncated
+    env.close()
+    (video,) = (tmp_path / "videos").glob("*.mp4")
+    assert video.stat().st_size > 1000
+
+
+def test_the_record_video_example_writes_a_gif_of_every_step(tmp_path):
+    from PIL import Image
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
+    from record_video import record
+
+    out = record(
+        lambda obs: np.zeros(3, dtype=np.float32),
+        "FrankaFCICartesianVelocity-v0",
+        {"cartesian_dof": 3, "max_episode_steps": 5},
+        tmp_path / "policy.gif",
+        episodes=2,
+        size=(96, 72),
+    )
+    with Image.open(out) as gif:  # Pillow merges equal frames, adding their durations
+        durations = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            durations.append(gif.info["duration"])
+        assert gif.size == (96, 72)
+    assert sum(durations) == 2 * (5 + 1) * 40  # two episodes of 5 steps and a reset, 25 Hz
