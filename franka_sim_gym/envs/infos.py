@@ -34,9 +34,9 @@ def mode_names(modes: np.ndarray) -> np.ndarray:
 
 def info_row(info: dict[str, np.ndarray], i: int) -> dict:
     """One arm's info as a single env reports it (Python scalars and tuples); the vector
-    layout's ``_key`` masks are left out."""
+    layout's ``_key`` masks and nested vector infos (``final_info``) are left out."""
     return {
         key: (value[i] if value.dtype == object else value[i].item())
         for key, value in info.items()
-        if not key.startswith("_")
+        if not key.startswith("_") and isinstance(value, np.ndarray)
     }
