@@ -37,11 +37,10 @@ def record(
     out.parent.mkdir(parents=True, exist_ok=True)
     width, height = size
     env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **env_kwargs)
-    fps = round(1000 / env.unwrapped.cycles_per_step)  # one frame per policy step: real time
+    fps = env.metadata["render_fps"]  # the policy rate: one frame per step plays in real time
     if out.suffix == ".mp4":
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "clips"
-            env.metadata = {**env.metadata, "render_fps": fps}
             video = gym.wrappers.RecordVideo(
                 env, str(folder), episode_trigger=lambda _: True, name_prefix="episode"
             )

@@ -129,6 +129,8 @@ class FrankaFCIEnv(gym.Env):
         self.gripper = core.gripper
         self.action_space = core.action_space
         self.observation_space = core.observation_space
+        # One frame per policy step plays in real time (RecordVideo reads render_fps).
+        self.metadata = {**self.metadata, "render_fps": round(1000 / self.cycles_per_step)}
 
     # -- Gymnasium API -----------------------------------------------------------------------
 

@@ -191,6 +191,9 @@ def test_record_video_wraps_the_env_out_of_the_box(tmp_path):
     env.close()
     (video,) = (tmp_path / "videos").glob("*.mp4")
     assert video.stat().st_size > 1000
+    assert env.metadata["render_fps"] == 25  # one frame per policy step: real time
+    slow = gym.make("FrankaFCI-v0", render_mode="rgb_array", policy_hz=10)
+    assert slow.metadata["render_fps"] == 10
 
 
 def test_the_record_video_example_writes_a_gif_of_every_step(tmp_path):
