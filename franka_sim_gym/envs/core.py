@@ -355,7 +355,6 @@ class FciBatch:
             "extra": extra,
         }
         if snapshot is not None:
-            m["states"] = m["states"].copy()
             for key, value in snapshot.items():
                 m[key] = np.where(frozen.reshape(-1, *[1] * (value.ndim - 1)), value, m[key])
         return m

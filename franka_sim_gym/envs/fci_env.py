@@ -37,6 +37,10 @@ from .infos import info_row
 class FrankaFCIEnv(gym.Env):
     """A task (Reach by default) on a simulated FR3 under the rules its FCI enforces.
 
+    Actions are ``Box(-1, 1)``; values outside it are clipped to it, component by
+    component (docs/env.md, "Actions"); NaN, infinite or wrongly shaped ones are a
+    ValueError.
+
     Args:
         task: "reach" (default; envs/tasks/TASKS) or a ``Task`` instance; the task's
             own arguments are keywords of the env too (Reach: ``reward_type``,

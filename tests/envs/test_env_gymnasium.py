@@ -217,3 +217,19 @@ def test_the_record_video_example_writes_a_gif_of_every_step(tmp_path):
             durations.append(gif.info["duration"])
         assert gif.size == (96, 72)
     assert sum(durations) == 2 * (5 + 1) * 40  # two episodes of 5 steps and a reset, 25 Hz
+
+
+@pytest.mark.parametrize("env_id", ["FrankaFCI-v0", "FrankaFCICartesianVelocity-v0"])
+def test_out_of_range_actions_are_clipped_as_documented(env_id):
+    runs = []
+    for scale in (1.0, 3.0):  # 3x: every component beyond the Box, clipped back to it
+        env = gym.make(env_id, enforce_motion_limits=False)
+        env.reset(seed=2)
+        action = np.full(env.action_space.shape, scale, np.float32)
+        runs.append([env.step(action) for _ in range(3)])
+    assert_same_steps(*runs)
+    # ... and said where users look: the action table and the env's docstring
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "env.md").read_text()
+    actions = " ".join(docs.split("## Actions", 1)[1].split("\n## ", 1)[0].split())
+    assert "Values outside [-1, 1] are clipped" in actions
+    assert "clipped" in FrankaFCIEnv.__doc__
