@@ -64,14 +64,11 @@ SILENT_CYCLES = 2
 __all__ = ["FciBatch", "draw_episode", "info_row", "start_pose"]  # info_row: envs/infos.py
 
 
-def draw_episode(
-    rng: np.random.Generator, noise: float, task: Task
-) -> tuple[np.ndarray, np.ndarray]:
-    """An episode's start pose (the home pose plus uniform noise of +-``noise`` rad per
-    joint) and its goal (``task.sample_goal``), drawn from ``rng`` in that order: what a
-    reset draws, and what examples/deploy_pylibfranka.py draws for the same reaches."""
-    start = start_pose(rng, noise)
-    return start, task.sample_goal(rng)
+def draw_episode(rng: np.random.Generator, noise: float, task: Task) -> tuple[np.ndarray, ...]:
+    """An episode's start pose (``start_pose``) and its goal (``task.sample_goal``), drawn
+    from ``rng`` in that order: what a reset draws, and what examples/deploy_pylibfranka.py
+    draws for the same reaches."""
+    return start_pose(rng, noise), task.sample_goal(rng)
 
 
 def start_pose(rng: np.random.Generator, noise: float) -> np.ndarray:
@@ -375,13 +372,12 @@ class FciBatch:
 
     def _info(self, m, lost, violations, penalty) -> dict[str, np.ndarray]:
         states = m["states"]
+        success_rate = states["control_command_success_rate"].astype(np.float64)
         return {
             "errors": names(states["errors"]),
             "reflex_reason": names(states["reflex_reason"]),
             "robot_mode": mode_names(states["robot_mode"]),
-            "control_command_success_rate": states["control_command_success_rate"].astype(
-                np.float64
-            ),
+            "control_command_success_rate": success_rate,
             "lost_cycles": lost,
             "longest_lost_run": self.links.longest_lost.copy(),
             "violations": names(violations),
