@@ -1,15 +1,20 @@
 """Gymnasium environments driving the simulated FCI controller in-process.
 
-``import franka_sim_gym`` registers them (entry points are strings: nothing
-heavy is imported until an env is made):
+``import franka_sim_gym`` registers them (entry points are strings: the robot is not
+imported until an env is made). Per task of ``envs/tasks/TASKS``, one id per action
+interface plus its default:
 
-* ``FrankaFCI-v0`` — reach, joint-position actions through libfranka's rate limiter;
-* ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``,
-  ``FrankaFCICartesianPose-v0``, ``FrankaFCICartesianVelocity-v0``, ``FrankaFCITorque-v0``
-  — one id per action interface (every constructor argument of
-  ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed to ``gym.make``).
+* Reach: ``FrankaFCI-v0`` (joint positions through libfranka's rate limiter),
+  ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``,
+  ``FrankaFCICartesianPose-v0``, ``FrankaFCICartesianVelocity-v0``,
+  ``FrankaFCITorque-v0``;
+* a task whose ``id_name`` is ``Push`` would get ``FrankaFCIPush-v0`` (its
+  ``default_interface``) and ``FrankaFCIPushJointPosition-v0``, ...
 
-Every id also has a native batched vector env (N arms in one MuJoCo world):
+Every constructor argument of ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed
+to ``gym.make``; each id's spec carries ``max_episode_steps`` (50), which
+``gym.make(id, max_episode_steps=N)`` overrides. Every id also has a native batched
+vector env (N arms in one MuJoCo world):
 ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
 (``franka_sim_gym.envs.vector_env.FrankaFCIVectorEnv``).
 """
@@ -18,16 +23,38 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-_ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
-_VECTOR_ENTRY = "franka_sim_gym.envs.vector_env:FrankaFCIVectorEnv"
-IDS = {
-    "FrankaFCI-v0": {"action_interface": "joint_position"},
-    "FrankaFCIJointPosition-v0": {"action_interface": "joint_position"},
-    "FrankaFCIJointVelocity-v0": {"action_interface": "joint_velocity"},
-    "FrankaFCICartesianPose-v0": {"action_interface": "cartesian_pose"},
-    "FrankaFCICartesianVelocity-v0": {"action_interface": "cartesian_velocity"},
-    "FrankaFCITorque-v0": {"action_interface": "torque"},
+from .tasks import TASKS
+
+ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
+VECTOR_ENTRY = "franka_sim_gym.envs.vector_env:FrankaFCIVectorEnv"
+#: The episode length in every id's spec, and of an env made without one.
+EPISODE_STEPS = 50
+#: Each action interface's part of an id.
+INTERFACE_IDS = {
+    "joint_position": "JointPosition",
+    "joint_velocity": "JointVelocity",
+    "cartesian_pose": "CartesianPose",
+    "cartesian_velocity": "CartesianVelocity",
+    "torque": "Torque",
 }
+
+
+def task_ids() -> dict[str, dict]:
+    """Every id with its arguments, from ``TASKS``."""
+    ids = {}
+    for name, task in TASKS.items():
+        prefix = f"FrankaFCI{task.id_name}"
+        ids[f"{prefix}-v0"] = {"task": name, "action_interface": task.default_interface}
+        for interface in task.interfaces or tuple(INTERFACE_IDS):
+            ids[f"{prefix}{INTERFACE_IDS[interface]}-v0"] = {
+                "task": name,
+                "action_interface": interface,
+            }
+    return ids
+
+
+#: Every registered id and its arguments.
+IDS = task_ids()
 
 
 def register_envs() -> None:
@@ -35,7 +62,11 @@ def register_envs() -> None:
     for env_id, kwargs in IDS.items():
         if env_id not in gym.registry:
             gym.register(
-                id=env_id, entry_point=_ENTRY, vector_entry_point=_VECTOR_ENTRY, kwargs=kwargs
+                id=env_id,
+                entry_point=ENTRY,
+                vector_entry_point=VECTOR_ENTRY,
+                max_episode_steps=EPISODE_STEPS,
+                kwargs=kwargs,
             )
 
 

@@ -13,6 +13,7 @@ datagrams then go through the controller's late-datagram path.
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -136,3 +137,70 @@ def make_channel(spec: Channel | str | None) -> Channel:
             return Delay(max_cycles=int(hi))
         return Delay(cycles=int(arg or 1))
     raise ValueError(f"unknown channel {spec!r}: expected none, loss:P, bursty, delay:N, delay:0-N")
+
+
+class Links:
+    """The links of n arms: one channel each, the lost cycles they cause, and the
+    delivery of each arm's datagrams to the controller in their own order.
+
+    ``perfect``: every link is a plain ``Channel`` (the core then hands commands to the
+    controller itself, one call for all arms)."""
+
+    def __init__(self, spec, n: int) -> None:
+        self.channels = per_arm_channels(spec, n)
+        self.perfect = all(type(c) is Channel for c in self.channels)
+        self.n = n
+        #: per arm: the current and the longest run of consecutive lost cycles
+        self.lost_run = np.zeros(n, dtype=np.int64)
+        self.longest_lost = np.zeros(n, dtype=np.int64)
+        self._rounds: list[np.ndarray] = []  # the k-th datagram delivered to each arm
+
+    def reset(self, arms: np.ndarray, rngs: list) -> None:
+        """New episodes on ``arms`` (arm i's channel draws from ``rngs[i]``)."""
+        for i in arms.tolist():
+            self.channels[i].reset(rngs[i])
+        self.lost_run[arms] = 0
+        self.longest_lost[arms] = 0
+
+    def transmit(self, command: np.ndarray, sending: np.ndarray, lost: np.ndarray, receive) -> None:
+        """Send ``command`` (n rows) of the ``sending`` arms through their channels and
+        hand what arrives to ``receive(batch, mask)`` (the controller's), round by round;
+        count in ``lost`` the cycles no command answered in time."""
+        n = self.n
+        open_ids = command["message_id"].copy()
+        answered = np.zeros(n, dtype=bool)
+        rounds: list[list[tuple[int, np.ndarray]]] = []
+        for i in np.flatnonzero(sending).tolist():
+            for r, delivered in enumerate(self.channels[i].transmit(command[i : i + 1])):
+                if r == len(rounds):
+                    rounds.append([])
+                rounds[r].append((i, delivered))
+        for r, deliveries in enumerate(rounds):
+            if r == len(self._rounds):
+                self._rounds.append(np.zeros(n, dtype=command.dtype))
+            batch, mask = self._rounds[r], np.zeros(n, dtype=bool)
+            for i, delivered in deliveries:
+                batch[i] = delivered[0]
+                mask[i] = True
+                answered[i] |= bool(delivered["message_id"][0] == open_ids[i])
+            receive(batch, mask)
+        # A cycle is lost when no command answering it reached the robot in time.
+        missed = sending & ~answered
+        lost += missed
+        self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)
+        np.maximum(self.longest_lost, self.lost_run, out=self.longest_lost)
+
+
+def per_arm_channels(spec, n: int) -> list[Channel]:
+    """One channel per arm from a spec (``make_channel``'s, or an instance: copied per arm,
+    so that every arm has its own link and random stream) or a list of n of them."""
+    if isinstance(spec, (list, tuple)):
+        if len(spec) != n:
+            raise ValueError(f"channel: a list needs one entry per arm ({n}), got {len(spec)}")
+        channels = [make_channel(s) for s in spec]
+    else:
+        channel = make_channel(spec)
+        channels = [channel] + [copy.deepcopy(channel) for _ in range(n - 1)]
+    if len({id(c) for c in channels}) != n:
+        raise ValueError("channel: every arm needs a Channel instance of its own")
+    return channels

@@ -13,51 +13,43 @@ cycle it happened (a single env stops there) while the others run on; a reset of
 touches only arm i. A reset teleports the arm, starts its motion (Move) and returns its
 observation at once; the arm then sends nothing for its first ``SILENT_CYCLES`` cycles,
 as libfranka reads states until the modes switch, and one more.
+
+What the episode is about — goals, objects, observation extras, reward, success — is the
+task's (envs/tasks/base.py), injected by name or instance.
 """
 
 from __future__ import annotations
-
-import copy
 
 import numpy as np
 from gymnasium import spaces
 
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
-from ..fci.errors import error_names
 from ..fci.events import EventKind
-from ..fci.wire import (
-    ROBOT_COMMAND_DTYPE,
-    MoveControllerMode,
-    MoveMotionGeneratorMode,
-    RobotMode,
-)
+from ..fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.arm import ArmPhysics
 from ..sim.gripper import MAX_WIDTH, FrankaHand
 from ..sim.world import HOME_Q
-from .channel import Channel, make_channel
+from .channel import Channel, Links
 from .commands import CommandGenerator
 from .fci_reset import reset_through_fci
+from .infos import info_row, mode_names, names
 from .observation import build_observation, observation_space
-from .tasks.reach import Reach
+from .tasks import Task, make_task
 
 #: How an episode starts: "teleport" (the arm is placed at the start pose, errors and
 #: frames cleared) or "fci" (as on a robot: recovery, then a joint motion there).
 RESET_MODES = ("teleport", "fci")
 
+# Robot::control's default controller mode for a motion generator: kJointImpedance.
+IMPEDANCE, GENERATOR = MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode
+#: The Move each action interface starts: (controller mode, motion generator mode).
 MOVE = {
-    "joint_position": (MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode.kJointPosition),
-    "joint_velocity": (MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode.kJointVelocity),
-    # Robot::control's default controller mode for a motion generator: kJointImpedance.
-    "cartesian_pose": (
-        MoveControllerMode.kJointImpedance,
-        MoveMotionGeneratorMode.kCartesianPosition,
-    ),
-    "cartesian_velocity": (
-        MoveControllerMode.kJointImpedance,
-        MoveMotionGeneratorMode.kCartesianVelocity,
-    ),
-    "torque": (MoveControllerMode.kExternalController, MoveMotionGeneratorMode.kNone),
+    "joint_position": (IMPEDANCE, GENERATOR.kJointPosition),
+    "joint_velocity": (IMPEDANCE, GENERATOR.kJointVelocity),
+    "cartesian_pose": (IMPEDANCE, GENERATOR.kCartesianPosition),
+    "cartesian_velocity": (IMPEDANCE, GENERATOR.kCartesianVelocity),
+    "torque": (MoveControllerMode.kExternalController, GENERATOR.kNone),
 }
 _FIELD = {
     "joint_position": "q_c",
@@ -68,23 +60,31 @@ _FIELD = {
 }
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
-_MODE_NAMES = {int(m): m.name for m in RobotMode}
+
+__all__ = ["FciBatch", "draw_episode", "info_row", "start_pose"]  # info_row: envs/infos.py
 
 
-def draw_episode(rng: np.random.Generator, noise: float, task) -> tuple[np.ndarray, np.ndarray]:
-    """An episode's start pose (the home pose plus uniform noise of +-``noise`` rad per
-    joint) and its goal (``task.sample_goal``), drawn from ``rng`` in that order: what a
-    reset draws, and what examples/deploy_pylibfranka.py draws for the same reaches."""
-    start = HOME_Q + rng.uniform(-noise, noise, size=7)
-    return start, task.sample_goal(rng)
+def draw_episode(rng: np.random.Generator, noise: float, task: Task) -> tuple[np.ndarray, ...]:
+    """An episode's start pose (``start_pose``) and its goal (``task.sample_goal``), drawn
+    from ``rng`` in that order: what a reset draws, and what examples/deploy_pylibfranka.py
+    draws for the same reaches."""
+    return start_pose(rng, noise), task.sample_goal(rng)
+
+
+def start_pose(rng: np.random.Generator, noise: float) -> np.ndarray:
+    """The home pose plus uniform noise of +-``noise`` rad per joint, drawn from ``rng``."""
+    return HOME_Q + rng.uniform(-noise, noise, size=7)
 
 
 class FciBatch:
-    """n reach episodes on n simulated FR3s, stepped together (see the module docstring).
+    """n episodes of a task on n simulated FR3s, stepped together (see the module
+    docstring).
 
     The arguments are FrankaFCIEnv's (its docstring describes them); ``channel`` may
     also be a list with one model or spec per arm (a single ``Channel`` instance is
-    copied per arm: every arm gets its own link and its own random stream).
+    copied per arm: every arm gets its own link and its own random stream). ``task`` is
+    a name in ``tasks.TASKS`` (``task_kwargs`` are its arguments, e.g. Reach's
+    ``reward_type`` and ``distance_threshold``) or a ``Task`` instance.
     """
 
     def __init__(
@@ -94,8 +94,7 @@ class FciBatch:
         action_filter: str = "limit_rate",
         policy_hz: float = 25.0,
         max_episode_steps: int = 50,
-        reward_type: str = "sparse",
-        distance_threshold: float = 0.05,
+        task: str | Task = "reach",
         enforce_motion_limits: bool = True,
         enforce_comm_constraints: bool = True,
         channel: Channel | str | None | list = None,
@@ -106,6 +105,7 @@ class FciBatch:
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
         reset_mode: str = "teleport",
+        **task_kwargs,
     ) -> None:
         if int(n) < 1:
             raise ValueError(f"the number of arms must be >= 1, got {n}")
@@ -129,9 +129,14 @@ class FciBatch:
         self.n = n = int(n)
         self.action_interface = action_interface
         self.cycles_per_step = int(round(cycles))
+        if int(max_episode_steps) < 1:
+            raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
         self.max_episode_steps = int(max_episode_steps)
         self.reset_noise = float(reset_noise)
-        self.task = Reach(reward_type=reward_type, distance_threshold=distance_threshold)
+        self.task = make_task(task, **task_kwargs)
+        if self.task.scene is not None:
+            name = type(self.task).__name__
+            raise ValueError(f"{name}: the world builder takes no task scene yet")
         self.config = ControllerConfig(
             robot=robot,
             enforce_motion_limits=enforce_motion_limits,
@@ -141,8 +146,9 @@ class FciBatch:
         self.gripper_speed = float(gripper_speed)
         self.hands = [FrankaHand() for _ in range(n)] if self.gripper else None
         self.controller = FciController(ArmPhysics(n_arms=n, hand=self.gripper), self.config)
-        self.channels = _channels(channel, n)
-        self._perfect = all(type(c) is Channel for c in self.channels)
+        self.links = Links(channel, n)
+        #: each arm's channel model
+        self.channels = self.links.channels
         self.commands = CommandGenerator(
             action_interface,
             action_filter,
@@ -157,16 +163,15 @@ class FciBatch:
         self.action_space = spaces.Box(
             -1.0, 1.0, shape=(self._dim + 1 if gripper else self._dim,), dtype=np.float32
         )
-        self.observation_space = observation_space(self.config.table, self.gripper)
+        self.observation_space = observation_space(
+            self.config.table, self.gripper, self.task.extra_space(), self.task.goal_dim
+        )
         self._command = np.zeros(n, dtype=ROBOT_COMMAND_DTYPE)
         self._all = np.ones(n, dtype=bool)
         self._all.setflags(write=False)
-        self._rounds: list[np.ndarray] = []  # per-arm channels: the k-th datagram of each arm
-        self.goals = np.zeros((n, 3))
+        self.goals = np.zeros((n, self.task.goal_dim))
         self.steps = np.zeros(n, dtype=np.int64)
         self.cycles = np.zeros(n, dtype=np.int64)  # cycles of each arm's episode
-        self.lost_run = np.zeros(n, dtype=np.int64)
-        self.longest_lost = np.zeros(n, dtype=np.int64)
         self._fresh = np.zeros(n, dtype=bool)  # reset, its silent cycles still to come
 
     # -- episodes ------------------------------------------------------------------------------
@@ -174,14 +179,20 @@ class FciBatch:
     def reset_arms(self, arms, rngs: list[np.random.Generator]) -> None:
         """Start new episodes on ``arms``, each drawing from its own ``rngs[i]`` (indexed by
         arm): teleport to the home pose plus seeded noise (or go there through the FCI:
-        ``reset_mode="fci"``), Move, draw a goal."""
+        ``reset_mode="fci"``), Move; the task then places its objects and draws the goals
+        (``draw_episode``'s order)."""
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         ctrl = self.controller
-        drawn = [draw_episode(rngs[i], self.reset_noise, self.task) for i in arms.tolist()]
-        q = np.stack([start for start, _ in drawn])
+        noise = self.reset_noise
+        q = np.stack([start_pose(rngs[i], noise) for i in arms.tolist()])
         if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
             reset_through_fci(ctrl, q[0])
         else:
+            # A motion still running (a truncated episode) is stopped first, as a client
+            # would: the teleport clears the joint references but not the Cartesian
+            # generator's, whose twist (O_dP_EE_c) the next episode would start from.
+            for i in np.flatnonzero(ctrl.in_motion[arms]).tolist():
+                ctrl.stop_move(int(arms[i]))
             ids = ctrl.writer.message_id.copy()
             ctrl.reset(arms, q)
             # The reset publishes the teleported state under a new message id, for every
@@ -192,25 +203,22 @@ class FciBatch:
             ctrl.states["message_id"] = ids
         controller_mode, generator = MOVE[self.action_interface]
         for i in arms.tolist():
-            self.channels[i].reset(rngs[i])
             if self.gripper and self.reset_mode == "teleport":
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller_mode), int(generator))
-        self.goals[arms] = [goal for _, goal in drawn]
+        self.goals[arms] = self.task.reset(arms, rngs, ctrl.physics)
         self.commands.reset(arms)
         self.steps[arms] = 0
         self.cycles[arms] = 0
-        self.lost_run[arms] = 0
-        self.longest_lost[arms] = 0
+        self.links.reset(arms, rngs)
         self._fresh[arms] = True
 
     def observe(self) -> tuple[dict, dict]:
         """Observations and infos of every arm as they stand (after a reset: lost 0)."""
-        states, ee, width = self._measured()
+        m = self._measured()
         zeros = np.zeros(self.n, dtype=np.int64)
         no_violations = np.zeros((self.n, self.controller.errors.shape[1]), dtype=bool)
-        obs = self._observation(states, ee, width)
-        return obs, self._info(states, ee, zeros, no_violations, np.zeros(self.n))
+        return self._observation(m), self._info(m, zeros, no_violations, np.zeros(self.n))
 
     # -- the step ------------------------------------------------------------------------------
 
@@ -270,10 +278,10 @@ class FciBatch:
                 mask = self._all if everyone else sending
             command_id[...] = published
             command_field[...] = gen.command(state, k, None if everyone else sending)
-            if self._perfect:
+            if self.links.perfect:
                 ctrl.receive(command, mask)
             else:
-                self._transmit(command, sending, lost)
+                self.links.transmit(command, sending, lost, ctrl.receive)
             if self.gripper:
                 self._step_hands(active & ~frozen)
             events = ctrl.step()
@@ -296,8 +304,8 @@ class FciBatch:
         self.cycles[running] += k + 1
         violations[running] |= ctrl.violations.take()[running]
         self.steps[active] += 1
-        states, ee, width = self._measured(frozen, snapshot)
-        obs = self._observation(states, ee, width)
+        m = self._measured(frozen, snapshot)
+        obs = self._observation(m)
         task = self.task
         terminated = frozen
         penalty = np.zeros(n)
@@ -313,7 +321,7 @@ class FciBatch:
             obs["achieved_goal"], obs["desired_goal"], {"reflex_penalty": penalty}
         ).astype(np.float64)
         truncated = active & ~terminated & (self.steps >= self.max_episode_steps)
-        return obs, reward, terminated, truncated, self._info(states, ee, lost, violations, penalty)
+        return obs, reward, terminated, truncated, self._info(m, lost, violations, penalty)
 
     # -- internals -----------------------------------------------------------------------------
 
@@ -323,80 +331,60 @@ class FciBatch:
         violations[running] |= ctrl.violations.take()[running]
         frozen[ended] = True
         self.cycles[ended] += k + 1
+        now = self._measured()
         if snapshot is None:
-            snapshot = (ctrl.states.copy(), np.zeros((self.n, 3)), np.zeros(self.n))
-        snapshot[0][ended] = ctrl.states[ended]
-        snapshot[1][ended] = ctrl.writer.O_T_EE[ended, 12:15]
-        if self.gripper:
-            snapshot[2][ended] = ctrl.physics.finger_width()[ended]
+            snapshot = {key: value.copy() for key, value in now.items() if value is not None}
+        for key, value in snapshot.items():
+            value[ended] = now[key][ended]
         return snapshot
 
-    def _measured(self, frozen=None, snapshot=None):
-        """The states, EE positions (float64) and hand widths, frozen rows from the snapshot."""
+    def _measured(self, frozen=None, snapshot=None) -> dict:
+        """Every arm's state, EE position (float64), hand width, achieved goal and the
+        task's extras; the rows of ``frozen`` arms from the snapshot of their last cycle."""
         ctrl = self.controller
-        states = ctrl.states
         ee = ctrl.writer.O_T_EE[:, 12:15].copy()
-        width = ctrl.physics.finger_width() if self.gripper else None
+        achieved, extra = self.task.observe(ctrl.physics, ee)
+        m = {
+            "states": ctrl.states,
+            "ee": ee,
+            "width": ctrl.physics.finger_width() if self.gripper else None,
+            "achieved": achieved,
+            "extra": extra,
+        }
         if snapshot is not None:
-            states = states.copy()
-            states[frozen] = snapshot[0][frozen]
-            ee[frozen] = snapshot[1][frozen]
-            if width is not None:
-                width = np.where(frozen, snapshot[2], width)
-        return states, ee, width
+            for key, value in snapshot.items():
+                m[key] = np.where(frozen.reshape(-1, *[1] * (value.ndim - 1)), value, m[key])
+        return m
 
-    def _observation(self, states, ee, width) -> dict[str, np.ndarray]:
+    def _observation(self, m: dict) -> dict[str, np.ndarray]:
+        states = m["states"]
         return build_observation(
             self.observation_space,
             states["q"],
             states["dq"],
-            ee,
+            m["ee"],
             self.goals,
             states["O_dP_EE_c"],
-            width,
+            m["width"],
+            achieved=m["achieved"],
+            extra=m["extra"],
         )
 
-    def _info(self, states, ee, lost, violations, penalty) -> dict[str, np.ndarray]:
+    def _info(self, m, lost, violations, penalty) -> dict[str, np.ndarray]:
+        states = m["states"]
+        success_rate = states["control_command_success_rate"].astype(np.float64)
         return {
-            "errors": _names(states["errors"]),
-            "reflex_reason": _names(states["reflex_reason"]),
-            "robot_mode": _objects([_MODE_NAMES[m] for m in states["robot_mode"].tolist()]),
-            "control_command_success_rate": states["control_command_success_rate"].astype(
-                np.float64
-            ),
+            "errors": names(states["errors"]),
+            "reflex_reason": names(states["reflex_reason"]),
+            "robot_mode": mode_names(states["robot_mode"]),
+            "control_command_success_rate": success_rate,
             "lost_cycles": lost,
-            "longest_lost_run": self.longest_lost.copy(),
-            "violations": _names(violations),
+            "longest_lost_run": self.links.longest_lost.copy(),
+            "violations": names(violations),
             "cycles": self.cycles.copy(),
-            "is_success": np.asarray(self.task.is_success(ee, self.goals), dtype=bool),
+            "is_success": np.asarray(self.task.is_success(m["achieved"], self.goals), dtype=bool),
             "reflex_penalty": penalty,
         }
-
-    def _transmit(self, command: np.ndarray, sending: np.ndarray, lost: np.ndarray) -> None:
-        """Per-arm channels: each arm's datagrams reach the robot in their own order."""
-        n = self.n
-        open_ids = command["message_id"].copy()
-        answered = np.zeros(n, dtype=bool)
-        rounds: list[list[tuple[int, np.ndarray]]] = []
-        for i in np.flatnonzero(sending).tolist():
-            for r, delivered in enumerate(self.channels[i].transmit(command[i : i + 1])):
-                if r == len(rounds):
-                    rounds.append([])
-                rounds[r].append((i, delivered))
-        for r, deliveries in enumerate(rounds):
-            if r == len(self._rounds):
-                self._rounds.append(np.zeros(n, dtype=ROBOT_COMMAND_DTYPE))
-            batch, mask = self._rounds[r], np.zeros(n, dtype=bool)
-            for i, delivered in deliveries:
-                batch[i] = delivered[0]
-                mask[i] = True
-                answered[i] |= bool(delivered["message_id"][0] == open_ids[i])
-            self.controller.receive(batch, mask)
-        # A cycle is lost when no command answering it reached the robot in time.
-        missed = sending & ~answered
-        lost += missed
-        self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)
-        np.maximum(self.longest_lost, self.lost_run, out=self.longest_lost)
 
     def _command_hands(self, width_actions: np.ndarray, active: np.ndarray) -> None:
         targets = (np.clip(width_actions, -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH
@@ -409,41 +397,3 @@ class FciBatch:
         for i in arms.tolist():
             self.hands[i].step(1e-3)
         self.controller.physics.set_finger_width(arms, [self.hands[i].width for i in arms])
-
-
-def _channels(spec, n: int) -> list[Channel]:
-    if isinstance(spec, (list, tuple)):
-        if len(spec) != n:
-            raise ValueError(f"channel: a list needs one entry per arm ({n}), got {len(spec)}")
-        channels = [make_channel(s) for s in spec]
-    else:
-        channel = make_channel(spec)
-        channels = [channel] + [copy.deepcopy(channel) for _ in range(n - 1)]
-    if len({id(c) for c in channels}) != n:
-        raise ValueError("channel: every arm needs a Channel instance of its own")
-    return channels
-
-
-def _objects(values: list) -> np.ndarray:
-    out = np.empty(len(values), dtype=object)
-    out[:] = values
-    return out
-
-
-def _names(bits: np.ndarray) -> np.ndarray:
-    """Per row of (n, 41) error bits: the tuple of the robot's error names."""
-    out = np.empty(len(bits), dtype=object)
-    out.fill(())
-    for i in np.flatnonzero(bits.any(axis=1)).tolist():
-        out[i] = error_names(bits[i])
-    return out
-
-
-def info_row(info: dict[str, np.ndarray], i: int) -> dict:
-    """One arm's info as a single env reports it (Python scalars and tuples); the vector
-    layout's ``_key`` masks are left out."""
-    return {
-        key: (value[i] if value.dtype == object else value[i].item())
-        for key, value in info.items()
-        if not key.startswith("_")
-    }

@@ -57,7 +57,7 @@ class FrankaFCISB3VecEnv(VecEnv):
         infos = []
         for i in range(self.num_envs):
             if done[i]:
-                row = dict(info["final_info"][i])
+                row = info_row(info["final_info"], i)  # a vector info, as SyncVectorEnv's
                 row["terminal_observation"] = info["final_obs"][i]
                 row["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
                 self.reset_infos[i] = info_row(info, i)

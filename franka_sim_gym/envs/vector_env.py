@@ -14,11 +14,12 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .core import FciBatch, info_row
+from .core import FciBatch
+from .infos import info_row
 
 
 class FrankaFCIVectorEnv(VectorEnv):
-    """N FrankaFCI reach episodes stepped together (Gymnasium 1.x ``VectorEnv``).
+    """N FrankaFCI episodes stepped together (Gymnasium 1.x ``VectorEnv``).
 
     Args:
         num_envs: the number of arms.
@@ -115,9 +116,14 @@ class FrankaFCIVectorEnv(VectorEnv):
         info = _with_masks(info, np.ones(self.num_envs, dtype=bool))
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             arms = np.flatnonzero(done)
-            info["final_obs"] = _objects_of(obs, arms, self.num_envs)
-            info["final_info"] = _infos_of(info, arms, self.num_envs)
-            info["_final_obs"] = info["_final_info"] = done.copy()
+            # final_obs and final_info laid out as Gymnasium's SyncVectorEnv lays them out
+            # (its _add_info, which VectorEnv gives its subclasses).
+            final: dict = {}
+            for i in arms.tolist():
+                row = {key: value[i].copy() for key, value in obs.items()}
+                final = self._add_info(
+                    final, {"final_obs": row, "final_info": info_row(info, i)}, i
+                )
             core.reset_arms(arms, self.rngs)
             reset_obs, reset_info = core.observe()
             obs = {key: value.copy() for key, value in obs.items()}
@@ -125,6 +131,7 @@ class FrankaFCIVectorEnv(VectorEnv):
                 obs[key][arms] = reset_obs[key][arms]
             for key in reset_info:
                 info[key][arms] = reset_info[key][arms]
+            info.update(final)
             self._autoreset[...] = False
         else:
             self._autoreset = done.copy()
@@ -143,18 +150,4 @@ def _with_masks(info: dict, mask: np.ndarray) -> dict:
     out = dict(info)
     for key in info:
         out[f"_{key}"] = mask.copy()
-    return out
-
-
-def _objects_of(obs: dict, arms: np.ndarray, n: int) -> np.ndarray:
-    out = np.full(n, None, dtype=object)
-    for i in arms.tolist():
-        out[i] = {key: value[i].copy() for key, value in obs.items()}
-    return out
-
-
-def _infos_of(info: dict, arms: np.ndarray, n: int) -> np.ndarray:
-    out = np.full(n, None, dtype=object)
-    for i in arms.tolist():
-        out[i] = info_row(info, i)
     return out

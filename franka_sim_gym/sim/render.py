@@ -5,12 +5,19 @@ first imported (GLFW by default, which needs a display and aborts without
 one). The env must render in CI and on headless machines whatever was
 imported before it, so it drives MuJoCo's low-level render calls on an EGL
 context of its own.
+
+The world has no skybox: where the camera sees past the floor (above its horizon)
+nothing is drawn and MuJoCo leaves the pixels black. Those pixels (at the far plane of
+the depth buffer) are painted ``BACKGROUND``.
 """
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
+
+#: The colour of the pixels nothing was drawn on (RGB): a pale sky.
+BACKGROUND = (206, 218, 230)
 
 
 class OffscreenRenderer:
@@ -53,7 +60,9 @@ class OffscreenRenderer:
         self._gl.make_current()
         mujoco.mjr_render(self._rect, self.scene, self._context)
         frame = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        mujoco.mjr_readPixels(frame, None, self._rect, self._context)
+        depth = np.empty((self.height, self.width), dtype=np.float32)
+        mujoco.mjr_readPixels(frame, depth, self._rect, self._context)
+        frame[depth >= 1.0] = BACKGROUND
         return np.flipud(frame)
 
     def close(self) -> None:

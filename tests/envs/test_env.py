@@ -55,17 +55,39 @@ def run(env, seed: int, actions: np.ndarray):
     return out
 
 
-def test_reset_seed_makes_the_episode_reproducible_bit_for_bit():
-    env = gym.make("FrankaFCI-v0", channel="loss:0.05")
-    actions = np.random.default_rng(0).uniform(-0.3, 0.3, size=(20, 7)).astype(np.float32)
-    first = run(env, 123, actions)
-    env.reset(seed=999)  # anything in between
-    second = run(env, 123, actions)
+def assert_same_run(first, second) -> None:
     assert len(first) == len(second)
     for a, b in zip(first, second, strict=True):
         for key in ("observation", "achieved_goal", "desired_goal"):
-            assert a[0][key].tobytes() == b[0][key].tobytes()
+            assert a[0][key].tobytes() == b[0][key].tobytes(), key
         assert a[1:] == b[1:]  # rewards, terminations and infos alike
+
+
+@pytest.mark.parametrize("env_id", list(IDS))
+def test_reset_seed_makes_the_episode_reproducible_bit_for_bit(env_id):
+    # The episode in between ends truncated while the arm still moves (the motion is
+    # running at the reset): nothing of it may reach the next one, under every interface.
+    kwargs = {"channel": "loss:0.05", "max_episode_steps": 12}
+    env = gym.make(env_id, **kwargs)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-0.4, 0.4, size=(12, *env.action_space.shape)).astype(np.float32)
+    first = run(gym.make(env_id, **kwargs), 123, actions)
+    between = run(env, 999, actions)
+    assert between[-1][3] and not between[-1][2]  # truncated, moving
+    assert_same_run(first, run(env, 123, actions))
+
+
+@pytest.mark.parametrize("env_id", ["FrankaFCICartesianVelocity-v0", "FrankaFCICartesianPose-v0"])
+def test_a_reset_starts_the_commanded_twist_from_rest(env_id):
+    # Observation indices 17-22 are the commanded twist O_dP_EE_c: a truncated episode's
+    # last twist used to be the next episode's first observation.
+    env = gym.make(env_id, max_episode_steps=5)
+    env.reset(seed=0)
+    for _ in range(5):
+        obs, *_ = env.step(np.full(env.action_space.shape, 0.5, dtype=np.float32))
+    assert np.abs(obs["observation"][17:23]).max() > 0.05  # moving when truncated
+    obs, _ = env.reset(seed=0)
+    assert obs["observation"][17:23].tolist() == [0.0] * 6
 
 
 def naive_steps(env, n: int = 2):
