@@ -20,9 +20,12 @@ task's (envs/tasks/base.py), injected by name or instance.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from gymnasium import spaces
 
+from ..fci.collision import four_argument_form
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
@@ -33,7 +36,7 @@ from ..sim.world import HOME_Q
 from .channel import Channel, Links
 from .commands import CommandGenerator
 from .fci_reset import reset_through_fci
-from .infos import info_row, mode_names, names
+from .infos import info_row, step_info
 from .observation import build_observation, observation_space
 from .tasks import Task, make_task
 
@@ -105,6 +108,8 @@ class FciBatch:
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
         reset_mode: str = "teleport",
+        scene: str | Path | None = None,
+        collision_thresholds: tuple | None = None,
         **task_kwargs,
     ) -> None:
         if int(n) < 1:
@@ -134,9 +139,15 @@ class FciBatch:
         self.max_episode_steps = int(max_episode_steps)
         self.reset_noise = float(reset_noise)
         self.task = make_task(task, **task_kwargs)
-        if self.task.scene is not None:
+        if self.task.scene is not None and scene is not None:
             name = type(self.task).__name__
-            raise ValueError(f"{name}: the world builder takes no task scene yet")
+            raise ValueError(f"{name} has its own scene ({self.task.scene}): scene must be None")
+        scene = self.task.scene if scene is None else scene
+        #: SetCollisionBehavior's eight arrays (by name), applied at every reset; None: the
+        #: robot's defaults
+        self.collision_thresholds = (
+            None if collision_thresholds is None else four_argument_form(collision_thresholds)
+        )
         self.config = ControllerConfig(
             robot=robot,
             enforce_motion_limits=enforce_motion_limits,
@@ -145,7 +156,8 @@ class FciBatch:
         self.gripper = bool(gripper)
         self.gripper_speed = float(gripper_speed)
         self.hands = [FrankaHand() for _ in range(n)] if self.gripper else None
-        self.controller = FciController(ArmPhysics(n_arms=n, hand=self.gripper), self.config)
+        physics = ArmPhysics(n_arms=n, hand=self.gripper, scene=scene)
+        self.controller = FciController(physics, self.config)
         self.links = Links(channel, n)
         #: each arm's channel model
         self.channels = self.links.channels
@@ -203,6 +215,8 @@ class FciBatch:
             ctrl.states["message_id"] = ids
         controller_mode, generator = MOVE[self.action_interface]
         for i in arms.tolist():
+            if self.collision_thresholds is not None:
+                ctrl.set_collision_behavior(i, self.collision_thresholds)
             if self.gripper and self.reset_mode == "teleport":
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller_mode), int(generator))
@@ -371,20 +385,10 @@ class FciBatch:
         )
 
     def _info(self, m, lost, violations, penalty) -> dict[str, np.ndarray]:
-        states = m["states"]
-        success_rate = states["control_command_success_rate"].astype(np.float64)
-        return {
-            "errors": names(states["errors"]),
-            "reflex_reason": names(states["reflex_reason"]),
-            "robot_mode": mode_names(states["robot_mode"]),
-            "control_command_success_rate": success_rate,
-            "lost_cycles": lost,
-            "longest_lost_run": self.links.longest_lost.copy(),
-            "violations": names(violations),
-            "cycles": self.cycles.copy(),
-            "is_success": np.asarray(self.task.is_success(m["achieved"], self.goals), dtype=bool),
-            "reflex_penalty": penalty,
-        }
+        is_success = np.asarray(self.task.is_success(m["achieved"], self.goals), dtype=bool)
+        return step_info(
+            m["states"], lost, self.links.longest_lost, violations, self.cycles, is_success, penalty
+        )
 
     def _command_hands(self, width_actions: np.ndarray, active: np.ndarray) -> None:
         targets = (np.clip(width_actions, -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH

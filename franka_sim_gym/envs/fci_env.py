@@ -86,6 +86,14 @@ class FrankaFCIEnv(gym.Env):
             real robot could do: StopMove, AutomaticErrorRecovery after a reflex, then
             a joint-position motion to the start pose, judged by the robot's checks;
             frames are kept). Single envs only (the vector env teleports).
+        scene: a scene fragment on the table, one copy per arm: a shipped name
+            ("block", "peg_in_hole") or an MJCF file (default: the bare table; a task
+            with objects brings its own).
+        collision_thresholds: SetCollisionBehavior in libfranka's 4-argument form,
+            ``(lower_torque, upper_torque, lower_force, upper_force)`` (Nm, N; 7, 7, 6
+            and 6 values or scalars), set at every reset (default: the robot's,
+            fci/collision.py). A force above an upper threshold is a collision reflex
+            (``joint_reflex`` / ``cartesian_reflex``) that ends the episode.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}

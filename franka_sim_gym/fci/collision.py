@@ -62,6 +62,36 @@ def invalid_thresholds(values: dict[str, np.ndarray]) -> str | None:
     return None
 
 
+def four_argument_form(thresholds) -> dict[str, np.ndarray]:
+    """SetCollisionBehavior's payload from libfranka's 4-argument form
+    ``(lower_torque, upper_torque, lower_force, upper_force)``: each (7,) or (6,) or a
+    scalar for every joint / axis, sent for both phases (libfranka ``robot.h``).
+
+    Raises:
+        ValueError: not four entries, a wrong length, or a threshold the robot refuses.
+    """
+    try:
+        lower_torque, upper_torque, lower_force, upper_force = thresholds
+        arrays = [
+            np.broadcast_to(np.asarray(v, dtype=float), (size,)).copy()
+            for v, size in zip(
+                (lower_torque, upper_torque, lower_force, upper_force), (7, 7, 6, 6), strict=True
+            )
+        ]
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            "collision thresholds must be (lower_torque, upper_torque, lower_force, "
+            f"upper_force): 7, 7, 6 and 6 values or scalars, got {thresholds!r}"
+        ) from exc
+    t_lo, t_up, f_lo, f_up = arrays
+    phases = (t_lo, t_up, t_lo, t_up, f_lo, f_up, f_lo, f_up)
+    values = dict(zip(THRESHOLD_NAMES, phases, strict=True))
+    why = invalid_thresholds(values)
+    if why is not None:
+        raise ValueError(f"collision thresholds refused: {why}")
+    return values
+
+
 class Levels(NamedTuple):
     """One cycle's verdicts, (n, 7) joints and (n, 6) Cartesian axes."""
 

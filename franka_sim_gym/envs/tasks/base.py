@@ -41,9 +41,9 @@ class Task(ABC):
     default_interface: ClassVar[str] = "joint_position"
     #: the interfaces the task is registered for, one id each (None: every one)
     interfaces: ClassVar[tuple[str, ...] | None] = None
-    #: MJCF of the objects the task places per arm (None: the bare arms). The world
-    #: builder (sim/world.py) composes scenes with the contact issue; until then a task
-    #: with a scene is refused when an env is made.
+    #: The scene fragment of the objects the task places per arm: a shipped name
+    #: (sim/scene.py SCENES) or an MJCF file; the world builder attaches one copy per
+    #: arm, in the arm's base frame (None: the bare table).
     scene: ClassVar[str | None] = None
     #: the length of the achieved and desired goals
     goal_dim: ClassVar[int] = 3

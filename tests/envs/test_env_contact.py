@@ -1,0 +1,77 @@
+"""The env on the table: contact in info, collision reflexes end the episode."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+
+#: Forward and down onto the table in front of the arm (3 dof: translation only).
+DOWN = np.array([0.12, 0.0, -0.2], dtype=np.float32)
+
+
+def descend(env, steps: int = 200):
+    """Push the EE down until the episode ends; the last info and whether it terminated."""
+    info, terminated = {}, False
+    for _ in range(steps):
+        _, _, terminated, truncated, info = env.step(DOWN)
+        if terminated or truncated:
+            break
+    return info, terminated
+
+
+def make(**kwargs):
+    return gym.make(
+        "FrankaFCICartesianVelocity-v0", cartesian_dof=3, policy_hz=10, max_episode_steps=200,
+        **kwargs,
+    )  # fmt: skip
+
+
+def test_pushing_into_the_table_ends_in_a_collision_reflex_named_in_info():
+    env = make(collision_thresholds=(100.0, 100.0, 10.0, 20.0))
+    env.reset(seed=0)
+    info, terminated = descend(env)
+    assert terminated
+    assert "cartesian_reflex" in info["reflex_reason"] or "joint_reflex" in info["reflex_reason"]
+    assert info["robot_mode"] == "kReflex"
+    assert info["O_F_ext_hat_K"].shape == (6,) and info["O_F_ext_hat_K"][2] < -10.0
+    assert info["cartesian_contact"][2]  # the z axis is past its lower threshold
+    # The next episode starts clean: the thresholds are set again, nothing sensed.
+    _, info = env.reset(seed=1)
+    assert info["reflex_reason"] == () and not info["cartesian_contact"].any()
+    assert np.abs(info["O_F_ext_hat_K"]).max() < 0.5
+
+
+def test_free_space_episodes_sense_nothing_under_the_default_thresholds():
+    env = gym.make("FrankaFCI-v0")
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        _, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
+        assert "joint_reflex" not in info["reflex_reason"]
+        assert "cartesian_reflex" not in info["reflex_reason"]
+        if terminated or truncated:
+            env.reset()
+
+
+def test_a_scene_gives_every_arm_its_own_objects():
+    envs = gym.make_vec("FrankaFCI-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                        scene="block")  # fmt: skip
+    layout = envs.unwrapped.core.controller.physics.layout
+    assert len(set(layout.scene_body["block"].tolist())) == 3
+
+
+@pytest.mark.parametrize(
+    ("thresholds", "message"),
+    [
+        ((10.0, 20.0, 5.0), "must be \\(lower_torque, upper_torque, lower_force, upper_force\\)"),
+        ((10.0, 20.0, [5.0] * 5, 20.0), "7, 7, 6 and 6 values"),
+        ((10.0, -20.0, 5.0, 20.0), "upper_torque_thresholds_acceleration: negative"),
+        ((10.0, 20.0, np.nan, 20.0), "lower_force_thresholds_acceleration: non-finite"),
+    ],
+)
+def test_bad_collision_thresholds_are_a_value_error_naming_them(thresholds, message):
+    with pytest.raises(ValueError, match=message):
+        make(collision_thresholds=thresholds)
