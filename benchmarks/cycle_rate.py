@@ -7,7 +7,7 @@ Rows: bare mj_step of the world (n = 1 and n = 16 arms), the controller idle
 velocity motion (one command per arm per cycle, delivered in-process; the
 Cartesian ones solved to joint space by the differential IK every cycle).
 Each row reports cycles/s, arm-cycles/s and the ratio to bare mj_step of the
-same world. One core, nothing else running.
+same world (the arms on their table, sim/scene.py). One core, nothing else running.
 """
 
 from __future__ import annotations
@@ -132,6 +132,11 @@ def motion_rate(n: int, seconds: float) -> float:
     # The cycle accounting alone (success-rate window, lost runs), every robot counting.
     accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting
+    # What the robot senses of contact: the external-torque estimate, the wrench at K
+    # and the collision thresholds (fci/contact_sensing.py), every cycle.
+    in_motion = ctrl.modes.in_motion
+    sensing = rate(lambda: ctrl.contact.sense(in_motion, None), seconds / 4)
+    SENSING_SHARE[n] = cycles / sensing
     return cycles
 
 
@@ -142,6 +147,8 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
 
 #: per n: the accounting's share of one motion cycle
 ACCOUNTING_SHARE: dict[int, float] = {}
+#: per n: the contact estimator's and the collision detector's share of one motion cycle
+SENSING_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -165,6 +172,8 @@ def main() -> None:
         print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
     for n, share in ACCOUNTING_SHARE.items():
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
+    for n, share in SENSING_SHARE.items():
+        print(f"contact estimate and collision detection's share, n={n}: {share:.1%}")
     by_name = {name: cycles for name, _, cycles in rows}
     n1 = by_name["controller joint-position motion, n=1"]
     n16 = by_name["controller joint-position motion, n=16"] * 16

@@ -129,14 +129,16 @@ class CollisionBehavior:
     def levels(self, tau_ext: np.ndarray, wrench: np.ndarray, accelerating: np.ndarray) -> Levels:
         """Compare |tau_ext| (n, 7) and |O_F_ext_hat_K| (n, 6) with the thresholds of each
         robot's phase (``accelerating``: (n,) bool)."""
-        phase = np.where(accelerating, 0, 1)
-        rows = np.arange(len(phase))
+        if np.count_nonzero(accelerating):
+            phase = (np.arange(len(accelerating)), np.where(accelerating, 0, 1))
+        else:  # every robot nominal (always, between motions): no gather
+            phase = (slice(None), 1)
         tau, force = np.abs(tau_ext), np.abs(wrench)
         return Levels(
-            joint_contact=tau > self.lower_torque[rows, phase],
-            cartesian_contact=force > self.lower_force[rows, phase],
-            joint_over=tau > self.upper_torque[rows, phase],
-            cartesian_over=force > self.upper_force[rows, phase],
+            joint_contact=tau > self.lower_torque[phase],
+            cartesian_contact=force > self.lower_force[phase],
+            joint_over=tau > self.upper_torque[phase],
+            cartesian_over=force > self.upper_force[phase],
         )
 
 

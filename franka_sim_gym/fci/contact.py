@@ -50,6 +50,7 @@ ALPHA = DELTA_T / (ESTIMATE_TIME_CONSTANT + DELTA_T)
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.
 WRENCH_DAMPING = 1e-8
+_DAMPING = WRENCH_DAMPING * np.eye(6)
 
 
 def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -60,18 +61,15 @@ def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:
     wrench, as a robot estimating at K reports it.
     """
     jjt = jacobian @ jacobian.transpose(0, 2, 1)
-    jjt += WRENCH_DAMPING * np.eye(6)
-    rhs = np.einsum("nij,nj->ni", jacobian, tau)
-    return np.linalg.solve(jjt, rhs[..., None])[..., 0]
+    jjt += _DAMPING
+    return np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
 
 
 def in_frame(wrench: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """(n, 6) a base-frame wrench expressed in a frame whose axes are ``rotation``'s
-    columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K."""
-    rt = rotation.transpose(0, 2, 1)
-    force = np.einsum("nij,nj->ni", rt, wrench[:, :3])
-    torque = np.einsum("nij,nj->ni", rt, wrench[:, 3:])
-    return np.concatenate([force, torque], axis=1)
+    columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K (R^T f and R^T m, as rows
+    f R and m R)."""
+    return (wrench.reshape(-1, 2, 3) @ rotation).reshape(-1, 6)
 
 
 class ExternalTorqueEstimator:

@@ -17,18 +17,27 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from .rotations import LEVI_CIVITA
+
 if TYPE_CHECKING:
     from .arm import ArmPhysics
 
 
-def jacobian_at(axes: np.ndarray, anchors: np.ndarray, point: np.ndarray) -> np.ndarray:
+def jacobian_at(
+    axes: np.ndarray, anchors: np.ndarray, point: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 6, 7) geometric Jacobian of ``point`` (n, 3) on the last link: rows v, omega.
 
     Revolute joints only: column j is [z_j x (p - o_j); z_j] with z_j the joint's unit
-    axis and o_j a point of it (``axes``, ``anchors``: (n, 7, 3), base frame).
+    axis and o_j a point of it (``axes``, ``anchors``: (n, 7, 3), in the frame of
+    ``point``). The cross products are one contraction with the Levi-Civita symbol.
     """
-    linear = np.cross(axes, point[:, None, :] - anchors)
-    return np.concatenate([linear, axes], axis=2).transpose(0, 2, 1)
+    if out is None:
+        out = np.empty((len(point), 6, 7))
+    lever = point[:, None, :] - anchors
+    np.einsum("iab,nja,njb->nij", LEVI_CIVITA, axes, lever, out=out[:, :3])
+    out[:, 3:] = axes.transpose(0, 2, 1)
+    return out
 
 
 def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -> np.ndarray:

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from .. import native
+from .dynamics import jacobian_at
 from .ik import (
     ELBOW_JOINT,
     MAX_STEP,
@@ -25,7 +26,6 @@ from .ik import (
     mj_kinematics_addresses,
     pose_error,
 )
-from .rotations import LEVI_CIVITA
 from .views import strided_rows
 from .world import ArmLayout
 
@@ -152,11 +152,7 @@ class ArmKinematics:
             p_world, R = site_pos, R_site
         self._R_out = R
         np.subtract(p_world, self._base, out=self._p)  # base frame = world frame translated
-        # Linear part: axis x (EE point - joint anchor), as one contraction with the
-        # Levi-Civita symbol; angular part: the axis.
-        lever = p_world[:, None, :] - anchors
-        np.einsum("iab,nja,njb->nij", LEVI_CIVITA, axes, lever, out=self._J[:, :3])
-        self._J[:, 3:] = axes.transpose(0, 2, 1)
+        jacobian_at(axes, anchors, p_world, out=self._J)
         self._cached_q[...] = q
         self._cached = self._rows_valid = True
         return self._p, R, self._J
