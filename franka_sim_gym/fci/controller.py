@@ -28,16 +28,18 @@ import numpy as np
 
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
+from ..sim.kinematics import ArmKinematics
 from . import arrival, setters
 from .accounting import CycleAccounting
 from .cartesian import CartesianGenerators
 from .collision import THRESHOLD_NAMES
 from .config import ControllerConfig
-from .contact_sensing import ContactSensing
+from .contact_sensing import ContactSensing, column_major
 from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
+from .impedance import CartesianImpedance, invalid_stiffness
 from .joint_generators import JointGenerators
 from .late import LateIntents
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
@@ -110,6 +112,8 @@ class FciController:
         self.safety = SafetyController(
             physics, w.O_T_EE, self.modes, self.accounting, self.config, self.engine
         )
+        #: the internal Cartesian impedance servo's stiffness and target
+        self.impedance = CartesianImpedance(ArmKinematics(physics.model, physics.layout), n)
         #: the external-torque estimate, the wrench at K and the collision thresholds
         self.contact = ContactSensing(
             physics, w.field, self.engine, self.config.enforce_motion_limits
@@ -222,7 +226,13 @@ class FciController:
         # The drives carry a load configured with SetLoad in every mode (the robot's
         # gravity compensation of its model); MuJoCo knows only what is physically there.
         load = self.contact.load_weight()
-        self.physics.step(q_ref, dq_ref, self.tau_J_d, m.external_arg, compensation=load)
+        cartesian = None
+        if m.n_cartesian_impedance:
+            EE_T_K = column_major(w.field["EE_T_K"])
+            cartesian = self.impedance.target(m.cartesian_impedance, q_ref, w.F_T_EE, EE_T_K)
+        self.physics.step(
+            q_ref, dq_ref, self.tau_J_d, m.external_arg, cartesian=cartesian, compensation=load
+        )
         w.write_measured(self.physics)
         self.contact.sense(m.in_motion, load)
         if moving:
@@ -426,8 +436,18 @@ class FciController:
             return SetterStatus.kInvalidArgumentRejected
         return SetterStatus.kSuccess
 
+    def set_cartesian_impedance(self, robot: int, K_x) -> SetterStatus:
+        """SetCartesianImpedance (command 5): the Cartesian servo's stiffness along K's axes,
+        applied from the next cycle (fci/impedance.py); out of range: refused."""
+        why = invalid_stiffness(K_x)
+        if why is not None:
+            log.warning("robot %d: SetCartesianImpedance rejected: %s", robot, why)
+            return SetterStatus.kInvalidArgumentRejected
+        self.impedance.stiffness[robot] = np.ravel(np.asarray(K_x, dtype=float))
+        return SetterStatus.kSuccess
+
     def acknowledge_setter(self, robot: int, name: str, values) -> SetterStatus:
-        """SetCartesianImpedance, SetGuidingMode: accepted, not simulated."""
+        """SetGuidingMode: accepted, not simulated."""
         return setters.check_finite(name, robot, values)
 
     def end_session(self, robot: int) -> None:
@@ -442,6 +462,7 @@ class FciController:
             self._finish_recovery(robot)
         self.writer.reset_configuration(robot)
         self.contact.behavior.reset(robot)
+        self.impedance.reset(robot)
         self.physics.set_stiffness(np.array([robot]), np.asarray(self.config.joint_stiffness))
         self._events = [e for e in self._events if e.robot != robot]
 
@@ -463,6 +484,7 @@ class FciController:
             self.recovery.end(i)
             self.accounting.stop_motion(i)
             self.writer.reset_configuration(i)
+            self.impedance.reset(i)
             self._write_modes(i)
         self.contact.reset(robots)
         self.cycle_input.have[robots] = False

@@ -21,6 +21,7 @@ NONE = int(MotionGeneratorMode.kNone)
 IDLE = int(MotionGeneratorMode.kIdle)
 EXTERNAL = int(ControllerMode.kExternalController)
 JOINT_IMPEDANCE = int(ControllerMode.kJointImpedance)
+CARTESIAN_IMPEDANCE = int(ControllerMode.kCartesianImpedance)
 
 
 class Modes:
@@ -64,6 +65,8 @@ class Modes:
         self.cartesian_velocity = self.in_motion & (gen == CARTESIAN_VELOCITY)
         self.cartesian = self.cartesian_position | self.cartesian_velocity
         self.external = self.in_motion & (ctrl == EXTERNAL)
+        #: the internal servo is the Cartesian impedance (a motion under kCartesianImpedance)
+        self.cartesian_impedance = self.in_motion & (ctrl == CARTESIAN_IMPEDANCE)
         #: an external controller with no motion generator (startTorqueControl)
         self.torque_only = self.in_motion & (gen == NONE)
         self.n_motion = int(np.count_nonzero(self.in_motion))
@@ -75,6 +78,7 @@ class Modes:
         self.n_cartesian = self.n_cartesian_position + self.n_cartesian_velocity
         self.n_external = int(np.count_nonzero(self.external))
         self.n_torque_only = int(np.count_nonzero(self.torque_only))
+        self.n_cartesian_impedance = int(np.count_nonzero(self.cartesian_impedance))
         #: what physics.step takes for ``external``: None, True or a mask
         if self.n_external == 0:
             self.external_arg = None

@@ -220,7 +220,7 @@ class RobotServer:
         elif command == C.kSetJointImpedance:
             session.reply(command, command_id, ctrl.set_joint_impedance(0, request.K_theta))
         elif command == C.kSetCartesianImpedance:
-            status = ctrl.acknowledge_setter(0, "SetCartesianImpedance", request.K_x)
+            status = ctrl.set_cartesian_impedance(0, request.K_x)
             session.reply(command, command_id, status)
         elif command == C.kSetCollisionBehavior:
             thresholds = {f.name: getattr(request, f.name) for f in dataclasses.fields(request)}
