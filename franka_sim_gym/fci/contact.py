@@ -47,6 +47,12 @@ __all__ = [
 ESTIMATE_TIME_CONSTANT = 0.01
 #: The filter's per-cycle gain: y += ALPHA (x - y), the discrete first-order low-pass.
 ALPHA = DELTA_T / (ESTIMATE_TIME_CONSTANT + DELTA_T)
+#: Decimals the estimate is published with: 0.1 mNm and 0.1 mN (a choice, far below
+#: any threshold). MuJoCo computes in world coordinates, and n arms stand 2 m apart in
+#: one world: their model terms round differently from a lone arm's at the last bits
+#: (1e-16 relative), which the differentiated velocity lifts to ~1e-14 Nm. Rounded,
+#: an arm of a batched world publishes what the same arm alone publishes.
+RESOLUTION_DECIMALS = 4
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.
 WRENCH_DAMPING = 1e-8
@@ -62,14 +68,15 @@ def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """
     jjt = jacobian @ jacobian.transpose(0, 2, 1)
     jjt += _DAMPING
-    return np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
+    wrench = np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
+    return np.round(wrench, RESOLUTION_DECIMALS, out=wrench)
 
 
 def in_frame(wrench: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """(n, 6) a base-frame wrench expressed in a frame whose axes are ``rotation``'s
     columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K (R^T f and R^T m, as rows
     f R and m R)."""
-    return (wrench.reshape(-1, 2, 3) @ rotation).reshape(-1, 6)
+    return np.round((wrench.reshape(-1, 2, 3) @ rotation).reshape(-1, 6), RESOLUTION_DECIMALS)
 
 
 class ExternalTorqueEstimator:
@@ -93,9 +100,9 @@ class ExternalTorqueEstimator:
     def update(self, mass_times, bias: np.ndarray, tau_J: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """One cycle: ``mass_times(x)`` is M(q) x at the new state, ``bias`` C dq + g,
         ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
-        Returns the filtered estimate (n, 7)."""
+        Returns the filtered estimate (n, 7), at the published resolution."""
         ddq = (dq - self.dq_prev) / DELTA_T
         residual = tau_J - (mass_times(ddq) + bias)
         self.tau_ext += ALPHA * (residual - self.tau_ext)
         self.dq_prev[...] = dq
-        return self.tau_ext
+        return np.round(self.tau_ext, RESOLUTION_DECIMALS)

@@ -115,8 +115,10 @@ def test_task_arguments_and_errors():
     class WithScene(Height):
         scene = "<mujoco/>"
 
-    with pytest.raises(ValueError, match="no task scene yet"):
+    with pytest.raises(ValueError, match="'<mujoco/>' is not a shipped scene"):
         FrankaFCIEnv(task=WithScene())
+    with pytest.raises(ValueError, match="has its own scene .* scene must be None"):
+        FrankaFCIEnv(task=WithScene(), scene="block")
 
 
 def test_a_reflex_freezes_the_tasks_observation_at_its_cycle():
