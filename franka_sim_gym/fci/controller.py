@@ -34,6 +34,7 @@ from .config import ControllerConfig
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
+from .log_limit import CycleLogLimit
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .protocol import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .reference import JointReference
@@ -90,6 +91,7 @@ class FciController:
         self._all_true.setflags(write=False)
         #: a non-finite command arrived (refused whatever the enforcement)
         self._refused = np.zeros(n, dtype=bool)
+        self._log_limit = CycleLogLimit(log)  # warnings that can repeat every cycle
         #: of those, a Cartesian command refused for its elbow alone (named 17)
         self._refused_elbow = np.zeros(n, dtype=bool)
         #: the motion's opening command has not been judged yet
@@ -554,7 +556,9 @@ class FciController:
 
     def _log_unanswerable(self, bogus: np.ndarray, ids: np.ndarray) -> None:
         for i in np.flatnonzero(bogus).tolist():
-            log.warning(
+            self._log_limit.warning(
+                int(self.writer.message_id[i]),
+                ("unanswerable", i),
                 "robot %d: command with message_id %d answers no state of the running motion "
                 "(last published %d); counted as lost",
                 i,
@@ -566,8 +570,12 @@ class FciController:
         for i in np.flatnonzero(refused).tolist():
             gen = int(self.modes.motion_generator_mode[i])
             signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
-            log.warning(
-                "robot %d: non-finite value in the commanded %s; command refused", i, signal
+            self._log_limit.warning(
+                int(self.writer.message_id[i]),
+                ("non-finite", i),
+                "robot %d: non-finite value in the commanded %s; command refused",
+                i,
+                signal,
             )
 
     def _write_modes(self, i: int) -> None:
