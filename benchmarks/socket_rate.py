@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-CLIENT = ROOT / "tests" / "clients" / "pylibfranka_client.py"
+CLIENT = ROOT / "tests" / "e2e" / "clients" / "pylibfranka_client.py"
 HOST = "127.0.0.91"
 
 
