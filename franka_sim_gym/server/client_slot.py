@@ -20,6 +20,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Protocol
 
+from .logging_util import RateLimitedLog
 from .outbox import SEND_BUFFER_BYTES
 
 log = logging.getLogger("franka_sim_gym.server")
@@ -80,6 +81,7 @@ class ClientSlot:
         self.make_session = make_session
         self._cond = threading.Condition()
         self._unconnected: deque[Session] = deque()
+        self._log = RateLimitedLog(log)  # a connection flood must not flood the log
         self.session: Session | None = None
 
     def accept_loop(self, tcp: socket.socket, running: threading.Event) -> None:
@@ -102,7 +104,8 @@ class ClientSlot:
                     else None
                 )
             if oldest is not None:
-                log.warning(
+                self._log.warning(
+                    "too-many-unconnected",
                     "closing the %sconnection from %s:%d: more than %d connections have "
                     "not sent a Connect",
                     self.kind,
