@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import select
 import socket
+import struct
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -24,6 +25,8 @@ CONNECT_TIMEOUT_S = 2.0
 #: What may wait in the outbox of a connection that has not connected: its only
 #: replies are rejections, a few bytes each.
 UNCONNECTED_OUTBOX_BYTES = 64 * 1024
+#: SO_LINGER on, 0 s: close() resets the connection (see Connection.close).
+_RESET_ON_CLOSE = struct.pack("ii", 1, 0)
 
 
 class Connection:
@@ -79,9 +82,15 @@ class Connection:
         self.outbox.max_bytes = MAX_OUTBOX_BYTES
 
     def close(self) -> None:
-        """End the connection from any thread; the reader cleans up."""
+        """End the connection from any thread: the reader wakes and closes it with a reset.
+
+        A reset, not a FIN: libfranka polls its TCP socket only for errors and for
+        data (src/network.h, tcpReadFromBuffer), so after a plain end of stream a
+        client waiting for a reply would wait for ever; a reset makes it raise
+        NetworkException ("TCP connection got interrupted") at once.
+        """
         try:
-            self.sock.shutdown(socket.SHUT_RDWR)
+            self.sock.shutdown(socket.SHUT_RD)  # wakes the reader; sends nothing
         except OSError:
             pass
 
@@ -114,6 +123,7 @@ class Connection:
             self.close()
             self.outbox.thread.join(timeout=2.0)
             try:
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET_ON_CLOSE)
                 self.sock.close()
             except OSError:
                 pass
