@@ -9,15 +9,28 @@ import numpy as np
 
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci import protocol as p
-from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
+from franka_sim_gym.fci.wire import (
+    ROBOT_COMMAND_DTYPE,
+    ROBOT_STATE_DTYPE,
+    ROBOT_STATE_SIZE,
+    MotionGeneratorMode,
+)
 
 
 class RawClient:
     """TCP + UDP to a server, with replies matched by command_id."""
 
-    def __init__(self, host: str, port: int = 1337) -> None:
+    def __init__(self, host: str, port: int = 1337, receive_buffer: int | None = None) -> None:
+        """``receive_buffer``: a small SO_RCVBUF [bytes] set before connecting, for a
+        client whose unread replies must back up quickly."""
         self.host = host
-        self.tcp = socket.create_connection((host, port), timeout=5.0)
+        if receive_buffer is None:
+            self.tcp = socket.create_connection((host, port), timeout=5.0)
+        else:
+            self.tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            self.tcp.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+            self.tcp.settimeout(5.0)
+            self.tcp.connect((host, port))
         self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         # Like libfranka: states go to (TCP peer address, udp_port), so listen where
         # our TCP connection comes from.
@@ -109,3 +122,30 @@ class RawClient:
         for name, value in fields.items():
             command[name] = value
         self.udp.sendto(command.tobytes(), self.server_udp)
+
+    def start_joint_position_move(self) -> tuple[int, np.ndarray]:
+        """Move in joint-position mode; returns (the Move's request id, the first state of
+        the motion). Asserts kMotionStarted."""
+        move = self.request(
+            p.Command.kMove,
+            p.MoveRequest(
+                0, 0, p.DEFAULT_DEVIATION, p.DEFAULT_DEVIATION, False, (0.0,) * 7
+            ).payload(),
+        )
+        assert self.reply(move).payload[0] == p.MoveStatus.kMotionStarted
+        state = self.latest_state()
+        while state["motion_generator_mode"] != MotionGeneratorMode.kJointPosition:
+            state = self.state()
+        return move, state
+
+    def hold(self, q: np.ndarray, cycles: int, finished: bool = False) -> np.ndarray:
+        """Answer ``cycles`` states with q_c = ``q`` (the last with motion_generation_finished
+        if ``finished``); returns the last state read."""
+        for k in range(cycles):
+            state = self.state()
+            self.send_command(
+                message_id=int(state["message_id"]),
+                q_c=q,
+                motion_generation_finished=finished and k == cycles - 1,
+            )
+        return state

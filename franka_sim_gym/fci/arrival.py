@@ -11,15 +11,12 @@ is refused as 31; a non-finite elbow as 17.
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
 from . import frames
 from .cycle_input import CycleInput
+from .log_limit import CycleLogLimit
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
-
-log = logging.getLogger("franka_sim_gym.fci")
 
 
 def classify(
@@ -30,10 +27,13 @@ def classify(
     published: np.ndarray,
     motion_first_id: np.ndarray,
     cycle: CycleInput,
+    warnings: CycleLogLimit,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """(fresh, late, accepted) of the ``k`` commands delivered where ``mask`` (robots in
     motion); ``late`` is None when every one is fresh. Refused (non-finite) commands
-    are logged and marked in ``cycle.refused`` (and ``refused_elbow``), not accepted."""
+    are marked in ``cycle.refused`` (and ``refused_elbow``), not accepted; both kinds
+    are logged through ``warnings``, at most once a second each (a client can send
+    them every cycle)."""
     n = m.n
     ids = commands["message_id"]
     fresh = ids == published
@@ -46,7 +46,9 @@ def classify(
         late = mask & (ids < published) & (ids >= motion_first_id)
         accepted = fresh | late
         for i in np.flatnonzero(mask & ~accepted).tolist():
-            log.warning(
+            warnings.warning(
+                int(published[i]),
+                ("unanswerable", i),
                 "robot %d: command with message_id %d answers no state of the running motion "
                 "(last published %d); counted as lost",
                 i,
@@ -59,8 +61,12 @@ def classify(
         for i in np.flatnonzero(refused).tolist():
             gen = int(m.motion_generator_mode[i])
             signal = {JOINT_POSITION: "q_c", JOINT_VELOCITY: "dq_c"}.get(gen, "tau_J_d")
-            log.warning(
-                "robot %d: non-finite value in the commanded %s; command refused", i, signal
+            warnings.warning(
+                int(published[i]),
+                ("non-finite", i),
+                "robot %d: non-finite value in the commanded %s; command refused",
+                i,
+                signal,
             )
         cycle.refused |= refused
         if refused_elbow is not None:

@@ -42,6 +42,7 @@ from .events import Event, EventKind
 from .impedance import CartesianImpedance, invalid_stiffness
 from .joint_generators import JointGenerators
 from .late import LateIntents
+from .log_limit import CycleLogLimit
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .recovery import RecoveryWait
 from .reference import JointReference
@@ -90,6 +91,8 @@ class FciController:
         self.recovery = RecoveryWait(n, self.config)
         #: the open cycle's command candidates, who has one, who opens its motion
         self.cycle_input = CycleInput(n)
+        #: warnings a client can make due every cycle, at most one line a second each
+        self.warnings = CycleLogLimit(log)
         #: the motion-limit engine: judges what the rules found, returns verdicts
         self.engine = MotionLimitEngine(n, self.modes, self.config)
         self.violations = self.engine.violations
@@ -162,7 +165,14 @@ class FciController:
         cycle = self.cycle_input
         ids = commands["message_id"]
         fresh, late, accepted = arrival.classify(
-            commands, mask, k, m, self.writer.message_id, self.accounting.motion_first_id, cycle
+            commands,
+            mask,
+            k,
+            m,
+            self.writer.message_id,
+            self.accounting.motion_first_id,
+            cycle,
+            self.warnings,
         )
         self.accounting.answered |= fresh
         if late is not None and m.n_cartesian:

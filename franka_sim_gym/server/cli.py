@@ -19,6 +19,7 @@ from ..sim.arm import ArmPhysics
 from ..sim.finger_drive import FingerDrive
 from ..sim.gripper import FrankaHand, HandModel
 from ..sim.physics_hand import PhysicsHand
+from .check import wait_until_ready
 from .gripper_server import GRIPPER_PORT, GripperServer
 from .robot_server import RobotServer, ServerOptions
 
@@ -30,10 +31,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     serve = sub.add_parser(
-        "serve", help="serve the simulated robot to libfranka clients (pylibfranka, franky, ...)"
+        "serve",
+        help="serve the simulated robot to libfranka clients (pylibfranka, franky, ...)",
+        epilog=SERVE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_serve_arguments(serve)
+    check = sub.add_parser(
+        "check",
+        help="wait until a server answers Connect and streams a state (exit 0), "
+        "or time out (exit 1)",
+    )
+    check.add_argument("host", help="the server's address (as given to serve --host)")
+    check.add_argument(
+        "--timeout", type=float, default=30.0, metavar="S", help="give up after S s (default 30)"
+    )
+    check.add_argument("--port", type=int, default=COMMAND_PORT, help="TCP port (default 1337)")
     return parser
+
+
+#: What `serve --help` says about CI (docs/socket.md has the details).
+SERVE_EPILOG = """\
+in CI:
+  franka-sim-gym serve --host 127.0.0.2 &     # start it in the background
+  franka-sim-gym check 127.0.0.2 --timeout 60 # exit 0 once Connect is answered
+                                              # and a state arrives, 1 on timeout
+in pytest (installed with the package):
+  def test_my_controller(franka_sim):         # a ready server on a free loopback
+      robot = pylibfranka.Robot(franka_sim.host)  # address, stopped after the test
+  @pytest.mark.franka_sim("--enforce-motion-limits") chooses its flags;
+  franka_sim.log() is its log.
+"""
 
 
 def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
@@ -182,10 +210,28 @@ def _servers(
     return server, GripperServer(host=args.host, port=GRIPPER_PORT, hand=hand)
 
 
+def check(args: argparse.Namespace) -> int:
+    """`franka-sim-gym check HOST`: 0 once a server is ready, 1 after --timeout."""
+    why = wait_until_ready(args.host, args.port, timeout=args.timeout)
+    if why is None:
+        print(
+            f"franka-sim-gym check: {args.host}:{args.port} is ready (Connect answered, "
+            "state received)"
+        )
+        return 0
+    print(
+        f"franka-sim-gym check: {args.host}:{args.port} not ready after {args.timeout:g} s: {why}",
+        file=sys.stderr,
+    )
+    return 1
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "serve":
         return serve(args)
+    if args.command == "check":
+        return check(args)
     return 2  # pragma: no cover
 
 

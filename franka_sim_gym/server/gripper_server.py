@@ -8,9 +8,13 @@ fidelity".
 
 Threads:
 
-* an accept thread serves one client at a time (a second is refused and logged);
-* the session's reader thread decodes frames and posts requests; it never
-  blocks on a running command, so a Stop sent mid-Grasp is read at once;
+* an accept thread accepts connections; the one that completes a valid Connect
+  holds the hand (a second is refused and logged; one that sends no Connect
+  within 2 s is closed: :mod:`~franka_sim_gym.server.client_slot`);
+* each connection's reader thread decodes frames and posts requests; it never
+  blocks on a running command, so a Stop sent mid-Grasp is read at once; its
+  replies leave through the connection's outbox, so neither the reader nor the
+  timer ever waits on a client that does not read;
 * a timer thread applies the posted requests, steps the hand model at
   ``STEP_HZ`` (the kinematic :class:`FrankaHand` advances; the physics
   :class:`~franka_sim_gym.sim.physics_hand.PhysicsHand` polls its MuJoCo
@@ -37,6 +41,7 @@ from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, HandModel, Outcome
 from .client_slot import ClientSlot, stop_serving
+from .connection import Connection
 from .logging_util import RateLimitedLog
 from .request_queue import apply_pending
 
@@ -92,59 +97,53 @@ def encode_reply(command: int, command_id: int, status: int, version: int | None
 
 
 class GripperSession:
-    """The TCP side of the one connected gripper client."""
+    """The TCP side of one gripper client (connected once its Connect succeeded)."""
 
     def __init__(self, server: GripperServer, sock: socket.socket, peer: tuple[str, int]) -> None:
         self.server = server
-        self.sock = sock
-        self.peer = peer
         self.udp_port: int | None = None
-        self._send_lock = threading.Lock()
         self._decoder = FrameDecoder(max_message_size=MAX_REQUEST_SIZE, header=HEADER)
-        self.thread = threading.Thread(target=self._run, name=f"gripper-{peer}", daemon=True)
+        self.connection = Connection(
+            sock,
+            peer,
+            f"gripper client {peer[0]}:{peer[1]}",
+            log,
+            self._decoder.feed,
+            self._handle,
+            lambda: server.session_closed(self),
+        )
 
-    def reply(self, command: int, command_id: int, status: int, version: int | None = None):
-        with self._send_lock:
-            try:
-                self.sock.sendall(encode_reply(command, command_id, int(status), version))
-            except OSError as exc:
-                log.info("gripper client %s: reply not delivered (%s)", self.peer, exc)
+    @property
+    def sock(self) -> socket.socket:
+        return self.connection.sock
+
+    @property
+    def peer(self) -> tuple[str, int]:
+        return self.connection.peer
+
+    def start(self) -> None:
+        self.connection.start()
 
     def close(self) -> None:
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
+        self.connection.close()
 
-    def _run(self) -> None:
-        try:
-            while True:
-                try:
-                    data = self.sock.recv(4096)
-                except OSError as exc:
-                    log.info("gripper client %s: connection error (%s)", self.peer, exc)
-                    break
-                if not data:
-                    break
-                for item in self._decoder.feed(data):
-                    if isinstance(item, FramingError):
-                        # Every request is answered: libfranka has no reply timeout.
-                        log.warning(
-                            "gripper client %s: bad-frame (command %d, id %d): %s: answered kFail",
-                            self.peer,
-                            item.command,
-                            item.command_id,
-                            item.reason,
-                        )
-                        self.reply(item.command, item.command_id, Status.kFail)
-                    else:
-                        self._dispatch(item)
-        finally:
-            try:
-                self.sock.close()
-            except OSError:
-                pass
-            self.server.session_closed(self)
+    def reply(self, command: int, command_id: int, status: int, version: int | None = None):
+        """Queue a reply; never blocks (a client that does not read is dropped)."""
+        self.connection.send(encode_reply(command, command_id, int(status), version))
+
+    def _handle(self, item: Frame | FramingError) -> None:
+        if isinstance(item, FramingError):
+            # Every request is answered: libfranka has no reply timeout.
+            log.warning(
+                "gripper client %s: bad-frame (command %d, id %d): %s: answered kFail",
+                self.peer,
+                item.command,
+                item.command_id,
+                item.reason,
+            )
+            self.reply(item.command, item.command_id, Status.kFail)
+        else:
+            self._dispatch(item)
 
     def _fail(self, frame: Frame, reason: str, message: str) -> None:
         """Answer status 1: kFail, or for Connect kIncompatibleLibraryVersion (+ version)."""
@@ -184,8 +183,12 @@ class GripperSession:
                 )
                 self.reply(frame.command, frame.command_id, 1, VERSION)
                 return
+            if not self.server.claim(self):
+                self.close()
+                return
             self.udp_port = udp_port
             self.reply(frame.command, frame.command_id, 0, VERSION)
+            self.connection.mark_connected()
             log.info("gripper client %s connected (UDP port %d)", self.peer, udp_port)
             self.server.client_connected(self)
             return
@@ -264,11 +267,18 @@ class GripperServer:
 
     # -- TCP side -----------------------------------------------------------------------------
 
+    def claim(self, session: GripperSession) -> bool:
+        """``session`` completed a valid Connect: may it hold the hand? (see ClientSlot)"""
+        return self._slot.claim(session)
+
     def client_connected(self, session: GripperSession) -> None:
         addr = (session.peer[0], int(session.udp_port))
         self._post(lambda: setattr(self, "_client_addr", addr))
 
     def session_closed(self, session: GripperSession) -> None:
+        if not self._slot.holds(session):
+            self._slot.release(session)  # it never connected: nothing to undo
+            return
         log.info("gripper client %s disconnected", session.peer)
 
         def forget() -> None:

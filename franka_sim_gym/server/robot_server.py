@@ -8,7 +8,11 @@ Threads (architecture.md "The two clocks"):
   delivers the cycle's events (so a kReflexAborted is sent only after the
   state carrying the error), then runs the tick hooks (the physics gripper's
   finger drive: all MuJoCo access stays on this thread);
-* an accept thread and one session thread per client read TCP.
+* an accept thread, and per connection a reader thread (requests in) and an
+  outbox thread (replies out): the tick thread only queues a reply, so a client
+  that stops reading never holds up the robot; it is dropped once past the
+  outbox's bounds (:mod:`~franka_sim_gym.server.outbox`). The connection that
+  completes a valid Connect holds the robot (:mod:`~franka_sim_gym.server.client_slot`).
 
 No rule of the robot lives here: the server only delivers datagrams, requests
 and the tick to ``franka_sim_gym.fci``.
@@ -150,13 +154,20 @@ class RobotServer:
 
     # -- TCP side -----------------------------------------------------------------------------
 
+    def claim(self, session: ClientSession) -> bool:
+        """``session`` completed a valid Connect: may it hold the robot? (see ClientSlot)"""
+        return self._slot.claim(session)
+
     def client_connected(self, session: ClientSession) -> None:
         """Connect succeeded: stream states to (peer IP, UDP port from Connect)."""
         addr = (session.peer[0], int(session.udp_port))
         self._requests.put(lambda: setattr(self, "_client_addr", addr))
 
     def session_closed(self, session: ClientSession) -> None:
-        """A client went away: reset the robot to a clean idle so the next can connect."""
+        """A connection ended; if it held the robot, reset it to a clean idle for the next."""
+        if not self._slot.holds(session):
+            self._slot.release(session)  # it never connected: nothing to undo
+            return
         log.info("client %s disconnected", session.peer)
 
         def reset() -> None:
@@ -166,9 +177,11 @@ class RobotServer:
             if self._pending_recovery and self._pending_recovery[0] is session:
                 self._pending_recovery = None
             self.controller.end_session(0)
-            self._slot.release(session)
 
+        # Posted before the slot frees, so it runs before the next client's Connect
+        # is applied: a client that reconnects at once is never refused.
         self._requests.put(reset)
+        self._slot.release(session)
 
     def submit_request(self, session: ClientSession, command: p.Command, command_id: int, request):
         """Apply ``request`` on the tick thread at the next cycle boundary, then answer it.

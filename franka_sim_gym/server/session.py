@@ -1,92 +1,126 @@
-"""One libfranka client's TCP connection on port 1337: framing, decoding, dispatch.
+"""One libfranka client's TCP connection on port 1337: decoding and dispatch.
 
-A session thread reads frames, decodes them and hands each request to the
-server, which applies it on the tick thread at a cycle boundary. Every request
-is answered (libfranka has no reply timeout: a silent server hangs it), with
-the status the robot would give; malformed input is logged with a named reason.
+The connection's reader thread decodes frames (:mod:`~franka_sim_gym.server.connection`)
+and this session hands each request to its host, the robot server, which applies
+it on the tick thread at a cycle boundary. Every request is answered (libfranka
+has no reply timeout: a silent server hangs it), with the status the robot would
+give; malformed input is logged with a named reason. Replies are queued on the
+connection's outbox: answering never waits on the client.
 """
 
 from __future__ import annotations
 
 import logging
 import socket
-import threading
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from ..fci import protocol as p
-
-if TYPE_CHECKING:
-    from .robot_server import RobotServer
+from .connection import Connection
 
 log = logging.getLogger("franka_sim_gym.server")
 
-#: What to answer a request whose payload could not be decoded: the status
-#: each command's enum has for a bad argument (fci-wire-protocol.md §3.1).
-_INVALID_ARGUMENT = {
+_SETTERS = (
+    p.Command.kSetCollisionBehavior,
+    p.Command.kSetJointImpedance,
+    p.Command.kSetCartesianImpedance,
+    p.Command.kSetGuidingMode,
+    p.Command.kSetEEToK,
+    p.Command.kSetNEToEE,
+    p.Command.kSetLoad,
+)
+
+#: What to answer a request whose payload could not be decoded: the status each
+#: command's enum has for a bad argument (libfranka
+#: ``common/include/research_interface/robot/service_types.h``).
+INVALID_ARGUMENT = {
     p.Command.kConnect: p.ConnectStatus.kIncompatibleLibraryVersion,
     p.Command.kMove: p.MoveStatus.kInvalidArgumentRejected,
     p.Command.kStopMove: p.StopMoveStatus.kCommandNotPossibleRejected,
     p.Command.kAutomaticErrorRecovery: p.AutomaticErrorRecoveryStatus.kCommandNotPossibleRejected,
     p.Command.kGetRobotModel: p.GetterStatus.kCommandNotPossibleRejected,
+    **{c: p.SetterStatus.kInvalidArgumentRejected for c in _SETTERS},
+}
+
+#: What to answer a request sent before Connect: each command's own
+#: kCommandNotPossibleRejected (service_types.h; Move's is 5, every other's 1).
+#: libfranka never sends one (its Robot opens with Connect: src/robot_impl.cpp).
+NOT_POSSIBLE = {
+    p.Command.kMove: p.MoveStatus.kCommandNotPossibleRejected,
+    p.Command.kStopMove: p.StopMoveStatus.kCommandNotPossibleRejected,
+    p.Command.kAutomaticErrorRecovery: p.AutomaticErrorRecoveryStatus.kCommandNotPossibleRejected,
+    p.Command.kGetRobotModel: p.GetterStatus.kCommandNotPossibleRejected,
+    **{c: p.SetterStatus.kCommandNotPossibleRejected for c in _SETTERS},
 }
 
 
+class SessionHost(Protocol):
+    """What a session needs of its server (the robot server is one)."""
+
+    urdf: str
+
+    def claim(self, session: ClientSession) -> bool: ...
+
+    def client_connected(self, session: ClientSession) -> None: ...
+
+    def session_closed(self, session: ClientSession) -> None: ...
+
+    def submit_request(
+        self, session: ClientSession, command: p.Command, command_id: int, request: object
+    ) -> None: ...
+
+
 class ClientSession:
-    """The TCP side of one connected client."""
+    """The TCP side of one client of the arm (connected once its Connect succeeded)."""
 
-    def __init__(self, server: RobotServer, sock: socket.socket, peer: tuple[str, int]) -> None:
-        self.server = server
-        self.sock = sock
-        self.peer = peer
+    def __init__(self, host: SessionHost, sock: socket.socket, peer: tuple[str, int]) -> None:
+        self.host = host
         self.udp_port: int | None = None
-        self.closed = threading.Event()
-        self._send_lock = threading.Lock()
         self._decoder = p.FrameDecoder()
-        self.thread = threading.Thread(target=self._run, name=f"fci-session-{peer}", daemon=True)
+        self.connection = Connection(
+            sock,
+            peer,
+            f"client {peer[0]}:{peer[1]}",
+            log,
+            self._decoder.feed,
+            self._handle,
+            lambda: host.session_closed(self),
+        )
 
-    # -- sending ----------------------------------------------------------------------------
+    @property
+    def sock(self) -> socket.socket:
+        return self.connection.sock
+
+    @property
+    def peer(self) -> tuple[str, int]:
+        return self.connection.peer
+
+    def start(self) -> None:
+        self.connection.start()
+
+    def close(self) -> None:
+        """Close the connection (server shutdown, or the client was refused)."""
+        self.connection.close()
 
     def send(self, data: bytes) -> None:
-        """Send one reply; a vanished client is noticed by the reader, not here."""
-        with self._send_lock:
-            try:
-                self.sock.sendall(data)
-            except OSError as exc:
-                log.info("client %s: reply not delivered (%s)", self.peer, exc)
+        """Queue one reply; never blocks (a client that does not read is dropped)."""
+        self.connection.send(data)
 
     def reply(self, command: int, command_id: int, status: int) -> None:
         self.send(p.encode_reply(command, command_id, int(status)))
 
-    # -- reading ----------------------------------------------------------------------------
+    # -- the reader thread ------------------------------------------------------------------
 
-    def _run(self) -> None:
-        try:
-            while not self.closed.is_set():
-                try:
-                    data = self.sock.recv(65536)
-                except OSError as exc:
-                    log.info("client %s: connection error (%s)", self.peer, exc)
-                    break
-                if not data:
-                    break
-                for item in self._decoder.feed(data):
-                    if isinstance(item, p.FramingError):
-                        log.warning(
-                            "client %s: bad TCP frame (command %d, id %d): %s",
-                            self.peer,
-                            item.command,
-                            item.command_id,
-                            item.reason,
-                        )
-                        continue
-                    self._dispatch(item)
-        finally:
-            self.closed.set()
-            try:
-                self.sock.close()
-            except OSError:
-                pass
-            self.server.session_closed(self)
+    def _handle(self, item: p.Frame | p.FramingError) -> None:
+        if isinstance(item, p.FramingError):
+            log.warning(
+                "client %s: bad TCP frame (command %d, id %d): %s",
+                self.peer,
+                item.command,
+                item.command_id,
+                item.reason,
+            )
+            return
+        self._dispatch(item)
 
     def _dispatch(self, frame: p.Frame) -> None:
         try:
@@ -101,10 +135,20 @@ class ClientSession:
             )
             self.reply(frame.command, frame.command_id, 1)
             return
+        if command != p.Command.kConnect and self.udp_port is None:
+            status = NOT_POSSIBLE[command]
+            log.warning(
+                "client %s: %s before Connect: answered %s", self.peer, command.name, status.name
+            )
+            if command == p.Command.kGetRobotModel:
+                self.send(p.encode_robot_model_reply(frame.command_id, int(status), ""))
+            else:
+                self.reply(frame.command, frame.command_id, status)
+            return
         try:
             request = p.decode_request(frame.command, frame.payload)
         except p.ProtocolError as exc:
-            status = _INVALID_ARGUMENT.get(command, p.SetterStatus.kInvalidArgumentRejected)
+            status = INVALID_ARGUMENT[command]
             log.warning("client %s: %s: answered %s", self.peer, exc.reason, status.name)
             if command == p.Command.kConnect:
                 self.send(p.encode_connect_reply(frame.command_id, int(status)))
@@ -116,22 +160,15 @@ class ClientSession:
         elif command == p.Command.kGetRobotModel:
             self.send(
                 p.encode_robot_model_reply(
-                    frame.command_id, int(p.GetterStatus.kSuccess), self.server.urdf
+                    frame.command_id, int(p.GetterStatus.kSuccess), self.host.urdf
                 )
             )
-        elif self.udp_port is None:
-            log.warning(
-                "client %s: %s before Connect: answered kCommandNotPossibleRejected",
-                self.peer,
-                command.name,
-            )
-            self.reply(frame.command, frame.command_id, 1)
         else:
-            self.server.submit_request(self, command, frame.command_id, request)
+            self.host.submit_request(self, command, frame.command_id, request)
 
     def _connect(self, command_id: int, request: p.ConnectRequest) -> None:
         if request.version != p.VERSION:
-            # libfranka compares nothing itself: the server decides (wire spec §4).
+            # libfranka compares nothing itself: the server decides (src/network.h, connect).
             log.warning(
                 "client %s: library version %d is not %d: answered kIncompatibleLibraryVersion",
                 self.peer,
@@ -142,15 +179,11 @@ class ClientSession:
                 p.encode_connect_reply(command_id, int(p.ConnectStatus.kIncompatibleLibraryVersion))
             )
             return
+        if not self.host.claim(self):
+            self.close()
+            return
         self.send(p.encode_connect_reply(command_id, int(p.ConnectStatus.kSuccess)))
+        self.connection.mark_connected()
         self.udp_port = request.udp_port
         log.info("client %s connected (UDP port %d)", self.peer, request.udp_port)
-        self.server.client_connected(self)
-
-    def close(self) -> None:
-        """Close the connection (server shutdown)."""
-        self.closed.set()
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
+        self.host.client_connected(self)

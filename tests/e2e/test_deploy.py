@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from tests.conftest import CLIENTS, run_python
+from tests.conftest import run_python
+from tests.socket_helpers import CLIENTS
 
 pytest.importorskip("pylibfranka")
 

@@ -9,7 +9,7 @@ import re
 import numpy as np
 import pytest
 
-from tests.conftest import unstarved
+from tests.socket_helpers import unstarved
 
 pytestmark = pytest.mark.socket
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import motion_summaries
+from tests.socket_helpers import motion_summaries
 
 pytestmark = pytest.mark.socket
 
@@ -28,8 +28,9 @@ def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
 
     Wall-clock silence only bounds the lost run from below: a loaded machine can
     stall the client for longer. What the robot promises is stated in cycles, so
-    the assertion is too: the server's own count of the longest run decides, and
-    an attempt where a stall pushed that run to 20 proves nothing and is repeated.
+    the assertion is too: the server's own count of the longest run decides. An
+    attempt where a stall pushed that run to 20, or where the loaded server ran
+    fewer than 9 cycles in the 10 ms, proves nothing and is repeated.
     """
     for _attempt in range(3):
         server = serve("--enforce-comm-constraints")
@@ -42,10 +43,14 @@ def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
         if longest >= 20:  # the machine stalled the client past the bound: inconclusive
             assert status == "kReflexAborted" and r["error"] is not None
             continue
-        assert longest >= 9, summaries  # the silence really went unanswered (~10 states)
         assert status == "kSuccess", summaries
+        if longest < 9:  # the silence must really go unanswered for ~10 states
+            continue
         assert r["error"] is None
         assert r["mode_after"] == "Idle"
         assert "communication_constraints_violation" not in server.log()
         return
-    pytest.fail("three attempts stalled the client for 20 cycles; the machine is too loaded")
+    pytest.fail(
+        "no attempt had a lost run of 9 to 19 cycles (a stall of 20 or a server that ran "
+        f"too few cycles in the silence: {summaries}); the machine is too loaded"
+    )

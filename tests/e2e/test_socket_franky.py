@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from tests.conftest import unstarved
+from tests.socket_helpers import unstarved
 
 pytestmark = pytest.mark.socket
 

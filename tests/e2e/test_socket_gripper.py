@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from tests.conftest import CLIENTS
+from tests.socket_helpers import CLIENTS
 
 pytestmark = pytest.mark.socket
 

@@ -23,10 +23,12 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.frames import IDENTITY16
-from tests.conftest import CLIENTS, ROOT, fresh_address, unstarved
+from franka_sim_gym.server.testing import free_loopback_address
+from tests.conftest import ROOT
 from tests.e2e.test_socket_pylibfranka import column_major, fk_flange
 from tests.fci_helpers import DESK_HAND_F_T_NE
 from tests.raw_client import RawClient
+from tests.socket_helpers import CLIENTS, unstarved
 
 pytestmark = pytest.mark.socket
 
@@ -118,7 +120,7 @@ def test_libfranka_model_gravity_includes_the_mounted_hand(serve, client):
 
 def test_an_object_wider_than_the_stroke_is_refused_at_startup():
     proc = subprocess.run(
-        [sys.executable, "-m", "franka_sim_gym.server", "--host", fresh_address(), PHYSICS]
+        [sys.executable, "-m", "franka_sim_gym.server", "--host", free_loopback_address(), PHYSICS]
         + ["--gripper-object-width", "0.09"],
         cwd=ROOT,
         capture_output=True,

@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from tests.conftest import CLIENTS, unstarved
+from tests.socket_helpers import CLIENTS, unstarved
 
 pytestmark = pytest.mark.socket
 
@@ -129,7 +129,7 @@ def test_disconnect_mid_motion_then_reconnect_and_move(serve, client):
     assert result["mode_on_connect"] == "Idle"
     assert result["final"]["robot_mode"] == "Idle"
     assert server.alive()
-    assert "disconnected" in server.log()
+    assert server.log().count("disconnected") >= 2  # the readiness probe and the client
 
 
 def test_second_client_is_refused_while_the_first_keeps_running(serve, client):

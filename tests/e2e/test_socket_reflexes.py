@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import motion_summaries
+from tests.socket_helpers import motion_summaries
 
 pytestmark = pytest.mark.socket
 

@@ -250,6 +250,20 @@ def scenario_connect_only(host: str) -> dict:
     return {"error": None}
 
 
+def scenario_reconnect_loop(host: str) -> dict:
+    """RECONNECTS times: a new Robot (Connect, a state, GetRobotModel), one read_once,
+    then the Robot is dropped and the next one made at once (a test loop's pattern)."""
+    refused = []
+    for k in range(int(os.environ.get("RECONNECTS", "100"))):
+        try:
+            robot = connect(host)
+            robot.read_once()
+            del robot  # closes the connection
+        except Exception as exc:
+            refused.append(f"{k}: {type(exc).__name__}: {exc}")
+    return {"refused": refused}
+
+
 def scenario_rate(host: str) -> dict:
     """States/s received by read_once over N s, then a readOnce/writeOnce loop's success rate."""
     seconds = float(os.environ.get("RATE_SECONDS", "10"))

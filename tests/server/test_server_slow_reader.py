@@ -1,0 +1,108 @@
+"""A client that stops reading its TCP replies never holds up the robot (docs/socket.md):
+the state stream keeps its 1 kHz, the motion ends as the robot ends it, the client is
+dropped once past the outbox's bound, and the next client connects."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+
+import pytest
+
+from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.errors import Error
+from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.server.outbox import MAX_OUTBOX_BYTES, MAX_REPLY_DELAY_S
+from tests.raw_client import RawClient
+from tests.server.test_server_bad_input import wait_for_log
+
+pytestmark = pytest.mark.socket
+
+#: GetRobotModel replies (10 kB each) to leave unread: several MB, far more than the
+#: kernel buffers hold, less than the outbox's byte bound (so the time bound drops it).
+UNREAD_REQUESTS = 600
+
+
+def read_until_closed(sock: socket.socket, timeout: float) -> bool:
+    """Read (and discard) until the server ends the connection; False if it does not."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        sock.settimeout(max(0.01, deadline - time.monotonic()))
+        try:
+            if not sock.recv(1 << 20):
+                return True
+        except ConnectionError:
+            return True
+        except TimeoutError:
+            return False
+    return False
+
+
+def test_a_client_that_stops_reading_gets_its_reflex_on_time_and_is_dropped(serve):
+    server = serve("--enforce-comm-constraints", "--no-gripper")
+    client = RawClient(server.host, receive_buffer=4096)
+    assert client.connect() == (p.ConnectStatus.kSuccess, p.VERSION)
+    move, state = client.start_joint_position_move()
+    q = state["q_d"].astype(float)
+    client.hold(q, 20)
+    for _ in range(UNREAD_REQUESTS):  # replies never read from here on
+        client.request(p.Command.kGetRobotModel)
+    client.hold(q, 100)  # the replies back up meanwhile
+    # ... then the client stops commanding: the communication-constraints reflex is
+    # due 20 cycles later. The state stream must not wait for the unread replies.
+    start = time.monotonic()
+    states = []
+    while time.monotonic() - start < 0.5 * MAX_REPLY_DELAY_S:
+        states.append(client.state())
+    assert len(states) > 250, f"{len(states)} states in {0.5 * MAX_REPLY_DELAY_S:g} s"
+    last = states[-1]
+    assert last["robot_mode"] == RobotMode.kReflex
+    assert last["errors"][Error.communication_constraints_violation]
+    # Past the bound the server drops the client (and logs why) and goes on ticking.
+    wait_for_log(server, "does not read its replies (a reply undelivered for 1 s)", timeout=5)
+    assert read_until_closed(client.tcp, timeout=5)
+    assert "motion ended: kReflexAborted" in server.log()
+    client.close()
+    assert UNREAD_REQUESTS * 10_000 < MAX_OUTBOX_BYTES  # the time bound, not the bytes
+    # The next client connects and the stream is at full rate again.
+    second = RawClient(server.host)
+    assert second.connect() == (p.ConnectStatus.kSuccess, p.VERSION)
+    first = second.state()
+    time.sleep(0.2)
+    assert int(second.latest_state()["message_id"]) - int(first["message_id"]) > 100
+    second.close()
+
+
+GRIPPER_HEADER = struct.Struct("<HII")
+
+
+def test_a_gripper_client_that_stops_reading_never_holds_up_the_hand(serve):
+    server = serve()
+    tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    tcp.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    tcp.settimeout(5.0)
+    tcp.connect((server.host, 1338))
+    udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    udp.bind((tcp.getsockname()[0], 0))
+    udp.settimeout(1.0)
+    tcp.sendall(GRIPPER_HEADER.pack(0, 0, 14) + struct.pack("<HH", 3, udp.getsockname()[1]))
+    assert tcp.recv(14)[-4:] == struct.pack("<HH", 0, 3)
+    udp.recv(64)
+    # Stop requests, answered by the hand's timer thread; their replies are never read.
+    stop = b"".join(GRIPPER_HEADER.pack(4, k, 10) for k in range(1, 40_001))
+    tcp.sendall(stop)
+    start = time.monotonic()
+    states = 0
+    while time.monotonic() - start < 0.8:
+        udp.recv(64)
+        states += 1
+    # GripperState goes out at 60 Hz throughout.
+    assert states > 0.6 * 60 * 0.8, states
+    wait_for_log(server, "does not read its replies", timeout=5)
+    assert read_until_closed(tcp, timeout=5)
+    tcp.close()
+    udp.close()
+    with socket.create_connection((server.host, 1338), timeout=5) as again:
+        again.sendall(GRIPPER_HEADER.pack(0, 0, 14) + struct.pack("<HH", 3, 5555))
+        assert again.recv(14)[-4:] == struct.pack("<HH", 0, 3)
