@@ -99,6 +99,20 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
         help="limit tables: fr3 (FCI v10, default) or fer (the Panda's v5 tables)",
     )
     serve.add_argument("--urdf", type=Path, default=None, help="URDF served by GetRobotModel")
+    serve.add_argument(
+        "--scene",
+        default=None,
+        metavar="SCENE",
+        help="objects on the robot's table: a shipped scene (block, peg_in_hole) or an MJCF "
+        "file whose bodies are placed in the base frame (default: the bare table)",
+    )
+    serve.add_argument(
+        "--payload",
+        default=None,
+        metavar="MASS,X,Y,Z",
+        help="a mass [kg] fixed to the flange, centre of mass x,y,z [m] in the flange frame, "
+        "that the robot is not told of: configure it with SetLoad (default: none)",
+    )
     serve.add_argument("-v", "--vis", action="store_true", help="open the MuJoCo viewer")
     serve.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
     hand = serve.add_mutually_exclusive_group()
@@ -194,20 +208,32 @@ def _servers(
     then runs the finger drive; the controller then reports the hand's load and
     TCP (F_T_NE) in the RobotState (FciController reads them off the model).
     """
+    world = {"scene": args.scene, "payload": _payload(args.payload)}
     if args.no_gripper:
-        return RobotServer(config, options), None
+        return RobotServer(config, options, physics=ArmPhysics(n_arms=1, **world)), None
     width = _object_width(args)
     hand: HandModel
     if args.gripper_physics:
-        physics = ArmPhysics(n_arms=1, hand=True, object_width=width)
+        physics = ArmPhysics(n_arms=1, hand=True, object_width=width, **world)
         drive = FingerDrive(physics)
         server = RobotServer(config, options, physics=physics)
         server.add_tick_hook(drive.tick)
         hand = PhysicsHand(drive, object_width=width)
     else:
         hand = FrankaHand(object_width=width)
-        server = RobotServer(config, options)
+        server = RobotServer(config, options, physics=ArmPhysics(n_arms=1, **world))
     return server, GripperServer(host=args.host, port=GRIPPER_PORT, hand=hand)
+
+
+def _payload(text: str | None) -> tuple[float, float, float, float] | None:
+    """--payload MASS,X,Y,Z as four numbers (ArmPhysics checks their values)."""
+    if text is None:
+        return None
+    try:
+        mass, x, y, z = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--payload {text!r}: expected MASS,X,Y,Z (four numbers)") from None
+    return mass, x, y, z
 
 
 def check(args: argparse.Namespace) -> int:

@@ -60,6 +60,10 @@ class ArmDynamics:
         lay = physics.layout
         self._dofs = np.asarray(lay.dof_adr)
         self._bias = np.zeros((physics.n, 7))
+        self._payload = lay.payload_body
+        if self._payload is not None:
+            self._payload_mass = physics.model.body_mass[self._payload].copy()
+            self._gravity = np.asarray(physics.model.opt.gravity, dtype=float).copy()
         self._full = np.zeros(physics.model.nv)
         self._product = np.zeros(physics.model.nv)
         # The arms' hinge joints, in the arm's order: their world axes and anchors.
@@ -87,11 +91,17 @@ class ArmDynamics:
 
         The friction is the model's viscous joint damping (models/fr3.xml), which the
         robot's model compensates like its real joint friction: left out, it would read
-        as an external torque of 0.1 Nm per rad/s.
+        as an external torque of 0.1 Nm per rad/s. A payload fixed to the flange without
+        the robot being told (``ArmPhysics(payload=...)``) is not in the robot's model:
+        its weight is left out (its inertia stays in M, a small error in fast motions).
         """
         data = self.physics.data
-        return np.subtract(data.qfrc_bias[self._dofs], data.qfrc_passive[self._dofs],
+        bias = np.subtract(data.qfrc_bias[self._dofs], data.qfrc_passive[self._dofs],
                            out=self._bias)  # fmt: skip
+        if self._payload is not None:  # a payload the robot is not told of: not its model
+            com = data.xipos[self._payload] - self.physics.base_pos
+            bias -= weight_torque(self.jacobian(com), self._payload_mass, self._gravity)
+        return bias
 
     def joint_axes(self) -> tuple[np.ndarray, np.ndarray]:
         """(n, 7, 3) unit axes and (n, 7, 3) anchor points of joints 1..7, base frame."""

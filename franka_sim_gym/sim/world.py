@@ -84,6 +84,7 @@ class ArmLayout:
     finger_actuator: np.ndarray | None = None  # (n,) the `fingers` position servo
     tcp_site: np.ndarray | None = None  # (n,) hand TCP site
     hand_body: np.ndarray | None = None  # (n,) the `hand` body (the palm; fingers below it)
+    payload_body: np.ndarray | None = None  # (n,) the payload nobody configured, if any
     scene_body: dict[str, np.ndarray] = field(default_factory=dict)
     scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -180,7 +181,7 @@ def build_world(
             _add_payload(spec, prefix, payload)
     spec.add_key(name="home")
     model = spec.compile()
-    layout = _layout(model, n_arms, hand, fragment)
+    layout = _layout(model, n_arms, hand, fragment, payload is not None)
     _set_home(model, layout)
     return model, layout
 
@@ -249,7 +250,11 @@ def _ids(model: mujoco.MjModel, kind: str, names: list[list[str]]) -> np.ndarray
 
 
 def _layout(
-    model: mujoco.MjModel, n: int, hand: bool, fragment: mujoco.MjSpec | None = None
+    model: mujoco.MjModel,
+    n: int,
+    hand: bool,
+    fragment: mujoco.MjSpec | None = None,
+    payload: bool = False,
 ) -> ArmLayout:
     pre = [f"arm{i}/" for i in range(n)]
     joints = _ids(model, "joint", [[p + j for j in _ARM_JOINTS] for p in pre])
@@ -283,6 +288,8 @@ def _layout(
                 for j in free_joint_names(fragment)
             },
         )
+    if payload:
+        scene["payload_body"] = _ids(model, "body", [[p + "payload"] for p in pre])[:, 0]
     return ArmLayout(
         n=n,
         hand=hand,

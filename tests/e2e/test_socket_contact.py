@@ -56,3 +56,30 @@ def test_frankys_force_reaction_fires_at_the_table(serve, client):
     assert r["z_start"] - z_fired < 0.2  # at the table, not 30 cm down
     assert r["z_end"] > z_fired  # ... and the retreat moved it up
     assert r["robot_mode"] == "Idle"
+
+
+@pytest.mark.parametrize("stiffness", [500.0, 1500.0])
+def test_under_cartesian_impedance_a_pose_2_cm_into_the_table_presses_stiffness_times_2_cm(
+    serve, client, stiffness
+):
+    server = serve("--enforce-motion-limits")
+    r = client(
+        "contact", "impedance_press", server.host, env={"STIFFNESS": str(stiffness)}, timeout=90
+    )
+    assert "exception" not in r, r
+    assert r["error"] is None, r
+    assert r["z"] > r["z_commanded"] + 0.015  # held at the table, 2 cm above the command
+    assert -r["F_z"] == pytest.approx(stiffness * 0.02, rel=0.25)
+
+
+@pytest.mark.parametrize(("load", "rises"), [(1.0, True), (0.0, False)])
+def test_a_configured_load_that_is_not_there_lifts_the_arm_under_zero_torque(
+    serve, client, load, rises
+):
+    server = serve()
+    r = client("contact", "zero_torque", server.host, env={"LOAD": str(load)})
+    assert r.get("error") is None, r
+    if rises:
+        assert r["rise"] > 5e-3
+    else:
+        assert abs(r["rise"]) < 2e-3

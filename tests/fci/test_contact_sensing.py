@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from franka_sim_gym.fci.collision import THRESHOLD_NAMES
 from franka_sim_gym.fci.errors import Error
@@ -124,3 +125,21 @@ def test_the_published_estimate_is_zero_at_rest_and_after_a_reset():
     assert np.abs(client.state["tau_ext_hat_filtered"]).max() < 0.05
     assert np.abs(client.state["O_F_ext_hat_K"]).max() < 0.1
     assert client.state["joint_contact"].sum() == client.state["cartesian_contact"].sum() == 0
+
+
+def test_a_payload_nobody_configured_reads_as_its_weight_and_setload_takes_it_away():
+    """1 kg fixed 5 cm out on the flange: the robot holds it (idle) and, not told of it,
+    senses its weight as an external force (held up: +z, the force the robot exerts);
+    configured with SetLoad, the model explains it and nothing external remains."""
+    from franka_sim_gym.fci.config import ControllerConfig
+    from franka_sim_gym.fci.controller import FciController
+    from franka_sim_gym.sim.arm import ArmPhysics
+
+    ctrl = FciController(ArmPhysics(1, payload=(1.0, 0.0, 0.0, 0.05)), ControllerConfig())
+    client = LoopClient(ctrl)
+    client.idle(1500)
+    weight = 9.81
+    assert client.state["O_F_ext_hat_K"][2] == pytest.approx(weight, rel=0.05)
+    assert ctrl.set_load(0, 1.0, [0.0, 0.0, 0.05], np.zeros(9)) == SetterStatus.kSuccess
+    client.idle(1500)
+    assert abs(client.state["O_F_ext_hat_K"][2]) < 0.05 * weight

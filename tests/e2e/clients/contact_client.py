@@ -89,5 +89,66 @@ def scenario_rest(host: str) -> dict:
     return {"worst_tau": worst_tau, "worst_force": worst_force, "flags": flags}
 
 
+def scenario_zero_torque(host: str) -> dict:
+    """SetLoad(LOAD kg at 5 cm along the flange's z), then 1 s of zero commanded torque:
+    how far the flange rose (the robot carries the configured weight; MuJoCo only what
+    is there)."""
+    robot = connect(host)
+    mass = float(os.environ.get("LOAD", "0"))
+    robot.set_load(mass, [0.0, 0.0, 0.05], [0.0] * 9)
+    control = robot.start_torque_control()
+    t, z0, z = 0.0, None, None
+    try:
+        while t < 1.0:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            z = state.O_T_EE[14]
+            if z0 is None:
+                z0 = z
+            command = fr.Torques([0.0] * 7)
+            command.motion_finished = t >= 1.0
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        return {"error": str(exc)}
+    return {"error": None, "rise": z - z0}
+
+
+def scenario_impedance_press(host: str) -> dict:
+    """Under ControllerMode::CartesianImpedance with K (env STIFFNESS N/m), a pose
+    commanded 2 cm under the table (the flange starts 18 cm above it: 20 cm down in
+    3 s, then held 1 s); the robot's own estimate of the force at the end."""
+    robot = connect(host)
+    move_to(robot, OVER_THE_TABLE, 2.0)
+    stiffness = float(os.environ.get("STIFFNESS", "1000"))
+    robot.set_cartesian_impedance([stiffness] * 3 + [300.0] * 3)
+    robot.set_collision_behavior([100.0] * 7, [100.0] * 7, [100.0] * 6, [100.0] * 6)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.CartesianImpedance)
+    start: list[float] = []
+
+    def pose_at(state, t: float):
+        if not start:
+            start.extend(state.O_T_EE_c)
+        pose = list(start)
+        pose[14] -= 0.2 * 0.5 * (1 - math.cos(math.pi * min(t / 3.0, 1.0)))
+        return fr.CartesianPose(pose)
+
+    t, error, state = 0.0, None, None
+    try:
+        while t < 4.0:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            command = pose_at(state, t)
+            command.motion_finished = t >= 4.0
+            control.writeOnce(command)
+    except fr.ControlException as exc:
+        error = str(exc)
+    return {
+        "error": error,
+        "F_z": state.O_F_ext_hat_K[2],
+        "z": state.O_T_EE[14],
+        "z_commanded": state.O_T_EE_c[14],
+    }
+
+
 if __name__ == "__main__":
     scenario_main.run(globals())
