@@ -129,30 +129,26 @@ class ContactSensing:
     def _collide(self, levels: Levels, rows: np.ndarray, phase, tau, wrench) -> None:
         """Latch the collision flags of the robots in motion (``rows``) that crossed an
         upper threshold, and report 6 / 7 (one abort latching both when both)."""
-        f, b = self.field, self.behavior
+        b = self.behavior
         over = rows & (levels.joint_over.any(axis=1) | levels.cartesian_over.any(axis=1))
         for i in np.flatnonzero(over).tolist():
             p = 0 if phase[i] else 1
+            checks = (
+                (Error.joint_reflex, "joint_collision", levels.joint_over[i], tau[i],
+                 b.upper_torque[i, p], [f"joint {j + 1}" for j in range(7)], "external torque"),
+                (Error.cartesian_reflex, "cartesian_collision", levels.cartesian_over[i],
+                 wrench[i], b.upper_force[i, p], _AXES, "external wrench at K"),
+            )  # fmt: skip
             bits = []
-            joints = np.flatnonzero(levels.joint_over[i])
-            if len(joints):
-                f["joint_collision"][i, joints] = 1.0
-                what = ", ".join(
-                    f"joint {j + 1} {tau[i, j]:+.1f} Nm (upper {b.upper_torque[i, p, j]:g})"
-                    for j in joints
+            for error, flags, over_i, value, upper, names, what in checks:
+                crossed = np.flatnonzero(over_i)
+                if not len(crossed):
+                    continue
+                self.field[flags][i, crossed] = 1.0
+                detail = ", ".join(
+                    f"{names[k]} {value[k]:+.1f} (upper {upper[k]:g})" for k in crossed
                 )
-                e = int(Error.joint_reflex)
-                self.engine.report(i, e, f"external torque {what}", self.enforce)
-                bits.append(e)
-            axes = np.flatnonzero(levels.cartesian_over[i])
-            if len(axes):
-                f["cartesian_collision"][i, axes] = 1.0
-                what = ", ".join(
-                    f"{_AXES[a]} {wrench[i, a]:+.1f} (upper {b.upper_force[i, p, a]:g})"
-                    for a in axes
-                )
-                e = int(Error.cartesian_reflex)
-                self.engine.report(i, e, f"external wrench at K {what}", self.enforce)
-                bits.append(e)
+                self.engine.report(i, int(error), f"{what} {detail}", self.enforce)
+                bits.append(int(error))
             if self.enforce:
                 self.engine.abort(i, bits)
