@@ -444,6 +444,12 @@ class FciController:
         if why is not None:
             log.warning("robot %d: SetCollisionBehavior rejected: %s", robot, why)
             return SetterStatus.kInvalidArgumentRejected
+        log.info(
+            "robot %d: SetCollisionBehavior: upper thresholds %s Nm, %s N/Nm (nominal phase)",
+            robot,
+            values["upper_torque_thresholds_nominal"].tolist(),
+            values["upper_force_thresholds_nominal"].tolist(),
+        )
         return SetterStatus.kSuccess
 
     def set_cartesian_impedance(self, robot: int, K_x) -> SetterStatus:
@@ -454,6 +460,7 @@ class FciController:
             log.warning("robot %d: SetCartesianImpedance rejected: %s", robot, why)
             return SetterStatus.kInvalidArgumentRejected
         self.impedance.stiffness[robot] = np.ravel(np.asarray(K_x, dtype=float))
+        log.info("robot %d: SetCartesianImpedance: K_x %s", robot, self.impedance.stiffness[robot])
         return SetterStatus.kSuccess
 
     def acknowledge_setter(self, robot: int, name: str, values) -> SetterStatus:
