@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 from gymnasium import spaces
 
-from ..fci.collision import four_argument_form
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
@@ -38,6 +37,7 @@ from .commands import CommandGenerator
 from .fci_reset import reset_through_fci
 from .infos import info_row, step_info
 from .observation import build_observation, observation_space
+from .robot_settings import RobotSettings
 from .tasks import Task, make_task
 
 #: How an episode starts: "teleport" (the arm is placed at the start pose, errors and
@@ -109,6 +109,9 @@ class FciBatch:
         cartesian_limits: str | tuple[float, ...] = "conservative",
         reset_mode: str = "teleport",
         scene: str | Path | None = None,
+        controller_mode: str = "joint_impedance",
+        joint_impedance=None,
+        cartesian_impedance=None,
         collision_thresholds: tuple | None = None,
         **task_kwargs,
     ) -> None:
@@ -143,10 +146,13 @@ class FciBatch:
             name = type(self.task).__name__
             raise ValueError(f"{name} has its own scene ({self.task.scene}): scene must be None")
         scene = self.task.scene if scene is None else scene
-        #: SetCollisionBehavior's eight arrays (by name), applied at every reset; None: the
-        #: robot's defaults
-        self.collision_thresholds = (
-            None if collision_thresholds is None else four_argument_form(collision_thresholds)
+        #: the servo and the thresholds every episode starts with
+        self.robot_settings = RobotSettings.from_arguments(
+            action_interface,
+            controller_mode,
+            joint_impedance,
+            cartesian_impedance,
+            collision_thresholds,
         )
         self.config = ControllerConfig(
             robot=robot,
@@ -213,13 +219,13 @@ class FciBatch:
             # touches arm j.
             ctrl.writer.message_id[...] = ids
             ctrl.states["message_id"] = ids
-        controller_mode, generator = MOVE[self.action_interface]
+        controller, generator = MOVE[self.action_interface]
+        controller = self.robot_settings.move_controller(controller)
         for i in arms.tolist():
-            if self.collision_thresholds is not None:
-                ctrl.set_collision_behavior(i, self.collision_thresholds)
+            self.robot_settings.apply(ctrl, i)
             if self.gripper and self.reset_mode == "teleport":
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
-            ctrl.move(i, int(controller_mode), int(generator))
+            ctrl.move(i, int(controller), int(generator))
         self.goals[arms] = self.task.reset(arms, rngs, ctrl.physics)
         self.commands.reset(arms)
         self.steps[arms] = 0

@@ -89,6 +89,14 @@ class FrankaFCIEnv(gym.Env):
         scene: a scene fragment on the table, one copy per arm: a shipped name
             ("block", "peg_in_hole") or an MJCF file (default: the bare table; a task
             with objects brings its own).
+        controller_mode: the robot's internal servo under the motion generators:
+            "joint_impedance" (default) or "cartesian_impedance" (a spring on the
+            stiffness frame K: docs/robot-state.md); the torque interface is its own.
+        joint_impedance: SetJointImpedance's stiffness [Nm/rad], 7 values or one (default:
+            the robot's, 3000, 3000, 3000, 2500, 2500, 2000, 2000), set at every reset.
+        cartesian_impedance: SetCartesianImpedance's K_x (x, y, z N/m in 10 ... 3000;
+            roll, pitch, yaw Nm/rad in 1 ... 300), set at every reset (default 3000 /
+            300).
         collision_thresholds: SetCollisionBehavior in libfranka's 4-argument form,
             ``(lower_torque, upper_torque, lower_force, upper_force)`` (Nm, N; 7, 7, 6
             and 6 values or scalars), set at every reset (default: the robot's,

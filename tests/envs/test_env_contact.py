@@ -75,3 +75,44 @@ def test_a_scene_gives_every_arm_its_own_objects():
 def test_bad_collision_thresholds_are_a_value_error_naming_them(thresholds, message):
     with pytest.raises(ValueError, match=message):
         make(collision_thresholds=thresholds)
+
+
+def test_under_cartesian_impedance_a_soft_spring_presses_the_table_gently():
+    """Down to the table, then on slowly under a 200 N/m Cartesian spring: the force
+    builds with the commanded depth at 200 N/m, and the episode runs on without the
+    reflex the joint servo's stiffness would trip (a 20 N upper threshold)."""
+    env = make(
+        controller_mode="cartesian_impedance",
+        cartesian_impedance=[200.0, 200.0, 200.0, 30.0, 30.0, 30.0],
+        collision_thresholds=(100.0, 100.0, 2.0, 20.0),
+    )
+    obs, _ = env.reset(seed=0)
+    assert int(env.unwrapped.core.controller.modes.controller_mode[0]) == 1  # kCartesian...
+    slow = np.array([0.0, 0.0, -0.02], dtype=np.float32)
+    info = {}
+    for _ in range(150):
+        near = obs["achieved_goal"][2] < 0.04  # the flange, 4 cm above the table
+        obs, _, terminated, _, info = env.step(slow if near else DOWN)
+        assert not terminated, info["reflex_reason"]
+    assert obs["achieved_goal"][2] < 0.01
+    assert info["cartesian_contact"][2]  # it is pressing (above the 2 N lower threshold)
+    assert -20.0 < info["O_F_ext_hat_K"][2] < -2.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"controller_mode": "impedance"}, "unknown controller_mode 'impedance'"),
+        ({"joint_impedance": 20000.0}, "joint_impedance .* at most 14250"),
+        ({"joint_impedance": [1.0] * 6}, ""),
+        ({"cartesian_impedance": [5.0, 100, 100, 10, 10, 10]}, "cartesian_impedance: K_x"),
+    ],
+)
+def test_bad_servo_settings_are_a_value_error_naming_them(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        make(**kwargs)
+
+
+def test_the_torque_interface_takes_no_controller_mode():
+    with pytest.raises(ValueError, match="torque interface is its own controller"):
+        gym.make("FrankaFCITorque-v0", controller_mode="cartesian_impedance")
