@@ -122,6 +122,10 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
         args.env_id, env_kwargs, args.runners, args.envs_per_runner, args.seed, args.batch_size
     )
     algo = config.build_algo()
+    nodes = algo.env_runner_group.foreach_env_runner(
+        lambda runner: ray.util.get_node_ip_address(), local_env_runner=False
+    )
+    print(f"env runners on nodes: {', '.join(sorted(nodes))}", flush=True)
     steps = seconds = 0.0
     episode_return = float("nan")
     for iteration in range(args.iterations):
