@@ -20,8 +20,9 @@ Writes RLlib's checkpoint to ``--out``/checkpoint and evaluates it with the pack
 own evaluation (franka_sim_gym.training.evaluation: success rate, reflex rate; the
 policy's deterministic action). Prints, last, one line
 ``rllib: env_id=... runners=R envs_per_runner=N env_steps_per_s=X episode_return_mean=Y``
-(env steps sampled per second of sampling, over the iterations after the first,
-whose time includes the runners' start).
+(env steps per second of training, sampling and learning, over the iterations after
+the first, whose time includes the runners' start; benchmarks/rllib_scaling.py times
+the sampling alone).
 """
 
 from __future__ import annotations
@@ -114,7 +115,7 @@ def load_policy(checkpoint: Path) -> RLlibPolicy:
 
 
 def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
-    """Train; returns (checkpoint, env steps per second of sampling, last episode return)."""
+    """Train; returns (checkpoint, env steps per second of training, last episode return)."""
     import ray
 
     ray.init(address=args.address, include_dashboard=False, log_to_driver=False)
@@ -134,14 +135,13 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
         elapsed = time.perf_counter() - start
         runners = result["env_runners"]
         sampled = float(runners["num_env_steps_sampled"])
-        sampling = float(result["timers"]["env_runner_sampling_timer"])
         episode_return = float(runners.get("episode_return_mean", float("nan")))
         if iteration > 0 or args.iterations == 1:
             steps += sampled
-            seconds += sampling
+            seconds += elapsed
         print(
-            f"iteration {iteration + 1}: {sampled:.0f} env steps in {elapsed:.1f} s "
-            f"(sampling {sampling:.1f} s), episode_return_mean {episode_return:.2f}",
+            f"iteration {iteration + 1}: {sampled:.0f} env steps in {elapsed:.1f} s, "
+            f"episode_return_mean {episode_return:.2f}",
             flush=True,
         )
     checkpoint = Path(algo.save_to_path(str((args.out / "checkpoint").resolve())))
