@@ -8,8 +8,9 @@ arm i seeded ``seed + i``: the same episodes as N single envs;
 ``franka_sim_gym.training.evaluation.evaluate``), with the algorithm, env id and
 arguments the model was trained with (``train_config.json`` next to the model, written
 by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g. by
-rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``). Reports the success rate, the reflex
-terminations by the robot's error name, and the link's control_command_success_rate;
+rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``). Reports the success rate,
+the reflex terminations by the robot's error name, and the link's
+control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
 ``--video`` renders one further episode of a single env to an animated GIF.
 """

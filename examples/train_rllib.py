@@ -3,6 +3,7 @@
     pip install 'franka-sim-gym[rllib]'
     python examples/train_rllib.py --runners 2 --envs-per-runner 8 --iterations 20
     python examples/train_rllib.py --evaluate runs/rllib/checkpoint --episodes 100
+                          # (env id and arguments from train_config.json beside it)
     python examples/train_rllib.py --address auto ...      # on a running Ray cluster
 
 What a user would otherwise have to find out:
@@ -152,10 +153,10 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default=DEFAULT_ENV_ID)
+    parser.add_argument("--env-id", default=None, help=f"default: {DEFAULT_ENV_ID}")
     parser.add_argument(
         "--env-kwargs",
-        default="{}",
+        default=None,
         help=f"JSON, merged over the defaults {json.dumps(DEFAULT_ENV_KWARGS)}",
     )
     parser.add_argument("--runners", type=int, default=2, help="RLlib env runners")
@@ -174,7 +175,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=32, help="evaluation episodes")
     parser.add_argument("--evaluate", type=Path, default=None, help="only evaluate this checkpoint")
     args = parser.parse_args()
-    env_kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
+    # --evaluate: the env the checkpoint was trained on (train_config.json beside it)
+    saved = args.evaluate.parent / "train_config.json" if args.evaluate else None
+    trained = json.loads(saved.read_text()) if saved and saved.exists() else {}
+    args.env_id = args.env_id or trained.get("env_id", DEFAULT_ENV_ID)
+    env_kwargs = {**DEFAULT_ENV_KWARGS, **trained.get("env_kwargs", {})}
+    env_kwargs.update(json.loads(args.env_kwargs or "{}"))
     from franka_sim_gym.training.evaluation import evaluate
 
     if args.evaluate is None:
