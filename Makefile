@@ -25,6 +25,7 @@ $(VENV)/.train: $(VENV)/.installed
 demo: $(VENV)/.train
 	$(PY) examples/train_sb3.py --out runs/reach
 	$(PY) examples/evaluate.py --model runs/reach/model.zip --episodes 100
+	$(PY) examples/record_video.py --model runs/reach/model.zip --out runs/reach/policy.gif
 
 # The socket server and a pylibfranka client moving the arm.
 serve-demo: $(VENV)/.installed

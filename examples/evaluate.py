@@ -4,10 +4,13 @@
     python examples/evaluate.py --model runs/reach/model.zip --video runs/reach/episode.gif
 
 Runs the N episodes side by side in the native batched env (N arms in one MuJoCo world,
-arm i seeded ``seed + i``: the same episodes as N single envs), with the env id and
+arm i seeded ``seed + i``: the same episodes as N single envs;
+``franka_sim_gym.training.evaluation.evaluate``), with the algorithm, env id and
 arguments the model was trained with (``train_config.json`` next to the model, written
-by examples/train_sb3.py; flags override it). Reports the success rate, the reflex
-terminations by the robot's error name, and the link's control_command_success_rate;
+by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g. by
+rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``). Reports the success rate,
+the reflex terminations by the robot's error name, and the link's
+control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
 ``--video`` renders one further episode of a single env to an animated GIF.
 """
@@ -19,53 +22,13 @@ import json
 from pathlib import Path
 
 import gymnasium as gym
-import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.training.evaluation import evaluate
 
 #: Without a train_config.json: what train_sb3.py's first versions trained.
 DEFAULT_ALGO = "sac"
 DEFAULT_ENV_ID = "FrankaFCI-v0"
-
-
-def evaluate(model, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> dict:
-    """One deterministic episode per arm of a batched env of ``episodes`` arms.
-
-    Returns the success rate, the reflex rate, the reflexes by error name and the mean
-    control_command_success_rate at the last step of the episodes that did not end in a
-    reflex (a reflex stops the motion, and the robot reports 0.0 between motions; NaN
-    when every episode ended in one). An episode that ended in a reflex is not a
-    success, even when the reflex caught the arm within the goal's radius (the env's
-    ``is_success`` judges the position only): on a robot, that reach failed.
-    """
-    envs = gym.make_vec(
-        env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs
-    )
-    obs, _ = envs.reset(seed=seed)
-    ended = np.zeros(episodes, dtype=bool)
-    success = np.zeros(episodes, dtype=bool)
-    reflex = np.zeros(episodes, dtype=bool)
-    link = np.zeros(episodes)
-    by_error: dict[str, int] = {}
-    while not ended.all():
-        actions, _ = model.predict(obs, deterministic=True)
-        obs, _, terminated, truncated, info = envs.step(actions)
-        done = (terminated | truncated) & ~ended
-        for i in np.flatnonzero(done).tolist():
-            success[i] = bool(info["is_success"][i]) and not terminated[i]
-            link[i] = float(info["control_command_success_rate"][i])
-            if terminated[i]:
-                reflex[i] = True
-                for name in info["reflex_reason"][i]:
-                    by_error[name] = by_error.get(name, 0) + 1
-        ended |= done
-    envs.close()
-    return {
-        "success_rate": float(success.mean()),
-        "reflex_rate": float(reflex.mean()),
-        "reflexes_by_error": by_error,
-        "link_success_rate": float(link[~reflex].mean()) if (~reflex).any() else float("nan"),
-    }
 
 
 def record_gif(model, env_id: str, env_kwargs: dict, seed: int, path: Path) -> None:
@@ -123,12 +86,15 @@ def main() -> None:
     parser.add_argument("--model", type=Path, required=True, help="model.zip of train_sb3.py")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=20_000)
+    parser.add_argument(
+        "--algo", default=None, choices=("sac", "td3", "ppo"), help="default: train_config.json's"
+    )
     parser.add_argument("--env-id", default=None, help="default: the one the model trained on")
     parser.add_argument("--env-kwargs", default=None, help="JSON; default: the training ones")
     parser.add_argument("--video", type=Path, default=None, help="write one episode as a GIF")
     args = parser.parse_args()
     kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
-    model, config = load_model(args.model, env_id=args.env_id, env_kwargs=kwargs)
+    model, config = load_model(args.model, args.algo, args.env_id, kwargs)
     env_id, kwargs = config["env_id"], config["env_kwargs"]
     result = evaluate(model, env_id, kwargs, args.episodes, args.seed)
     print(f"{env_id} {kwargs}: {args.episodes} episodes")

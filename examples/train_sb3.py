@@ -5,13 +5,13 @@
     python examples/train_sb3.py --algo ppo --num-envs 1 --steps 50000 --out runs/ppo
 
 The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientation held,
-10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env), one
-gradient step per sample, 12,000 samples, HER through franka_sim_gym's buffer that keeps
-the reflex charge of relabelled steps (envs/sb3_her.py), SAC's entropy weight tuned from
-0.02, SAC's gradient steps taken by LeanSAC (envs/sb3_sac.py: SB3's, bit for bit, with
-fewer torch calls). Every cycle runs the full FCI at 1 kHz: the libfranka client's
-filters, every motion-limit check including the IK joint side, the safety controller.
-Reflexes terminate episodes, as on the robot.
+10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env,
+franka_sim_gym.training.sb3_vec_env), SB3's SAC, one gradient step per sample on one
+torch thread, 12,000 samples, HER through the buffer that keeps the reflex charge of
+relabelled steps (franka_sim_gym.training.sb3_her), SAC's entropy weight tuned from 0.02.
+Every cycle runs the full FCI at 1 kHz: the libfranka client's filters, every
+motion-limit check including the IK joint side, the safety controller. Reflexes
+terminate episodes, as on the robot. docs/training.md tells the settings and figures.
 
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
 examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger;
@@ -26,15 +26,14 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from evaluate import evaluate  # examples/evaluate.py: N episodes at once, batched
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.training.evaluation import evaluate
 
 #: The default reach: a 3-D twist (orientation held) at 10 Hz, 2 s episodes.
 DEFAULT_ENV_KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
@@ -53,21 +52,21 @@ def make_model(
     tensorboard: bool = False,
     buffer_size: int = 1_000_000,
     ent_coef: str = "auto_0.02",
-    threads: int | None = None,
+    threads: int = 1,
 ):
+    """The SB3 model of the default run (``algo`` "sac"), or TD3 / PPO on the same env."""
     import torch
-    from stable_baselines3 import PPO, TD3
+    from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.logger import configure
 
-    from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer
-    from franka_sim_gym.envs.sb3_sac import LeanSAC
+    from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer
 
-    # SB3 alternates collecting and learning, so the gradient steps have every core to
-    # themselves: on an idle 2-core machine 2 threads take a LeanSAC step in 3.3 ms, 1 in
-    # 4.0 ms; with another process busy, 2 threads take 13.0 ms and 1 4.1 ms
-    # (benchmarks/sac_step.py). By default (threads None) main() times both as it goes
-    # (envs/sb3_threads.py ThreadTuner).
-    torch.set_num_threads(threads or max(1, os.cpu_count() or 1))
+    # One torch thread by default: at these sizes a second one takes a gradient step
+    # little faster on an idle 2-core machine, and several times slower while another
+    # process wants a core (its threads wait for each other at every parallel region);
+    # the thread count changes no bit of the run (benchmarks/sac_step.py,
+    # docs/training.md).
+    torch.set_num_threads(threads)
     common = dict(policy="MultiInputPolicy", env=env, seed=seed, verbose=0)
     # Off-policy learners relabel goals with HER (the env's vectorised compute_reward),
     # keeping each step's reflex charge so that a relabelled reflex is no success.
@@ -94,10 +93,8 @@ def make_model(
         # ent_coef "auto_0.02": tuned as SB3's "auto", but from 0.02 instead of 1. With
         # rewards of -1 a step, an entropy weight of 1 outweighs the task: in the default
         # run it took ~5,500 samples to fall to the ~0.015 where it settles, and nothing
-        # was learnt before (docs/env.md).
-        # LeanSAC: SB3's SAC, whose gradient steps it takes bit for bit with fewer torch
-        # calls (envs/sb3_sac.py); the model saves and loads as an SB3 SAC.
-        model = LeanSAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
+        # was learnt before (docs/training.md).
+        model = SAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
     elif algo == "td3":
         model = TD3(**common, **off_policy)
     elif algo == "ppo":
@@ -111,7 +108,7 @@ def make_model(
 def log_formats(tensorboard: bool = False) -> list[str]:
     """SB3's logger outputs: progress.csv always; TensorBoard events too with
     ``tensorboard`` (``--tensorboard``; the train extra brings the package). Off by
-    default: its writer made the default run ~20 s slower here (120 s against 98 s)."""
+    default: its writer makes the default run about a fifth slower."""
     if not tensorboard:
         return ["csv"]
     try:
@@ -178,8 +175,7 @@ def main() -> None:
         "--num-envs",
         type=int,
         default=16,
-        help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world); "
-        "16 learns as 8 does (1.00 at 12,000 samples) in 93 s instead of 122 s here, 32 does not",
+        help="arms trained on at once: > 1 uses the native batched env (one MuJoCo world)",
     )
     parser.add_argument("--env-id", default="FrankaFCICartesianVelocity-v0")
     parser.add_argument(
@@ -197,11 +193,7 @@ def main() -> None:
         help="SAC's entropy coefficient: a number, or auto_<initial value> to tune it",
     )
     parser.add_argument(
-        "--threads",
-        type=int,
-        default=None,
-        help="torch threads for the gradient steps (default, SAC and TD3: one per core or 1, "
-        "whichever is timed faster as the run goes; PPO: one per core)",
+        "--threads", type=int, default=1, help="torch threads for the gradient steps"
     )
     parser.add_argument(
         "--env-kwargs",
@@ -217,7 +209,7 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     if args.num_envs > 1:
-        from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv
+        from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv
 
         env = FrankaFCISB3VecEnv(args.num_envs, **{**gym.spec(args.env_id).kwargs, **kwargs})
     else:
@@ -252,16 +244,10 @@ def main() -> None:
     start = time.perf_counter()
     rows = []
     bar = progress_bar(collected, enabled=not args.no_progress)
-    tuner = None
-    if args.threads is None and args.algo in ("sac", "td3"):
-        from franka_sim_gym.envs.sb3_threads import ThreadTuner
-
-        tuner = ThreadTuner()  # the same bits whatever it picks (envs/sb3_threads.py)
-    callbacks = [c for c in (bar, tuner) if c is not None] or None
     done = 0
     while done < args.steps:
         n = min(chunk, args.steps - done)
-        model.learn(total_timesteps=n, reset_num_timesteps=False, callback=callbacks)
+        model.learn(total_timesteps=n, reset_num_timesteps=False, callback=bar)
         done += n
         result = evaluate(model, args.env_id, kwargs, args.eval_episodes, seed=10_000)
         rows.append(
@@ -281,8 +267,6 @@ def main() -> None:
         writer.writerows(rows)
     plot(args.out, rows)
     final = rows[-1]
-    if tuner is not None:
-        print(f"torch threads: {tuner.describe()}")
     print(
         f"eval: success_rate={final['success_rate']:.3f} "
         f"reflex_rate={final['reflex_rate']:.3f} wall_s={wall:.1f}"

@@ -1,4 +1,4 @@
-"""The HER replay buffer that keeps the reflex charge (envs/sb3_her.py), inside SB3's SAC."""
+"""The HER replay buffer that keeps the reflex charge (training/sb3_her.py), inside SB3's SAC."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ sb3 = pytest.importorskip("stable_baselines3")
 
 from stable_baselines3 import SAC, HerReplayBuffer  # noqa: E402
 
-from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer  # noqa: E402
-from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
+from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer  # noqa: E402
+from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
 
 HER = dict(n_sampled_goal=4, goal_selection_strategy="future")
 
@@ -46,16 +46,35 @@ def reflex_steps(buffer) -> tuple[np.ndarray, np.ndarray]:
     return rows, arms
 
 
+def sampled_reflex_steps(buffer, batches: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """HER's own samples (its public ``sample``) of steps that ended in a reflex (done,
+    not a time limit): (whether each was relabelled, its reward). "future" relabels an
+    episode's last step with the goal it reached itself, so a relabelled reflex step's
+    desired goal is its next achieved goal: distance 0, only a charge can be left."""
+    np.random.seed(2)  # HER draws with numpy's global generator
+    relabelled, rewards = [], []
+    for _ in range(batches):
+        batch = buffer.sample(512)
+        ended = batch.dones.numpy().ravel() == 1.0
+        goal = batch.observations["desired_goal"].numpy()[ended]
+        reached = batch.next_observations["achieved_goal"].numpy()[ended]
+        relabelled.append(np.all(goal == reached, axis=1))
+        rewards.append(batch.rewards.numpy().ravel()[ended])
+    relabelled, rewards = np.concatenate(relabelled), np.concatenate(rewards)
+    assert relabelled.sum() > 0 and (~relabelled).sum() > 0, "both kinds must be drawn"
+    return relabelled, rewards
+
+
 def test_relabelled_reflex_steps_keep_their_charge():
     buffer = collect(ReflexChargedHerReplayBuffer).replay_buffer
     rows, arms = reflex_steps(buffer)
-    # "future" relabels an episode's last step with the goal it reached itself:
-    # distance 0, so only the charge is left, the reward the env gave minus its -1.
-    virtual = buffer._get_virtual_samples(rows, arms)
-    stored = buffer.rewards[rows, arms]
-    assert np.array_equal(virtual.rewards.numpy().ravel(), stored + 1.0)
-    assert np.all(virtual.rewards.numpy() < -1.0)
-    assert np.array_equal(buffer.infos[rows, arms], stored + 1.0)
+    charges = buffer.infos.penalty[rows, arms]
+    assert np.array_equal(charges, buffer.rewards[rows, arms] + 1.0)  # what the env charged
+    relabelled, rewards = sampled_reflex_steps(buffer)
+    assert np.all(rewards[relabelled] < -1.0)
+    assert set(rewards[relabelled].tolist()) <= set(charges.astype(np.float32).tolist())
+    # a step HER kept as it was has the env's reward, charge included
+    assert set(rewards[~relabelled].tolist()) <= set(buffer.rewards[rows, arms].tolist())
     # the charge is one float a transition; steps that did not end in a reflex carry 0
     quiet = buffer.infos.penalty[: buffer.pos][buffer.rewards[: buffer.pos] >= -1.0]
     assert quiet.size > 0 and np.all(quiet == 0.0)
@@ -65,10 +84,10 @@ def test_sb3s_own_buffer_would_relabel_a_reflex_as_a_success():
     """Why the buffer exists: without the infos, HER's relabelled reflex step is a
     terminal transition of reward 0, the best a transition can get."""
     buffer = collect(HerReplayBuffer).replay_buffer
-    rows, arms = reflex_steps(buffer)
-    virtual = buffer._get_virtual_samples(rows, arms)
-    assert np.all(virtual.rewards.numpy() == 0.0)
-    assert np.all(virtual.dones.numpy() == 1.0)
+    reflex_steps(buffer)
+    relabelled, rewards = sampled_reflex_steps(buffer)
+    assert np.all(rewards[relabelled] == 0.0)
+    assert np.all(rewards[~relabelled] < -1.0)
 
 
 def test_the_charges_survive_saving_the_replay_buffer(tmp_path):
@@ -80,8 +99,10 @@ def test_the_charges_survive_saving_the_replay_buffer(tmp_path):
     assert loaded is not buffer
     assert np.array_equal(loaded.infos.penalty, buffer.infos.penalty)
     rows, arms = reflex_steps(loaded)
-    virtual = loaded._get_virtual_samples(rows, arms).rewards.numpy().ravel()
-    assert np.array_equal(virtual, buffer.rewards[rows, arms] + 1.0)
+    relabelled, rewards = sampled_reflex_steps(loaded)
+    charges = buffer.infos.penalty[rows, arms].astype(np.float32)
+    assert np.all(rewards[relabelled] < -1.0)
+    assert set(rewards[relabelled].tolist()) <= set(charges.tolist())
 
 
 def test_copy_info_dict_is_refused_with_the_reason():

@@ -7,7 +7,7 @@ import pytest
 
 sb3 = pytest.importorskip("stable_baselines3")
 
-from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
+from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
 
 
 def test_adapter_resets_in_the_same_step_and_hands_over_the_terminal_observation():

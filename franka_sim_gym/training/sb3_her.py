@@ -1,11 +1,11 @@
 """stable-baselines3's HER replay buffer, keeping each transition's reflex charge.
 
-    from franka_sim_gym.envs.sb3_her import ReflexChargedHerReplayBuffer
+    from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer
     model = SAC("MultiInputPolicy", env, replay_buffer_class=ReflexChargedHerReplayBuffer,
                 replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"))
 
 Why: a reflex ends an episode, and the env charges that step the worst reward of every
-step the episode would still have had (``info["reflex_penalty"]``, docs/env.md), so a
+step the episode would still have had (``info["reflex_penalty"]``, docs/training.md), so a
 reflex is never a shortcut to a higher return. ``compute_reward`` adds the charge from
 the info it is given. SB3's ``HerReplayBuffer`` relabels most samples (4 of 5 here) and,
 unless ``copy_info_dict=True``, hands ``compute_reward`` empty infos: a relabelled reflex

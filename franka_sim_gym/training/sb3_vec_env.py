@@ -1,8 +1,11 @@
 """stable-baselines3's ``VecEnv`` on the native batched env: N arms, one world, no subprocesses.
 
-    from franka_sim_gym.envs.sb3_vec_env import FrankaFCISB3VecEnv
+    from stable_baselines3 import SAC
+    from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer
+    from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv
+
     env = FrankaFCISB3VecEnv(16, action_interface="joint_position")
-    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, ...)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=ReflexChargedHerReplayBuffer)
 
 SB3 resets an ended episode in the step that ended it (its VecEnv contract): the
 adapter runs the vector env in ``SAME_STEP`` autoreset mode and hands SB3 the
@@ -19,8 +22,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
-from .core import info_row
-from .vector_env import FrankaFCIVectorEnv
+from franka_sim_gym.envs.core import info_row
+from franka_sim_gym.envs.vector_env import FrankaFCIVectorEnv
 
 
 class FrankaFCISB3VecEnv(VecEnv):

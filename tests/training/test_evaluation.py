@@ -1,13 +1,12 @@
-"""examples/evaluate.py: N episodes side by side in the batched env, counted per arm."""
+"""training/evaluation.py: N episodes side by side in the batched env, counted per arm."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from tests.conftest import load_example
+from franka_sim_gym.training.evaluation import evaluate
 from tests.scripted_policies import POSE_STEPS, Still, TowardTheGoal
-
-evaluate = load_example("evaluate").evaluate
 
 KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
 
@@ -63,3 +62,8 @@ def test_an_episode_ending_in_a_reflex_is_no_success_even_inside_the_radius():
     r = evaluate(Jerk(), "FrankaFCICartesianVelocity-v0", kwargs, episodes=16, seed=0)
     assert r["reflex_rate"] == 1.0
     assert r["success_rate"] == 0.0
+
+
+def test_no_episode_is_a_clear_error():
+    with pytest.raises(ValueError, match="episodes must be >= 1, got 0"):
+        evaluate(Still(), "FrankaFCICartesianVelocity-v0", KWARGS, episodes=0, seed=0)

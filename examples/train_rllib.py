@@ -1,0 +1,208 @@
+"""Train PPO on a FrankaFCI id with Ray RLlib (new API stack), the batched env in every runner.
+
+    pip install 'franka-sim-gym[rllib]'
+    python examples/train_rllib.py --runners 2 --envs-per-runner 8 --iterations 20
+    python examples/train_rllib.py --evaluate runs/rllib/checkpoint --episodes 100
+                          # (env id and arguments from train_config.json beside it)
+    python examples/train_rllib.py --address auto ...      # on a running Ray cluster
+
+What a user would otherwise have to find out:
+
+* the env is named ``"franka_sim_gym:<id>"``: Gymnasium imports ``franka_sim_gym``
+  (which registers the ids) in every env-runner process before it looks the id up; a
+  bare id is unknown to runners that never imported the package;
+* the Dict observation goes through RLlib's ``FlattenObservations`` connector (RLlib has
+  no default encoder for a Dict space);
+* ``gym_env_vectorize_mode="vector_entry_point"``: each runner steps its
+  ``--envs-per-runner`` arms as one native batched env (one MuJoCo world, one
+  controller call per cycle), not as that many single envs.
+
+Writes RLlib's checkpoint to ``--out``/checkpoint and evaluates it with the package's
+own evaluation (franka_sim_gym.training.evaluation: success rate, reflex rate; the
+policy's deterministic action). Prints, last, one line
+``rllib: env_id=... runners=R envs_per_runner=N env_steps_per_s=X episode_return_mean=Y``
+(env steps per second of training, sampling and learning, over the iterations after
+the first, whose time includes the runners' start; benchmarks/rllib_scaling.py times
+the sampling alone).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: The default env: the Cartesian twist reach of examples/train_sb3.py's default run.
+DEFAULT_ENV_ID = "FrankaFCICartesianVelocity-v0"
+DEFAULT_ENV_KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
+
+
+def build_config(
+    env_id: str,
+    env_kwargs: dict,
+    runners: int,
+    envs_per_runner: int,
+    seed: int,
+    batch_size: int,
+):
+    """RLlib's PPO configuration for ``env_id`` with ``runners`` env runners, each
+    stepping ``envs_per_runner`` arms of one native batched env."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.connectors.env_to_module import FlattenObservations
+
+    return (
+        PPOConfig()
+        .environment(f"franka_sim_gym:{env_id}", env_config=env_kwargs)
+        .env_runners(
+            num_env_runners=runners,
+            num_envs_per_env_runner=envs_per_runner,
+            gym_env_vectorize_mode="vector_entry_point",
+            env_to_module_connector=lambda env, spaces=None, device=None: FlattenObservations(),
+            num_cpus_per_env_runner=1,
+        )
+        .training(
+            train_batch_size_per_learner=batch_size,
+            minibatch_size=min(128, batch_size),
+            num_epochs=4,
+            gamma=0.95,
+            lr=3e-4,
+        )
+        .debugging(seed=seed)
+    )
+
+
+class RLlibPolicy:
+    """An RLlib module's deterministic action, behind SB3's ``predict`` (what
+    ``franka_sim_gym.training.evaluation.evaluate`` calls). The Dict observation is
+    flattened as ``FlattenObservations`` does: its keys in sorted order, concatenated."""
+
+    def __init__(self, module) -> None:
+        self.module = module
+
+    def predict(self, obs: dict, deterministic: bool = True):
+        import torch
+
+        flat = np.concatenate([np.asarray(obs[k], np.float32) for k in sorted(obs)], axis=-1)
+        with torch.no_grad():
+            out = self.module.forward_inference({"obs": torch.from_numpy(flat)})
+            dist = self.module.get_inference_action_dist_cls().from_logits(
+                out["action_dist_inputs"]
+            )
+            action = dist.to_deterministic().sample().numpy()
+        return np.clip(action, -1.0, 1.0), None
+
+
+def load_policy(checkpoint: Path) -> RLlibPolicy:
+    """The trained policy of an RLlib checkpoint (the learner's default module)."""
+    from ray.rllib.core import (
+        COMPONENT_LEARNER,
+        COMPONENT_LEARNER_GROUP,
+        COMPONENT_RL_MODULE,
+        DEFAULT_MODULE_ID,
+    )
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    path = (
+        Path(checkpoint)
+        / COMPONENT_LEARNER_GROUP
+        / COMPONENT_LEARNER
+        / COMPONENT_RL_MODULE
+        / DEFAULT_MODULE_ID
+    )
+    return RLlibPolicy(RLModule.from_checkpoint(path.resolve()))
+
+
+def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
+    """Train; returns (checkpoint, env steps per second of training, last episode return)."""
+    import ray
+
+    ray.init(address=args.address, include_dashboard=False, log_to_driver=False)
+    config = build_config(
+        args.env_id, env_kwargs, args.runners, args.envs_per_runner, args.seed, args.batch_size
+    )
+    algo = config.build_algo()
+    nodes = algo.env_runner_group.foreach_env_runner(
+        lambda runner: ray.util.get_node_ip_address(), local_env_runner=False
+    )
+    print(f"env runners on nodes: {', '.join(sorted(nodes))}", flush=True)
+    steps = seconds = 0.0
+    episode_return = float("nan")
+    for iteration in range(args.iterations):
+        start = time.perf_counter()
+        result = algo.train()
+        elapsed = time.perf_counter() - start
+        runners = result["env_runners"]
+        sampled = float(runners["num_env_steps_sampled"])
+        episode_return = float(runners.get("episode_return_mean", float("nan")))
+        if iteration > 0 or args.iterations == 1:
+            steps += sampled
+            seconds += elapsed
+        print(
+            f"iteration {iteration + 1}: {sampled:.0f} env steps in {elapsed:.1f} s, "
+            f"episode_return_mean {episode_return:.2f}",
+            flush=True,
+        )
+    checkpoint = Path(algo.save_to_path(str((args.out / "checkpoint").resolve())))
+    algo.stop()
+    ray.shutdown()
+    return checkpoint, steps / seconds if seconds > 0 else float("nan"), episode_return
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env-id", default=None, help=f"default: {DEFAULT_ENV_ID}")
+    parser.add_argument(
+        "--env-kwargs",
+        default=None,
+        help=f"JSON, merged over the defaults {json.dumps(DEFAULT_ENV_KWARGS)}",
+    )
+    parser.add_argument("--runners", type=int, default=2, help="RLlib env runners")
+    parser.add_argument(
+        "--envs-per-runner", type=int, default=8, help="arms of each runner's batched env"
+    )
+    parser.add_argument("--iterations", type=int, default=20, help="RLlib train() calls")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--batch-size", type=int, default=4000, help="env steps per training iteration"
+    )
+    parser.add_argument("--out", type=Path, default=Path("runs/rllib"))
+    parser.add_argument(
+        "--address", default=None, help="a Ray cluster's address (default: a local Ray)"
+    )
+    parser.add_argument("--episodes", type=int, default=32, help="evaluation episodes")
+    parser.add_argument("--evaluate", type=Path, default=None, help="only evaluate this checkpoint")
+    args = parser.parse_args()
+    # --evaluate: the env the checkpoint was trained on (train_config.json beside it)
+    saved = args.evaluate.parent / "train_config.json" if args.evaluate else None
+    trained = json.loads(saved.read_text()) if saved and saved.exists() else {}
+    args.env_id = args.env_id or trained.get("env_id", DEFAULT_ENV_ID)
+    env_kwargs = {**DEFAULT_ENV_KWARGS, **trained.get("env_kwargs", {})}
+    env_kwargs.update(json.loads(args.env_kwargs or "{}"))
+    from franka_sim_gym.training.evaluation import evaluate
+
+    if args.evaluate is None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "train_config.json").write_text(
+            json.dumps({"algo": "rllib_ppo", "env_id": args.env_id, "env_kwargs": env_kwargs})
+        )
+        checkpoint, rate, episode_return = train(args, env_kwargs)
+    else:
+        checkpoint, rate, episode_return = args.evaluate, float("nan"), float("nan")
+    result = evaluate(load_policy(checkpoint), args.env_id, env_kwargs, args.episodes, seed=10_000)
+    print(f"checkpoint: {checkpoint}")
+    print(
+        f"evaluate: success_rate={result['success_rate']:.3f} "
+        f"reflex_rate={result['reflex_rate']:.3f} {result['reflexes_by_error'] or ''}".rstrip()
+    )
+    print(
+        f"rllib: env_id={args.env_id} runners={args.runners} "
+        f"envs_per_runner={args.envs_per_runner} env_steps_per_s={rate:.0f} "
+        f"episode_return_mean={episode_return:.2f}"
+    )
+
+
+if __name__ == "__main__":
+    main()
