@@ -4,7 +4,7 @@ The env's default reset teleports the arm (``FciController.reset``). With
 ``reset_mode="fci"`` it goes through the FCI instead, as a user's script on a
 real FR3 would between episodes (issue "Gymnasium env", item 5): StopMove if a
 motion is still running, AutomaticErrorRecovery if a reflex is latched (the
-reply waits for standstill, seed "Enabling the violation"), then a
+reply waits for standstill, docs/fci-behaviour.md "Enabling the violation"), then a
 joint-position Move whose waypoints follow a quintic from where the arm stands
 to the episode's start pose, streamed one per cycle and judged by the robot's
 own checks like any client's. The configured frames (SetNEToEE, SetLoad) are
@@ -32,7 +32,7 @@ from ..fci.wire import (
 
 #: The home trajectory's peak joint velocity [rad/s], acceleration [rad/s^2] and
 #: jerk [rad/s^3]: well inside the FR3's 2.62 rad/s (joints 1-4), 10 rad/s^2 and
-#: 5000 rad/s^3 (limits.md §1.1), so a move home never trips a limit (13/14/15).
+#: 5000 rad/s^3 (docs/limits.md §1.1), so a move home never trips a limit (13/14/15).
 HOME_VELOCITY = 1.0
 HOME_ACCELERATION = 4.0
 HOME_JERK = 400.0

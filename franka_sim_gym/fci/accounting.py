@@ -1,13 +1,13 @@
 """Cycle accounting: which cycles were answered in time, in cycle space, never wall clock.
 
-Seed "The cycle contract" and "What the sim does with a lost cycle":
+docs/fci-behaviour.md "The cycle contract" and "What the sim does with a lost cycle":
 control_command_success_rate is the fraction of the last 100 cycles answered
 in time (while the window fills, the divisor is what it holds), 0.0 between
 motions; lost_run counts consecutive unanswered cycles.
 
 A motion's accounting opens with the first command the client sends: libfranka
 sends nothing while it waits for the mode switch and on the first cycle of its
-loop (libfranka-client-behaviour.md §5), and the robot holds the start pose
+loop (docs/libfranka-client.md §5), and the robot holds the start pose
 until then.
 """
 

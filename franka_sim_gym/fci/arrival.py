@@ -1,8 +1,8 @@
 """Which arriving commands a cycle takes: fresh, late or answering nothing; finite.
 
-Seed "The cycle contract": a command answers the open cycle when it echoes the id of
-the last published state (fresh); an older id of the running motion is late and still
-applied; an id never published answers nothing (the cycle counts as lost). Seed: a
+docs/fci-behaviour.md "The cycle contract": a command answers the open cycle when it echoes the id
+of the last published state (fresh); an older id of the running motion is late and still
+applied; an id never published answers nothing (the cycle counts as lost). docs/fci-behaviour.md: a
 non-finite command is refused whatever the enforcement, and reported as the
 limits violation of the generator it arrived in; a Cartesian pose that is not a
 homogeneous transformation (libfranka's isHomogeneousTransformation, NaN included)

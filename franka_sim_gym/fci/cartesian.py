@@ -1,12 +1,13 @@
 """The Cartesian motion generators: O_T_EE_c and O_dP_EE_c, judged, extrapolated and driven
-through damped differential IK (seed "RobotState fields" (Cartesian rows), "What is
-checked, and what it latches", "The joint side of a Cartesian command (29, 30)" and
+through damped differential IK (docs/fci-behaviour.md "RobotState fields" (Cartesian rows), "What is
+checked, and what it latches", "The joint side of a Cartesian command" and
 "What the sim does with a lost cycle").
 
 Per cycle, for every robot running a Cartesian generator whose accounting is open:
 
 1. the candidate is the command that arrived, or — for a lost cycle — the
-   extrapolation by the seed's law, up to 20 cycles (``cartesian_step``);
+   extrapolation by the lost-cycle law (docs/fci-behaviour.md "What the sim does with a lost
+   cycle"), up to 20 cycles (``cartesian_step``);
 2. its Cartesian derivatives (and the elbow's) are differenced against the history,
    a twist is integrated onto the IK target pose, the target is solved to joint space
    from the previous cycle's solution and the solution's acceleration and jerk form
@@ -17,10 +18,10 @@ Per cycle, for every robot running a Cartesian generator whose accounting is ope
    servo's reference (the arm follows the commanded pose).
 
 Late datagrams are handled on arrival (:meth:`CartesianGenerators.late_datagrams`,
-seed "A datagram that turns up late replaces the guess it stood in for"), as for joint
-motions. The history lives in ``cartesian_reference.CartesianReference`` (not in
-JointReference): q_d keeps reporting the measured q during a Cartesian motion, as the
-seed says.
+docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for"), as for
+joint motions. The history lives in ``cartesian_reference.CartesianReference`` (not in
+JointReference): q_d keeps reporting the measured q during a Cartesian motion
+(docs/fci-behaviour.md).
 """
 
 from __future__ import annotations
@@ -162,7 +163,8 @@ class CartesianGenerators:
             extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
             held = lost & ~extrapolate
         if np.count_nonzero(held):
-            # Seed "Extrapolation stops at 20": the last extrapolated value holds, at rest.
+            # docs/fci-behaviour.md "Extrapolation stops at 20": the last extrapolated value holds,
+            # at rest.
             h.twist[held] = 0.0
             h.reported[held] = h.dreported[held] = 0.0
             h.dq_ik[held] = 0.0
@@ -186,7 +188,7 @@ class CartesianGenerators:
     def late_datagrams(
         self, cycle: CycleInput, commands: np.ndarray, late: np.ndarray, ids: np.ndarray
     ) -> None:
-        """Seed "A datagram that turns up late replaces the guess it stood in for".
+        """docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for".
 
         Inside an extrapolated run, the datagram echoing the run's oldest unanswered
         id throws the run's guesses away (pose, twist, elbow and the IK joint history
@@ -242,8 +244,9 @@ class CartesianGenerators:
     def _judge_late(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
         """Judge late datagrams of ``rows`` without recording them: each against the history
         published in the state it answers (older than the ring: the history as it stands),
-        over one cycle; applied to the servo this cycle (seed: "within a cycle a late
-        command is the freshest intent there is")."""
+        over one cycle; applied to the servo this cycle (docs/fci-behaviour.md "A datagram that
+        turns up late replaces the guess it stood in for": a late datagram drives the servo for its
+        cycle)."""
         current = self.writer.message_id
         h = self.reference.published(np.where(rows, ids, current), int(current[0]))
         candidates = self._late_candidates(commands, rows)
@@ -269,7 +272,8 @@ class CartesianGenerators:
 
     def publish(self) -> None:
         """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
-        robots in a Cartesian motion (seed "RobotState fields", the three regimes)."""
+        robots in a Cartesian motion (docs/fci-behaviour.md "RobotState fields", the three
+        regimes)."""
         m, w, h, n = self.modes, self.writer, self.reference, self.n
         if m.n_cartesian_position:
             every = m.n_cartesian_position == n
@@ -289,7 +293,8 @@ class CartesianGenerators:
             streamed = (m.cartesian & h.has_elbow)[:, None]
             np.copyto(w.elbow_d, h.elbow, where=streamed)
             np.copyto(w.elbow_c, h.elbow, where=streamed)
-        # Seed: "the sim still publishes the measured q there during a Cartesian motion".
+        # docs/fci-behaviour.md "RobotState fields": q_d reports the measured q during a Cartesian
+        # motion.
         put_rows(w.q_d, self.physics.q, cartesian, every)
 
     def remember(self, message_id: int) -> None:

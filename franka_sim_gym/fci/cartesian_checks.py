@@ -2,7 +2,8 @@
 
 The rules return one error per robot and the rows that tripped; this module hands
 them to the engine with what the log line names (the row's worst quantity), and 30
-beside 29 when one command breaks both (seed: "latched together with 29").
+beside 29 when one command breaks both (docs/fci-behaviour.md "The joint side of a Cartesian
+command").
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Everything the next Cartesian command is differenced against — the pose and its
 derivatives, the twist, the elbow, the reported twist and the IK joint history —
 lives side by side in one float64 row per robot (``CartesianHistory``), so that
-the three operations the seed's "A datagram that turns up late replaces the guess
+the three operations docs/fci-behaviour.md "A datagram that turns up late replaces the guess
 it stood in for" needs are one copy each:
 
 * when a run of guesses begins, the last real sample is snapshotted (never on a
@@ -136,8 +136,8 @@ class CartesianReference(CartesianHistory):
 
     def begin_guesses(self, lost: np.ndarray) -> None:
         """``lost`` robots are guessed this cycle: where a run begins, remember the real
-        sample the history stands at (seed: the guesses are what a late datagram throws
-        away, and it is differenced against "the last command that actually arrived")."""
+        sample the history stands at (docs/fci-behaviour.md: the guesses are what a late datagram
+        throws away, and it is differenced against "the last command that actually arrived")."""
         starting = lost & (self.run == 0)
         if np.count_nonzero(starting):
             np.copyto(self._real, self.buffer, where=starting[:, None])

@@ -1,12 +1,11 @@
 """One Cartesian cycle's candidates, differenced against a history and solved to joint space.
 
-Seed "The difference formulas", "What the sim does with a lost cycle" and "The joint
-side of a Cartesian command (29, 30)": the candidate is the command that arrived or
-the lost-cycle law's extrapolation; a twist is integrated onto the IK target pose;
-the pose's (or the twist's) derivatives and the elbow's are taken over one cycle;
-the target is solved from the history's IK solution at F_T_EE (joint 3 held where an
-elbow is streamed) and the solution's acceleration and jerk form the joint side,
-judged only as far as the joint history is warm.
+docs/fci-behaviour.md "The difference formulas", "What the sim does with a lost cycle" and "The
+joint side of a Cartesian command": the candidate is the command that arrived or the lost-cycle
+law's extrapolation; a twist is integrated onto the IK target pose; the pose's (or the twist's)
+derivatives and the elbow's are taken over one cycle; the target is solved from the history's IK
+solution at F_T_EE (joint 3 held where an elbow is streamed) and the solution's acceleration and
+jerk form the joint side, judged only as far as the joint history is warm.
 """
 
 from __future__ import annotations
@@ -122,7 +121,7 @@ class CartesianStepper:
         against the history ``h`` and solve them from its IK solution (over one cycle)."""
         m, n = self.modes, self.n
         n_twist = m.n_cartesian_velocity
-        # -- candidates: the command, or the seed's lost-cycle law ---------------------------
+        # -- candidates: the command, or the lost-cycle law (docs/fci-behaviour.md) ----------------
         pose_ex = None
         if np.count_nonzero(extrapolate):
             hv = have[:, None]

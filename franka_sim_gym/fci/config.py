@@ -1,4 +1,5 @@
-"""Configuration of the simulated FCI controller (the seed's switches and sim choices)."""
+"""Configuration of the simulated FCI controller (the switches and sim choices of
+docs/fci-behaviour.md)."""
 
 from __future__ import annotations
 
@@ -35,30 +36,31 @@ def env_float(name: str) -> float | None:
 class ControllerConfig:
     """Everything the controller's behaviour depends on besides the commands it receives.
 
-    The defaults are the socket server's (the seed: checking always on,
+    The defaults are the socket server's (docs/fci-behaviour.md: checking always on,
     aborting opt-in). The Gymnasium env turns both enforcement switches on.
     """
 
     #: "fr3" (FCI v10) or "fer" (FCI v5): which robot's limit tables apply.
     robot: str = "fr3"
-    #: Seed "Checking is always on; aborting is opt-in": a motion-limit
+    #: docs/fci-behaviour.md "Checking is always on; aborting is opt-in": a motion-limit
     #: violation aborts the motion only when this is on (it is always logged).
     enforce_motion_limits: bool = False
-    #: Seed "Enabling the violation": 20 consecutive lost cycles abort only when on.
+    #: docs/fci-behaviour.md "Enabling the violation": 20 consecutive lost cycles abort only when
+    #: on.
     enforce_comm_constraints: bool = False
-    #: Seed "The joint side of a Cartesian command": scales both joint-side tables.
+    #: docs/fci-behaviour.md "The joint side of a Cartesian command": scales both joint-side tables.
     joint_discontinuity_scale: float = 1.0
-    #: Seed "Two deliberate departures": start-pose tolerances (sim choices).
+    #: docs/fci-behaviour.md "Two deliberate departures": start-pose tolerances (sim choices).
     start_pose_tolerance: float = 0.1
     start_velocity_tolerance: float = 0.1
     cartesian_start_translation_tolerance: float = 0.05
     cartesian_start_rotation_tolerance: float = 0.1
     start_elbow_tolerance: float = 0.1
-    #: Seed "joint_velocity_violation (3)": margin on measured dq before firing.
+    #: docs/fci-behaviour.md "joint_velocity_violation (3)": margin on measured dq before firing.
     measured_velocity_margin: float = 0.1
-    #: Seed "self_collision_avoidance_violation (2)": monitored link distance [m].
+    #: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": monitored link distance [m].
     self_collision_distance: float = 0.05
-    #: Seed "Enabling the violation": recovery answers when |dq| < 0.005 rad/s
+    #: docs/fci-behaviour.md "Enabling the violation": recovery answers when |dq| < 0.005 rad/s
     #: for 50 consecutive cycles, or after 0.7 s (700 cycles) at the latest.
     recovery_velocity_threshold: float = 0.005
     recovery_settle_cycles: int = 50
@@ -87,7 +89,8 @@ class ControllerConfig:
 
     @classmethod
     def from_environment(cls, **overrides) -> ControllerConfig:
-        """The seed's FRANKA_SIM_* variables, with explicit overrides (CLI flags) winning."""
+        """The FRANKA_SIM_* variables (docs/fci-behaviour.md), with explicit overrides (CLI flags)
+        winning."""
         values: dict = {}
         flag = env_flag("FRANKA_SIM_ENFORCE_MOTION_LIMITS")
         if flag is not None:

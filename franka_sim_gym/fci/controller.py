@@ -147,7 +147,7 @@ class FciController:
         """Hand over one RobotCommand per robot where ``mask`` is set (arrival order matters).
 
         A command answers the open cycle when it echoes the id of the last
-        published state (seed "The cycle contract"); an older id of the running
+        published state (docs/fci-behaviour.md "The cycle contract"); an older id of the running
         motion is late and still applied; an id never published answers
         nothing. Commands reaching a robot with no motion running are ignored,
         as the robot ignores them (libfranka repeats its final command until it
@@ -178,8 +178,8 @@ class FciController:
         if late is not None and m.n_cartesian:
             late_cartesian = late & m.cartesian & accepted
             if np.count_nonzero(late_cartesian):
-                # Seed "A datagram that turns up late replaces the guess it stood in for",
-                # as for joint motions: the one the extrapolated run is missing rewinds
+                # docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood
+                # in for", as for joint motions: the one the extrapolated run is missing rewinds
                 # the Cartesian history, the others are judged and drive the servo only.
                 self.cartesian.late_datagrams(cycle, commands, late_cartesian, ids)
                 self._apply_verdicts()
@@ -203,7 +203,7 @@ class FciController:
         w = self.writer
         cycle = self.cycle_input
         if m.n_motion:
-            # Seed "Motion limits and discontinuities": every command and every
+            # docs/fci-behaviour.md "Motion limits and discontinuities": every command and every
             # extrapolated waypoint judged by its generator; refused ones first.
             if np.count_nonzero(cycle.refused):
                 self.engine.judge_non_finite(cycle)
@@ -308,7 +308,7 @@ class FciController:
         w = self.writer
         physics = self.physics
         # Idle and under joint generators the desired/commanded pose and elbow
-        # are the measured ones (seed "RobotState fields": O_T_EE_d / O_T_EE_c).
+        # are the measured ones (docs/fci-behaviour.md "RobotState fields": O_T_EE_d / O_T_EE_c).
         w.O_T_EE_d[...] = w.O_T_EE
         w.O_T_EE_c[...] = w.O_T_EE
         w.elbow_d[...] = w.elbow
@@ -337,7 +337,7 @@ class FciController:
         """Move (command 1): kMotionStarted, or the rejection that is the only reply.
 
         A Move during a Move preempts the running one (answered kPreempted) and
-        the new motion starts from the idle hold's standstill (seed "One Move
+        the new motion starts from the idle hold's standstill (docs/fci-behaviour.md "One Move
         at a time").
         """
         i = robot
@@ -392,7 +392,7 @@ class FciController:
 
         Returns None: the reply is deferred (an event) until the measured
         |dq| < 0.005 rad/s for 50 consecutive cycles or 0.7 s have passed
-        (seed "Enabling the violation"). Refused during a running motion.
+        (docs/fci-behaviour.md "Enabling the violation"). Refused during a running motion.
         """
         i = robot
         if self.modes.in_motion[i]:
@@ -470,7 +470,7 @@ class FciController:
     def end_session(self, robot: int) -> None:
         """A client disconnected: end its motion, reset what it configured, keep latched errors.
 
-        The seed resets F_T_EE to identity on a new connection; a latched
+        NE_T_EE (so F_T_EE) resets on a new connection (docs/robot-state.md); a latched
         reflex survives until AutomaticErrorRecovery clears it, as on the robot.
         """
         if self.modes.in_motion[robot]:

@@ -1,6 +1,6 @@
 """The motion-limit engine's judge: violations logged, verdicts returned to the controller.
 
-Seed "Motion limits and discontinuities": the generators (``joint_generators``,
+docs/fci-behaviour.md "Motion limits and discontinuities": the generators (``joint_generators``,
 ``cartesian``) and the safety controller (``safety_controller``) run the rule
 functions of ``limits`` and hand every tripped error to :meth:`MotionLimitEngine.judge`.
 A violation is logged always (once per class per motion, ``violations``); with
@@ -91,7 +91,8 @@ class MotionLimitEngine:
         return verdicts
 
     def judge_non_finite(self, cycle: CycleInput) -> None:
-        """Seed: a non-finite command is refused whatever the enforcement, and reported as
+        """docs/fci-behaviour.md "What is checked, and what it latches": a non-finite command is
+        refused whatever the enforcement, and reported as
         the limits violation of the generator it arrived in (12 q_c, 13 dq_c, 34 tau_J_d;
         Cartesian: 31 for a pose that is no homogeneous transformation, NaN included, 18
         for a non-finite twist, 17 for a non-finite elbow)."""

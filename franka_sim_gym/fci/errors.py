@@ -1,4 +1,4 @@
-"""The robot's 41-entry error enum and libfranka's rendering of it (errors.md §1).
+"""The robot's 41-entry error enum and libfranka's rendering of it (docs/errors.md §1).
 
 Byte *i* of the state's ``errors`` / ``reflex_reason`` arrays is error *i*. Member
 names of :class:`Error` are the ``franka::Errors`` attribute names; ``ERROR_NAMES``
@@ -18,7 +18,7 @@ ERROR_COUNT = 41
 
 
 class Error(IntEnum):
-    """Error index on the wire; member names = ``franka::Errors`` attributes (errors.md §1)."""
+    """Error index on the wire; member names = ``franka::Errors`` attributes (docs/errors.md §1)."""
 
     joint_position_limits_violation = 0
     cartesian_position_limits_violation = 1

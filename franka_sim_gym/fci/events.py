@@ -2,7 +2,7 @@
 
 The controller never replies to anyone itself: it returns events, and the
 socket server turns them into TCP replies after the state that explains them
-has been sent (seed "Enabling the violation": the state carrying a reflex
+has been sent (docs/fci-behaviour.md "Enabling the violation": the state carrying a reflex
 reaches the wire before the kReflexAborted reply).
 """
 
@@ -28,7 +28,7 @@ class Event:
     robot: int
     kind: EventKind
     status: int
-    #: For MOVE_FINISHED: the ended motion's cycle accounting (seed "The cycle
+    #: For MOVE_FINISHED: the ended motion's cycle accounting (docs/fci-behaviour.md "The cycle
     #: contract"), so a server can log what the motion's link was like.
     cycles: int = 0
     lost_cycles: int = 0

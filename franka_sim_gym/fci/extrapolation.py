@@ -1,4 +1,5 @@
-"""The lost-cycle laws, one per commanded signal (seed "What the sim does with a lost cycle").
+"""The lost-cycle laws, one per commanded signal (docs/fci-behaviour.md "What the sim does with a
+lost cycle").
 
 The robot continues a motion signal it did not hear from the client at the
 highest derivative the last two real commands implied, frozen, integrating

@@ -22,7 +22,7 @@ def from_wire(values: np.ndarray) -> np.ndarray:
 
 def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
     """(n,) libfranka's isHomogeneousTransformation on (n, 4, 4) row-major poses
-    (libfranka-client-behaviour.md §9).
+    (docs/libfranka-client.md §9).
 
     Bottom row exactly [0, 0, 0, 1]; every row and column of the rotation block of
     unit norm within ``tol``. A non-finite pose fails.

@@ -1,4 +1,4 @@
-"""Framing of the robot's TCP stream (fci-wire-protocol.md §2): a header per message,
+"""Framing of the robot's TCP stream (docs/wire-protocol.md §2): a header per message,
 cut incrementally from the byte stream with bounded memory.
 
 Shared by the robot's command port (1337) and the gripper's (1338); ``protocol``

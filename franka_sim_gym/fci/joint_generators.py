@@ -1,6 +1,6 @@
 """The joint motion generators (q_c, dq_c) and the torque interface (tau_J_d), per cycle.
 
-Seed "Motion limits and discontinuities" and "What the sim does with a lost cycle":
+docs/fci-behaviour.md "Motion limits and discontinuities" and "What the sim does with a lost cycle":
 every command — and every extrapolated waypoint, which is checked, never clamped —
 goes through its generator's precedence table (``limits``: ``check_joint_position``,
 ``check_joint_velocity``, ``check_torque``), is judged by the engine and, unless a
@@ -92,8 +92,8 @@ class JointGenerators:
             lost = np.zeros_like(lost)
         extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
         if np.count_nonzero(lost):
-            # Seed "What the sim does with a lost cycle": one substitute waypoint per
-            # missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
+            # docs/fci-behaviour.md "What the sim does with a lost cycle": one substitute waypoint
+            # per missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
             ex_q, ex_dq = extrapolation.position_step(ref.q, ref.dq, ref.ddq_frozen, dt)
             h = have[:, None]
             q_cand = np.where(h, q_c, ex_q)
@@ -124,7 +124,7 @@ class JointGenerators:
     def late_datagrams(
         self, cycle: CycleInput, commands: np.ndarray, late: np.ndarray, ids: np.ndarray
     ) -> None:
-        """Seed "A datagram that turns up late replaces the guess it stood in for".
+        """docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for".
 
         Inside an extrapolated run, the datagram echoing the run's oldest unanswered
         id throws the run's guesses away and is differenced against the last
@@ -133,7 +133,8 @@ class JointGenerators:
         in order rewinds datagram by datagram). Any other late datagram — a
         replay, a duplicate, a reordered packet — gets no rewind and never touches
         the history: it is judged against the reference as it stands (and can
-        trip a spurious discontinuity, as the seed warns), but not applied.
+        trip a spurious discontinuity, as docs/fci-behaviour.md "A datagram that turns up late
+        replaces the guess it stood in for" warns), but not applied.
         """
         ref = self.reference
         ids = ids.astype(np.uint64)
@@ -225,7 +226,7 @@ class JointGenerators:
         if np.count_nonzero(error[rows] >= 0):
             self.engine.judge(error, rows, lambda i: limits.describe_torque(i, *args))
             rows = self.engine.live(rows)
-        # A torque is not a waypoint: a lost cycle keeps the last one (seed "What
+        # A torque is not a waypoint: a lost cycle keeps the last one (docs/fci-behaviour.md "What
         # the sim does with a lost cycle": tau_J_d held).
         np.copyto(self.tau_J_d, cycle.tau_c, where=rows[:, None])
         cycle.first &= ~(rows & m.torque_only)

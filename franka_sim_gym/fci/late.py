@@ -1,7 +1,8 @@
 """Late datagrams' joint intents: what drives the servo for the cycle one arrived in.
 
-Seed: a late datagram "is still applied — within a cycle a late command is the
-freshest intent there is" — but "never becomes a sample of your trajectory". The
+docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in
+for": a late datagram drives the servo for the cycle it arrived in (nothing fresher
+arrived), but it is never recorded as a sample of the commanded trajectory. The
 joint and Cartesian generators hand its joint intent here (q_c itself, one cycle of
 dq_c, or the IK solution of a late pose or twist); the controller asks for the
 servo's target every cycle, so an intent never outlives the cycle it arrived in.

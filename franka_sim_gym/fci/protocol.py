@@ -1,6 +1,6 @@
 """TCP messages of robot server v10 (port 1337): requests, replies (framing: framing.py).
 
-Spec: fci-wire-protocol.md §2 (framing), §3 (commands, status enums, payloads),
+Spec: docs/wire-protocol.md §2 (framing), §3 (commands, status enums, payloads),
 §4 (Connect), §5.1 (Move), §6 (GetRobotModel). Everything is little-endian and
 packed. This module only knows layouts: it never judges values (range checks,
 NaN, version mismatch are the controller's business).

@@ -1,6 +1,6 @@
 """AutomaticErrorRecovery's deferred reply: waiting for the arm to stand still.
 
-Seed "Enabling the violation": the reply comes once the measured |dq| < 0.005 rad/s
+docs/fci-behaviour.md "Enabling the violation": the reply comes once the measured |dq| < 0.005 rad/s
 for 50 consecutive cycles, or after 0.7 s at the latest (the thresholds are
 ``ControllerConfig.recovery_*``).
 """

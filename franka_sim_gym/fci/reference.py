@@ -1,7 +1,7 @@
 """The commanded joint signal and its backward-Euler history (q_d, dq_d, ddq_d).
 
 One module owns the differencing history that the motion-limit checks and
-the lost-cycle extrapolation both read (the seed's "The difference formulas"
+the lost-cycle extrapolation both read (docs/fci-behaviour.md "The difference formulas"
 and "What the sim does with a lost cycle"), so there is one copy of it.
 
 The arrays are the published q_d / dq_d / ddq_d themselves (views into the
@@ -27,7 +27,7 @@ class JointReference:
 
     ``ddq_frozen`` is the acceleration the last two commands that actually
     arrived implied, which a lost cycle continues with (frozen, not re-derived
-    from extrapolated samples: seed "Frozen, not continued").
+    from extrapolated samples: docs/fci-behaviour.md "Frozen, not continued").
     """
 
     def __init__(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
@@ -39,7 +39,7 @@ class JointReference:
         #: extrapolated samples recorded since that command (the current run)
         self.run = np.zeros(n, dtype=np.int64)
         # The last real sample, snapshotted when an extrapolated run begins, so a
-        # late datagram can throw the run's guesses away (seed "A datagram that
+        # late datagram can throw the run's guesses away (docs/fci-behaviour.md "A datagram that
         # turns up late replaces the guess it stood in for").
         self._real_q = np.zeros_like(q)
         self._real_dq = np.zeros_like(q)
@@ -116,10 +116,10 @@ class JointReference:
             apply: (n,) robots whose reference advances to (q, dq, ddq): an applied
                 command or an extrapolated waypoint.
             real: (n,) of those, the ones a command actually arrived for: only
-                these re-freeze the acceleration a lost cycle continues with (seed
+                these re-freeze the acceleration a lost cycle continues with (docs/fci-behaviour.md
                 "Frozen, not continued").
             held: (n,) robots past 20 lost cycles: the last extrapolated value
-                holds, at rest (seed "Extrapolation stops at 20").
+                holds, at rest (docs/fci-behaviour.md "Extrapolation stops at 20").
         """
         a = apply[:, None]
         guessed = apply & ~real

@@ -1,7 +1,7 @@
 """The safety controller on the measured state (errors 2, 3, 4) and the communication
 bound (25), judged every cycle of a motion after physics stepped.
 
-Seed "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
+docs/fci-behaviour.md "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
 "self_collision_avoidance_violation (2)" and "Enabling the violation" (25). Not in any
 generator's precedence chain: every control mode, 4 outranks 3, 2 is independent of
 both. The rules are ``limits.check_measured_joint_velocity``,
@@ -90,7 +90,8 @@ class SafetyController:
                 self.engine.abort(i, bits)
 
     def communication_constraints(self) -> None:
-        """Seed "Enabling the violation": 20 consecutive lost cycles latch 25 (opt-in)."""
+        """docs/fci-behaviour.md "Enabling the violation": 20 consecutive lost cycles latch 25
+        (opt-in)."""
         lost_run = self.accounting.lost_run
         over = (lost_run >= MAX_LOST_CYCLES) & self.modes.in_motion
         enforce = self.config.enforce_comm_constraints

@@ -1,7 +1,7 @@
 """Validation of the setter commands (ids 3-9): which arguments the robot refuses.
 
 What the real robot rejects with kInvalidArgumentRejected is not published
-(fci-wire-protocol.md §3.2); we refuse what cannot be meant: non-finite
+(docs/wire-protocol.md §3.2); we refuse what cannot be meant: non-finite
 values, a frame that is not a homogeneous transformation (libfranka's own
 client-side test), a negative mass, a stiffness outside the documented range.
 """
@@ -17,7 +17,7 @@ from .statuses import SetterStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 
-#: fci-wire-protocol.md §3.2: SetJointImpedance documents 0 ... 14250 Nm/rad per joint.
+#: docs/wire-protocol.md §3.2: SetJointImpedance documents 0 ... 14250 Nm/rad per joint.
 MAX_JOINT_STIFFNESS = 14250.0
 
 

@@ -21,7 +21,7 @@ from . import frames
 from .tables import DELTA_T, GRAVITY
 from .wire import ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
 
-_FLOAT_BEGIN, _FLOAT_END = 8, 1288  # fci-wire-protocol.md §7: O_T_EE ... dtheta, all float32
+_FLOAT_BEGIN, _FLOAT_END = 8, 1288  # docs/wire-protocol.md §7: O_T_EE ... dtheta, all float32
 #: column-major wire index <- row-major xmat index, for the rotation block
 _ROT_WIRE = np.array([0, 1, 2, 4, 5, 6, 8, 9, 10])
 _ROT_XMAT = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
@@ -62,7 +62,7 @@ class StateWriter:
         self.elbow, self.elbow_d, self.elbow_c = views["elbow"], views["elbow_d"], views["elbow_c"]
         self._message_id = self.states["message_id"]
         self._success_rate = self.states["control_command_success_rate"]
-        #: id of the last published state per robot (message ids start at 1: seed
+        #: id of the last published state per robot (message ids start at 1: docs/fci-behaviour.md
         #: "The cycle contract" — the first state can be answered like any other)
         self.message_id = np.zeros(n, dtype=np.uint64)
         #: F_T_EE = F_T_NE · NE_T_EE (libfranka Robot::setEE), row-major 4x4 per robot
@@ -153,15 +153,16 @@ class StateWriter:
         if self.any_custom_ee:
             pose[...] = frames.to_wire(frames.from_wire(pose) @ self.F_T_EE)
         self.elbow[:, 0] = q[:, 2]
-        # Seed: the elbow flag is the sign of joint 4 (sign(0) taken as +1).
+        # docs/fci-behaviour.md "RobotState fields": the elbow flag is the sign of joint 4 (sign(0)
+        # taken as +1).
         np.copysign(1.0, q[:, 3], out=self.elbow[:, 1])
 
     def publish(self, success_rate: np.ndarray | None) -> None:
         """Make state k+1 the published one: new message id, floats cast to the wire.
 
-        The history the next command is differenced against stays float64 (the
-        seed: a constant-acceleration stream is extrapolated onto its own
-        waypoints exactly); the wire carries it rounded to float32.
+        The history the next command is differenced against stays float64 (docs/fci-behaviour.md: a
+        constant-acceleration stream is extrapolated onto its own waypoints exactly); the wire
+        carries it rounded to float32.
         """
         self.message_id += 1
         self._message_id[...] = self.message_id

@@ -1,4 +1,4 @@
-"""The robot server's command ids and reply status enums (fci-wire-protocol.md §3).
+"""The robot server's command ids and reply status enums (docs/wire-protocol.md §3).
 
 ``protocol`` re-exports them; the controller answers requests with them.
 """

@@ -2,11 +2,11 @@
 
 Two robots are selectable: the FR3 behind FCI v10 (libfranka >= 0.18) and the
 FER ("Panda") behind FCI v5 (libfranka 0.9.x). Every number cites where it
-comes from; `shared/spec/limits.md` collects the sources. Server-side checks
+comes from; `docs/limits.md` collects the sources. Server-side checks
 use the *robot's* limits; libfranka's `rate_limiting.h` constants are those
 minus kLimitEps = 1e-3 (the limiter's target, so that a rate-limited command
-never touches the robot's threshold). Where the seed documents the robot
-threshold as "limit - 1e-3" we follow the seed (it is the requirement).
+never touches the robot's threshold). The robot's threshold is taken as
+"limit - 1e-3" (docs/fci-behaviour.md "What is checked, and what it latches").
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ SUCCESS_RATE_WINDOW = 100
 #: Gravity published in O_ddP_O; libfranka docs: "fixed to (0, 0, -9.81)".
 #: libfranka's Model::gravity(state) uses this field as the gravity vector.
 GRAVITY = (0.0, 0.0, -9.81)
-#: limits.md §2.2: joint-4 angle of maximum extension (FER and FR3 alike).
+#: docs/limits.md §2.2: joint-4 angle of maximum extension (FER and FR3 alike).
 ELBOW_FLIP_Q4 = -0.467002423653011
 
 
@@ -46,7 +46,7 @@ class RobotTable:
 
     name: str
     fci_version: int
-    #: joint range [rad] (FR3: the served URDF <limit lower/upper>, limits.md §2.1 (a)).
+    #: joint range [rad] (FR3: the served URDF <limit lower/upper>, docs/limits.md §2.1 (a)).
     q_lower: np.ndarray
     q_upper: np.ndarray
     #: nameplate joint velocity [rad/s] (URDF <limit velocity>).
@@ -55,21 +55,21 @@ class RobotTable:
     #: None for a robot with constant velocity limits (the FER).
     dq_offset: np.ndarray | None
     ddq_decel: np.ndarray | None
-    #: kMaxJointAcceleration / kMaxJointJerk: robot limit minus 1e-3 (seed table).
+    #: kMaxJointAcceleration / kMaxJointJerk: robot limit minus 1e-3 (docs/limits.md §1).
     ddq_max: np.ndarray
     dddq_max: np.ndarray
     #: URDF <limit effort> [Nm].
     tau_max: np.ndarray
-    #: kMaxTorqueRate = 1000 - 1e-3 Nm/s (seed table, rate_limiting.h).
+    #: kMaxTorqueRate = 1000 - 1e-3 Nm/s (rate_limiting.h, docs/limits.md §1).
     dtau_max: float
-    #: Cartesian translational / rotational velocity, acceleration, jerk (seed table).
+    #: Cartesian translational / rotational velocity, acceleration, jerk (docs/limits.md §1).
     v_trans_max: float
     a_trans_max: float
     j_trans_max: float
     v_rot_max: float
     a_rot_max: float
     j_rot_max: float
-    #: elbow velocity / acceleration / jerk (seed table: kMaxElbow*).
+    #: elbow velocity / acceleration / jerk (docs/limits.md §1: kMaxElbow*).
     v_elbow_max: float
     a_elbow_max: float
     j_elbow_max: float
@@ -87,7 +87,7 @@ class RobotTable:
     def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The admissible joint velocity band at q, shape (..., 7) each.
 
-        libfranka >= 0.18 src/joint_velocity_limits.cpp (limits.md §4):
+        libfranka >= 0.18 src/joint_velocity_limits.cpp (docs/limits.md §4):
         upper = min(v_max, max(0, -v_off + sqrt(max(0, 2 a_dec (q_max - q))))) - tol,
         lower = max(-v_max, min(0, v_off - sqrt(max(0, 2 a_dec (q - q_min))))) + tol.
         """
@@ -125,10 +125,10 @@ _MIRROR = np.concatenate((np.ones(7), -np.ones(7)))
 
 
 #: FR3 behind FCI v10. Joint ranges, velocities, offsets, deceleration and
-#: efforts: the URDF the robot serves (libfranka test/fr3.urdf; limits.md §4).
+#: efforts: the URDF the robot serves (libfranka test/fr3.urdf; docs/limits.md §4).
 #: Acceleration / jerk / torque rate / Cartesian / elbow: libfranka >= 0.10
-#: rate_limiting.h robot values (limits.md §1.1), written as the seed's table
-#: writes them (limit - 1e-3).
+#: rate_limiting.h robot values (docs/limits.md §1.1), written as the robot's
+#: threshold minus kLimitEps (limit - 1e-3, docs/limits.md §1).
 FR3 = RobotTable(
     name="fr3",
     fci_version=10,
@@ -150,14 +150,14 @@ FR3 = RobotTable(
     v_elbow_max=1.5 - LIMIT_EPS,
     a_elbow_max=10.0 - LIMIT_EPS,
     j_elbow_max=5000.0 - LIMIT_EPS,
-    # Seed "The joint side of a Cartesian command": FR3 uniform 10 rad/s^2 /
+    # docs/fci-behaviour.md "The joint side of a Cartesian command": FR3 uniform 10 rad/s^2 /
     # 5000 rad/s^3 (libfranka >= 0.10), calibration factor 1.0.
     ik_ddq_max=_ro(np.full(7, 10.0)),
     ik_dddq_max=_ro(np.full(7, 5000.0)),
 )
 
 #: FER ("Panda") behind FCI v5: Franka docs control-parameters-joint-fer.csv and
-#: libfranka 0.9.2 rate_limiting.h (limits.md §3). Constant velocity limits.
+#: libfranka 0.9.2 rate_limiting.h (docs/limits.md §3). Constant velocity limits.
 FER = RobotTable(
     name="fer",
     fci_version=5,
@@ -179,7 +179,8 @@ FER = RobotTable(
     v_elbow_max=2.175 - LIMIT_EPS,
     a_elbow_max=10.0 - LIMIT_EPS,
     j_elbow_max=5000.0 - LIMIT_EPS,
-    # Seed calibration (FER, FCI v5): libfranka 0.9 per-joint tables, factor 1.0.
+    # docs/fci-behaviour.md "Calibration on an FER" (FCI v5): libfranka 0.9 per-joint tables, factor
+    # 1.0.
     ik_ddq_max=_ro([15, 7.5, 10, 12.5, 15, 20, 20]),
     ik_dddq_max=_ro([7500, 3750, 5000, 6250, 7500, 10000, 10000]),
 )

@@ -1,8 +1,9 @@
 """Violation bookkeeping: log always (once per error class per motion), abort only when enforced.
 
-Seed "Checking is always on; aborting is opt-in": every command is validated;
-a violation logs a warning naming the joint or axis, the value and the limit,
-once per error class per motion, with "(not enforced)" when the switch is off.
+docs/fci-behaviour.md "Checking is always on; aborting is opt-in": every command is validated;
+each violation is logged as a warning that says which joint or axis, by how much and
+against which limit, once per error class per motion ("(not enforced)" when the
+switch is off).
 ``seen`` keeps every violation (enforced or not) until the way in takes it,
 so the Gymnasium env can report what would have tripped with enforcement off.
 """
@@ -17,7 +18,7 @@ from .errors import ERROR_COUNT, ERROR_NAMES, Error
 
 log = logging.getLogger("franka_sim_gym.fci")
 
-#: Seed "joint_velocity_violation (3)": a commanded-envelope violation (13)
+#: docs/fci-behaviour.md "joint_velocity_violation (3)": a commanded-envelope violation (13)
 #: latches the safety controller's 3 with it, in the same abort.
 _PAIRED = {
     int(Error.joint_motion_generator_velocity_limits_violation): int(Error.joint_velocity_violation)

@@ -3,7 +3,7 @@
 "State is the wire" (design/architecture.md): the controller keeps its published
 RobotState in an array of ``ROBOT_STATE_DTYPE`` and the socket server sends
 ``states[i].tobytes()``; commands arrive as ``ROBOT_COMMAND_DTYPE`` records.
-All layouts are little-endian and packed (spec fci-wire-protocol.md conventions).
+All layouts are little-endian and packed (docs/wire-protocol.md conventions).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ in for, in that function's layer (``sim/_ik.c``: the IK solve; ``envs/_client_fi
 the libfranka client's filters), every constant passed in from the tables, never fused
 with the code of another layer. The numpy function stays the rule (the one the docs
 describe); a test holds the kernel to it. The controller's own rules (``fci/limits``)
-have no kernel: they are numpy only (docs/architecture.md, "Fast paths", says why).
+have no kernel: they are numpy only (docs/architecture.md, "One implementation per rule", says why).
 This package holds what the kernels share: the switch, the loader and the C headers
 ``_arrays.h`` (checked array arguments), ``_rotation.h`` and ``_ik_core.h``.
 

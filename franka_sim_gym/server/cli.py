@@ -1,7 +1,7 @@
 """`franka-sim-gym serve`: the simulated FR3 for libfranka clients (TCP 1337 + UDP),
 with the Franka Hand beside it (TCP 1338 + UDP) unless --no-gripper.
 
-Flags and environment variables carry the seed's names; a flag wins over its
+Flags and environment variables are those of docs/fci-behaviour.md; a flag wins over its
 FRANKA_SIM_* variable.
 """
 
@@ -201,7 +201,7 @@ def _servers(
     args: argparse.Namespace, config: ControllerConfig, options: ServerOptions
 ) -> tuple[RobotServer, GripperServer | None]:
     """The arm, and the Franka Hand on port 1338 of the same host unless --no-gripper
-    (seed "Gripper fidelity").
+    (docs/fci-behaviour.md "Gripper fidelity").
 
     The kinematic hand is not mounted on the arm. --gripper-physics mounts the
     hand (and the virtual object) in the arm's MuJoCo world, whose tick thread

@@ -1,9 +1,9 @@
 """The Franka Hand behind libfranka's gripper protocol v3 (TCP 1338 + UDP GripperState).
 
-Wire format: fci-wire-protocol.md §10 (10-byte header with a u16 command;
+Wire format: docs/wire-protocol.md §10 (10-byte header with a u16 command;
 Connect/Homing/Grasp/Move/Stop of 14/10/50/26/10 bytes; replies carry a u16
 status; a 23-byte GripperState datagram). Statuses and what libfranka makes of
-them: errors.md §2.4. Behaviour: state-and-command-fidelity.md "Gripper
+them: docs/errors.md §2.4. Behaviour: docs/fci-behaviour.md "Gripper
 fidelity".
 
 Threads:
@@ -47,14 +47,14 @@ from .request_queue import apply_pending
 
 log = logging.getLogger("franka_sim_gym.gripper")
 
-GRIPPER_PORT = 1338  # fci-wire-protocol.md §10
-VERSION = 3  # fci-wire-protocol.md §10: gripper server version 3
+GRIPPER_PORT = 1338  # docs/wire-protocol.md §10
+VERSION = 3  # docs/wire-protocol.md §10: gripper server version 3
 HEADER = struct.Struct("<HII")  # §10.1: command u16, command_id u32, size u32 (total)
 #: Our bound on one request: the largest real one (Grasp) is 50 bytes.
 MAX_REQUEST_SIZE = 256
 #: Model step (and physics poll) rate: our choice, 4 ms resolution on a motion.
 STEP_HZ = 250
-BROADCAST_HZ = 60.0  # seed "Gripper fidelity": GripperState over UDP at 60 Hz
+BROADCAST_HZ = 60.0  # docs/fci-behaviour.md "Gripper fidelity": GripperState over UDP at 60 Hz
 _STATUS = struct.Struct("<H")
 _CONNECT_REQ = struct.Struct("<HH")  # version, udp_port
 _GRASP_REQ = struct.Struct("<ddddd")  # width, epsilon inner, epsilon outer, speed, force
@@ -319,7 +319,7 @@ class GripperServer:
                 return
         except ValueError as exc:
             # A command the hand cannot execute: kFail, libfranka raises
-            # CommandException "Command failed!" (seed "Command coverage").
+            # CommandException "Command failed!" (docs/fci-behaviour.md "Command coverage").
             log.warning(
                 "gripper client %s: invalid-argument in %s (id %d): %s: answered kFail",
                 session.peer,
@@ -340,7 +340,7 @@ class GripperServer:
             session, command, command_id = entry
             # A Stop aborts the running Grasp/Move: we answer it kAborted. What the
             # real hand answers here (kAborted or kUnsuccessful) is not documented
-            # (fci-wire-protocol.md §10.2).
+            # (docs/wire-protocol.md §10.2).
             session.reply(command, command_id, _STATUS_OF[outcome])
 
     # -- the timer ----------------------------------------------------------------------------

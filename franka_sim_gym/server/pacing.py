@@ -2,7 +2,7 @@
 
 The robot's cycle is hard real time: every state leaves exactly 1 ms after the
 last, and a client has the whole millisecond to answer it (the command must be
-back before the next cycle, or that cycle is lost: seed "What the sim does with
+back before the next cycle, or that cycle is lost: docs/fci-behaviour.md "What the sim does with
 a lost cycle"). A simulator on a shared, non-real-time host sometimes runs a
 tick late. Catching up on the wall clock by running the missed ticks back to
 back would leave the client no time to answer the states of the burst, and

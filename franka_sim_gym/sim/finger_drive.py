@@ -14,7 +14,8 @@ Each tick (:meth:`FingerDrive.tick`, after the world stepped):
   PD, per finger = half the width) tracks it, with the ramp's velocity fed
   forward through the servo's damping term so the fingers do not lag it;
 * the servo's force range is the command's force: the commanded grasp force
-  is a limit on the finger force (seed "force is not a limit", closed here);
+  is a limit on the finger force (docs/gripper.md "Two backends, one protocol" (grasp force), closed
+  here);
 * the fingers are *stalled* when the reference is more than ``STALL_LEAD``
   ahead of them (something blocks them: the object, or the other finger);
 * a grasp, once stalled, squeezes: the reference jumps far past the fingers so

@@ -7,12 +7,12 @@ Two backends implement it: :class:`FrankaHand` here (kinematic, the default)
 and :class:`~franka_sim_gym.sim.physics_hand.PhysicsHand` (MuJoCo fingers on a
 PD servo, ``--gripper-physics``).
 
-Behaviour and constants come from the seed (state-and-command-fidelity.md,
-"Gripper fidelity") and the wire spec (fci-wire-protocol.md §10.2):
+Behaviour and constants: docs/fci-behaviour.md "Gripper fidelity", docs/gripper.md
+and docs/wire-protocol.md §10.2:
 
 * the stroke is 0 .. ``MAX_WIDTH`` = 0.08 m (the real hand's 8 cm);
 * ``move`` and ``grasp`` change the width at the commanded speed over time
-  (the seed's old kinematic backend snapped it; this one does not);
+  (a snapped width would hide the motion's duration);
 * an optional rigid virtual object ``object_width`` wide sits between the
   fingers (``--gripper-object-width``): a closing motion stalls there, opening
   is never blocked;
@@ -23,8 +23,8 @@ Behaviour and constants come from the seed (state-and-command-fidelity.md,
 * ``stop`` halts the fingers where they are (the real hand halts in place).
 
 The kinematic backend does not model force: the commanded force is validated
-but never applied (seed: "force is not a limit"; the physics backend applies
-it). It is deterministic: time advances only through :meth:`FrankaHand.step`.
+but never applied (docs/gripper.md "Two backends, one protocol" (grasp force); the physics backend
+applies it). It is deterministic: time advances only through :meth:`FrankaHand.step`.
 """
 
 from __future__ import annotations
@@ -35,17 +35,17 @@ from enum import Enum
 
 __all__ = ["MAX_WIDTH", "HOMING_SPEED", "TEMPERATURE_C", "Outcome", "HandModel", "FrankaHand"]
 
-#: Seed: "max_width constant 0.08 m — matches the real Franka Hand's 8 cm stroke".
+#: docs/fci-behaviour.md "Gripper fidelity": max_width is the hand's 0.08 m stroke.
 MAX_WIDTH = 0.08
 #: Homing speed [m/s]: libfranka's homing takes no speed and the real one is not
-#: documented in the seed or spec; this value is our choice.
+#: documented; this value is our choice.
 HOMING_SPEED = 0.05
-#: Seed: "temperature stub — constant 30 °C, always".
+#: docs/fci-behaviour.md "Gripper fidelity": temperature is a constant 30 °C.
 TEMPERATURE_C = 30
 
 
 class Outcome(Enum):
-    """How an action ended; maps to the gripper status of fci-wire-protocol.md §10.2."""
+    """How an action ended; maps to the gripper status of docs/wire-protocol.md §10.2."""
 
     SUCCESS = 0  # kSuccess: libfranka returns True
     UNSUCCESSFUL = 2  # kUnsuccessful: libfranka returns False
@@ -114,7 +114,7 @@ class HandModel:
         """Drive to ``width`` at ``speed``; returns the action id.
 
         Raises ValueError for a width outside the stroke or a non-finite or
-        non-positive speed (the server answers kFail: seed "Command coverage").
+        non-positive speed (the server answers kFail: docs/fci-behaviour.md "Command coverage").
         """
         self._check(width, speed)
         return self._start("move", float(width), float(speed))
@@ -129,7 +129,7 @@ class HandModel:
     ) -> int:
         """Close at ``speed`` until the fingers stall, then test the stall width.
 
-        The defaults 0.005 m are libfranka's (fci-wire-protocol.md §10.2).
+        The defaults 0.005 m are libfranka's (docs/wire-protocol.md §10.2).
         ``force`` [N] must be finite and non-negative; what a backend does with
         it is its own (the kinematic one ignores it, the physics one limits the
         finger force to it).

@@ -3,7 +3,7 @@
 On the robot, Desk's end-effector configuration (the Franka Hand) sets these
 RobotState fields: libfranka's Model adds the load to the URDF arm it computes
 with (``franka::Model`` takes the total load of m_ee and m_load;
-fci-wire-protocol.md §7.2), and the hand's TCP is the nominal end effector
+docs/wire-protocol.md §7.2), and the hand's TCP is the nominal end effector
 frame F_T_NE, "configured outside of libfranka (in DESK)" (libfranka
 include/franka/robot.h, "Nominal end effector frame NE"). The simulation's
 hand is a real MuJoCo subtree (models/hand.xml, franka_description's

@@ -7,11 +7,12 @@ gripper server's side: it turns Homing/Move/Grasp/Stop into drive commands and
 decides, from the samples it polls, when an action is over and how it went:
 
 * an action is *settled* after ``SETTLE_POLLS`` consecutive fresh polls of
-  near-zero finger velocity (seed "Command coverage": never a single one,
+  near-zero finger velocity (docs/fci-behaviour.md "Command coverage": never a single one,
   closing fingers pass through momentary quiet samples), taken once the ramp
   has ended or the fingers are stalled — otherwise a motion would "settle"
   before it started, while the fingers are still at rest;
-* an action not settled ``SETTLE_TIMEOUT`` (seed: 4 s) after its ramp's
+* an action not settled ``SETTLE_TIMEOUT`` (docs/fci-behaviour.md "Command coverage": 4 s) after its
+* ramp's
   nominal end is ended there (logged) and judged like a settled one;
 * a grasp is judged by libfranka's epsilon test on the stall width, a move or
   homing by reaching its target within ``MOVE_TOLERANCE``;
@@ -28,12 +29,12 @@ from .gripper import HandModel, Outcome, _Action
 
 log = logging.getLogger("franka_sim_gym.gripper")
 
-#: Seed "Command coverage": three consecutive near-zero-velocity polls.
+#: docs/fci-behaviour.md "Command coverage": three consecutive near-zero-velocity polls.
 SETTLE_POLLS = 3
 #: "Near zero" finger velocity [m/s of width]: a settling servo (~130 rad/s)
 #: moving this slowly is within ~10 um of where it stops.
 SETTLE_SPEED = 0.001
-#: Seed "Command coverage": 4 s timeout, counted here from the end of the
+#: docs/fci-behaviour.md "Command coverage": 4 s timeout, counted here from the end of the
 #: ramp so a slow commanded speed is not cut short.
 SETTLE_TIMEOUT = 4.0
 #: A settled move or homing within this of its target succeeded; farther, it

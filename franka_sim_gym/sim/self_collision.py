@@ -1,8 +1,8 @@
 """Distances between the arm's own links, read off MuJoCo's contact list.
 
 The safety controller's self_collision_avoidance_violation (2) fires when two
-links at least three apart in the chain come within 50 mm (seed
-"self_collision_avoidance_violation (2): the geometric half"). The arm's
+links at least three apart in the chain come within 50 mm (docs/fci-behaviour.md
+"self_collision_avoidance_violation (2)"). The arm's
 collision geoms carry a contact *reporting* band (models/fr3.xml: gap without
 margin, so a pair is listed in data.contact out to 50 mm with no constraint
 row): the physics and its contact forces are unchanged, only MuJoCo's field of
@@ -17,7 +17,8 @@ import numpy as np
 
 from .world import SELF_COLLISION_DISTANCE, ArmLayout
 
-#: Seed: "Only links at least three apart in the chain are monitored."
+#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three apart
+#: in the chain are monitored.
 MIN_CHAIN_SEPARATION = 3
 
 

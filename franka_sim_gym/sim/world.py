@@ -3,7 +3,7 @@
 Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
 (spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
 to each arm's ``flange`` site rotated Rz(-pi/4), as franka_description mounts
-it (fr3-model.md §5); ``object_width`` adds the gripper's rigid virtual object
+it (docs/fr3-model.md §5); ``object_width`` adds the gripper's rigid virtual object
 between each hand's fingertips (:func:`_add_object`). Every arm stands on the
 table (scene.py), and a scene fragment (``scene``) adds one copy of its bodies
 per arm. :class:`ArmLayout` holds every index the rest of the simulator needs,
@@ -27,7 +27,7 @@ HAND_XML: Path = MODEL_DIR / "hand.xml"
 #: The URDF GetRobotModel serves to libfranka clients (arm only, no hand).
 URDF_PATH: Path = MODEL_DIR / "fr3.urdf"
 
-#: The home pose (fr3-model.md §6), read-only.
+#: The home pose (docs/fr3-model.md §6), read-only.
 HOME_Q: np.ndarray = np.array(
     [0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4]
 )

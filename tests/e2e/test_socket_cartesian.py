@@ -20,8 +20,8 @@ def assert_clean_unless_cycles_were_lost(log: str) -> None:
     These servers run with checking on and aborting off (the default): a loaded
     machine that starves the client of a cycle makes the robot extrapolate, and a
     client resuming on a changing acceleration then trips a discontinuity — the
-    seed's real-robot trap, logged here rather than aborting a test about the
-    generators. With every cycle answered, no check may fire.
+    real-robot trap (docs/fci-behaviour.md "The real-robot trap you can now reproduce"), logged here
+    rather than aborting a test about the generators. With every cycle answered, no check may fire.
     """
     ended = re.findall(r"motion ended: (\w+) after \d+ cycles; lost (\d+)", log)
     assert ended and ended[0][0] == "kSuccess", log
@@ -46,7 +46,8 @@ def test_pylibfranka_cartesian_pose_example_moves_the_arc(serve, client):
 
 
 def test_pylibfranka_cartesian_velocity_example_arrives_within_2_mm(serve, client):
-    """The twist integral arrives in full (seed: a zero O_dP_EE_c made it 39 %)."""
+    """The twist integral arrives in full (docs/fci-behaviour.md "RobotState fields": a zero
+    O_dP_EE_c would make it 39 %)."""
     server, r = unstarved(
         serve, lambda server: client("pylibfranka", "cartesian_velocity", server.host)
     )

@@ -3,7 +3,7 @@
 franky's motions run libfranka's `Robot::control` loop in C++ (with its 100 Hz
 command low-pass filter), unlike pylibfranka's readOnce/writeOnce. Its
 constructor sends Connect, GetRobotModel x3 and SetCollisionBehavior
-(libfranka-client-behaviour.md §0), so every scenario exercises that sequence.
+(docs/libfranka-client.md §0), so every scenario exercises that sequence.
 """
 
 from __future__ import annotations
@@ -22,12 +22,12 @@ pytestmark = pytest.mark.socket
 CLIENT_TIMEOUT = 20.0
 
 HOME = np.array([0, -math.pi / 4, 0, -3 * math.pi / 4, 0, math.pi / 2, math.pi / 4])
-#: fr3-model.md §6: flange pose at home.
+#: docs/fr3-model.md §6: flange pose at home.
 HOME_FLANGE = np.array([0.306891, 0.0, 0.590282])
 HOME_FLANGE_ROTATION = np.array(
     [[0.707107, -0.707107, 0.0], [-0.707107, -0.707107, 0.0], [0.0, 0.0, -1.0]]
 )
-#: fr3-model.md §6 (libfranka's own model, no EE load).
+#: docs/fr3-model.md §6 (libfranka's own model, no EE load).
 HOME_GRAVITY = np.array([0.0, -1.7090, -0.6395, 18.9582, 0.7919, 1.5879, 0.0])
 HOME_MASS = np.array(
     [

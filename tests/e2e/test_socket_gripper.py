@@ -1,7 +1,7 @@
 """End to end: the Franka Hand on port 1338, driven by pylibfranka's and franky's Gripper.
 
-Behaviours: state-and-command-fidelity.md "Gripper fidelity"; wire format
-fci-wire-protocol.md §10; statuses errors.md §2.4.
+Behaviours: docs/fci-behaviour.md "Gripper fidelity"; wire format
+docs/wire-protocol.md §10; statuses docs/errors.md §2.4.
 """
 
 from __future__ import annotations

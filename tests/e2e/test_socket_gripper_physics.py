@@ -7,8 +7,8 @@ tests/e2e/test_socket_gripper.py; this file has the physics backend's own. The
 widths are measured from the finger joints after the PD servo settled, so
 they carry tolerances: the servo settles within ~20 um of a free target
 (tests/sim/test_physics_hand.py), and the fingertip pads stall 0.04 mm outside the
-virtual object (sim/world.py). Behaviours: state-and-command-fidelity.md
-"Gripper fidelity"; statuses errors.md §2.4.
+virtual object (sim/world.py). Behaviours: docs/fci-behaviour.md
+"Gripper fidelity"; statuses docs/errors.md §2.4.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ pytestmark = pytest.mark.socket
 
 HOME = np.array([0, -math.pi / 4, 0, -3 * math.pi / 4, 0, math.pi / 2, math.pi / 4])
 HOME_FLANGE = np.array([0.306891, 0.0, 0.590282])
-#: fr3-model.md §6 (libfranka's own model, no EE load).
+#: docs/fr3-model.md §6 (libfranka's own model, no EE load).
 HOME_GRAVITY = np.array([0.0, -1.7090, -0.6395, 18.9582, 0.7919, 1.5879, 0.0])
 HOME_MASS_DIAGONAL = np.array([0.4985, 1.5254, 0.9233, 0.8340, 0.0275, 0.0305, 0.0001])
 
@@ -28,7 +28,7 @@ def column_major(values) -> np.ndarray:
 
 
 def fk_flange(q: np.ndarray) -> np.ndarray:
-    """Forward kinematics from fr3-model.md §2.1 (modified DH), independent of the sim."""
+    """Forward kinematics from docs/fr3-model.md §2.1 (modified DH), independent of the sim."""
     dh = [
         (0, 0.333, 0),
         (0, 0, -math.pi / 2),

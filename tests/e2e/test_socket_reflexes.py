@@ -1,5 +1,5 @@
 """End to end with pylibfranka against `serve --enforce-motion-limits`: the hardware
-provocations of the seed raise the ControlException naming the robot's error; the robot
+provocations of docs/fci-behaviour.md raise the ControlException naming the robot's error; the robot
 then refuses a Move until AutomaticErrorRecovery, after which a fresh motion succeeds."""
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
     serve, client, provocation, error
 ):
     # With enforcement on, a cycle a loaded machine steals from the client's next motion
-    # trips a discontinuity when its stream resumes (the seed's real-robot trap). Such an
-    # attempt (the next motion aborted after lost cycles, by the server's own count)
-    # proves nothing about recovery and is repeated; any other outcome is judged.
+    # trips a discontinuity when its stream resumes (the real-robot trap (docs/fci-behaviour.md "The
+    # real-robot trap you can now reproduce")). Such an attempt (the next motion aborted after lost
+    # cycles, by the server's own count) proves nothing about recovery and is repeated; any other
+    # outcome is judged.
     for _attempt in range(3):
         server = serve("--enforce-motion-limits")
         r = client("pylibfranka", "reflex", server.host, env={"REFLEX": provocation}, timeout=90)

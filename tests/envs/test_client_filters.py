@@ -1,4 +1,4 @@
-"""libfranka's client-side low-pass filter and rate limiter (limits.md §6), batch-first."""
+"""libfranka's client-side low-pass filter and rate limiter (docs/limits.md §6), batch-first."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ DT = 1e-3
 HOME = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
 A = FR3.ddq_max  # kMaxJointAcceleration = 9.999
 J = FR3.dddq_max  # kMaxJointJerk = 4999.999
-#: What the robot checks (limits.md §5): the limits themselves, 1e-3 above libfranka's targets.
+#: What the robot checks (docs/limits.md §5): the limits themselves, 1e-3 above libfranka's targets.
 ROBOT_DDQ = 10.0
 ROBOT_DDDQ = 5000.0
 

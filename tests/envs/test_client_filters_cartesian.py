@@ -73,7 +73,7 @@ def test_cartesian_limits_are_fr3_rate_limiting_h_values():
 def test_cartesian_lowpass_translation_is_the_100hz_gain_mix():
     T_c, T_ref = _pose(t=(1.0, -2.0, 0.5)), _pose(t=(0.0, 1.0, 0.25))
     out = cart.cartesian_lowpass_filter(T_c[None], T_ref[None], 100.0)[0]
-    g = 0.385870  # limits.md's table value at 100 Hz
+    g = 0.385870  # docs/limits.md's table value at 100 Hz
     np.testing.assert_allclose(out[:3, 3], g * T_c[:3, 3] + (1 - g) * T_ref[:3, 3], atol=2e-6)
     np.testing.assert_allclose(out[:3, :3], np.eye(3), atol=1e-15)
     np.testing.assert_array_equal(out[3], [0.0, 0.0, 0.0, 1.0])

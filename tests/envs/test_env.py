@@ -250,7 +250,7 @@ def test_the_gripper_dimension_drives_the_hand_at_its_speed():
 
 
 def test_the_mounted_hand_is_in_the_arm_dynamics():
-    # fr3-model.md §6 / the model's hand: joint 4 holds 18.96 Nm bare, ~22.26 Nm with the hand
+    # docs/fr3-model.md §6 / the model's hand: joint 4 holds 18.96 Nm bare, ~22.26 Nm with the hand
     bare, hand = gym.make("FrankaFCI-v0"), gym.make("FrankaFCI-v0", gripper=True)
     torques = []
     for env in (bare, hand):

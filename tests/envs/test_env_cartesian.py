@@ -2,8 +2,8 @@
 
 The env plays a libfranka Cartesian client (envs/commands.py): O_T_EE_c or O_dP_EE_c
 per cycle, filtered by libfranka's cartesianLowpassFilter and Cartesian limitRate. The
-robot judges both the Cartesian stream and, for a pose, its IK joint trajectory (seed,
-"The joint side of a Cartesian command (29, 30)").
+robot judges both the Cartesian stream and, for a pose, its IK joint trajectory
+(docs/fci-behaviour.md "The joint side of a Cartesian command").
 """
 
 from __future__ import annotations

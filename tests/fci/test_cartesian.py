@@ -1,7 +1,7 @@
 """The Cartesian generators in-process: driven through IK, the three regimes of the commanded
-fields, every row of the seed's Cartesian tables provoked to exactly its index, the
-lost-cycle laws, and the seed's calibration replay (seed "The joint side of a Cartesian
-command (29, 30)")."""
+fields, every row of the Cartesian tables of docs/motion-limits.md provoked to exactly its index,
+the lost-cycle laws, and the calibration replay (docs/fci-behaviour.md "Calibration on an FER"; "The
+joint side of a Cartesian command")."""
 
 from __future__ import annotations
 
@@ -92,7 +92,8 @@ def test_cartesian_pose_motion_moves_the_arm_to_the_commanded_pose():
 
 
 def test_cartesian_velocity_motion_moves_the_arm_by_the_twist_integral():
-    """A 5 cm twist integral arrives within 2 mm (seed: not 39 % of it)."""
+    """A 5 cm twist integral arrives within 2 mm (docs/fci-behaviour.md "RobotState fields": not 39
+    % of it)."""
     c = start(CV, enforce_motion_limits=True)
     x0 = float(c.state["O_T_EE"][12])
     start_pose = np.array(c.state["O_T_EE_d"])
@@ -381,7 +382,8 @@ def test_non_finite_twist_is_refused_as_18_whatever_the_enforcement():
 
 
 def test_lost_cycles_of_a_constant_acceleration_pose_stream_are_extrapolated_onto_it():
-    """Seed: a stream whose acceleration is constant is extrapolated onto its own next
+    """docs/fci-behaviour.md "The real-robot trap you can now reproduce": a stream whose
+    acceleration is constant is extrapolated onto its own next
     waypoints; resuming after a gap trips nothing."""
     c = start(CP, enforce_motion_limits=True)
     T0 = pose0(c)
@@ -408,13 +410,14 @@ def test_twist_is_held_through_lost_cycles_and_stops_after_20():
     assert c.state["O_dP_EE_c"][0] == 0.0  # past the bound the arm stands still
 
 
-# -- the seed's calibration replay --------------------------------------------------------------
+# -- the calibration replay (docs/fci-behaviour.md "Calibration on an FER") ------------------------
 
 CALIBRATION_Q = [-0.046, -0.873, -0.104, -2.437, -0.051, 1.617, 0.748]
 
 
 def _calibration(robot: str) -> LoopClient:
-    """The seed's FER calibration set-up: start q, the Franka Hand's F_T_EE
+    """The FER calibration set-up (docs/fci-behaviour.md "Calibration on an FER"): start q, the
+    Franka Hand's F_T_EE
     (Rz(45 deg), 0.1034 m), 0.5 s at rest before the ramp."""
     ctrl = make_controller(robot=robot, enforce_motion_limits=True)
     ctrl.reset([0], np.array([CALIBRATION_Q]))
@@ -445,7 +448,8 @@ def _calibration(robot: str) -> LoopClient:
     ],
 )
 def test_fer_calibration_replay(v, a, j, trip, names):
-    """Seed "Calibration (FER ...)": the 13 m/s^2 ramp refused within the first cycles
+    """docs/fci-behaviour.md "Calibration on an FER": the 13 m/s^2 ramp refused within the first
+    cycles
     with 29 and 30; the 2.5 m/s^2 ramp refused with 29 alone on the cycle where the
     per-cycle velocity increment reaches 2.5 mm/s (steps 0.5, 1.5, 3, 5, 7.5 um); the
     1.5 m/s^2 and slower ramps pass."""

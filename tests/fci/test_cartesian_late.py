@@ -1,4 +1,4 @@
-"""Late Cartesian datagrams, in-process and cycle by cycle (seed "Communication
+"""Late Cartesian datagrams, in-process and cycle by cycle (docs/fci-behaviour.md "Communication
 constraints", "A datagram that turns up late replaces the guess it stood in for").
 
 The datagram an extrapolated run is missing rewinds the pose / twist history (and the

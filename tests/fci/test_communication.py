@@ -1,4 +1,5 @@
-"""Communication constraints in-process, cycle by cycle (seed "Communication constraints")."""
+"""Communication constraints in-process, cycle by cycle (docs/fci-behaviour.md "Communication
+constraints")."""
 
 from __future__ import annotations
 
@@ -109,9 +110,10 @@ def test_a_backlog_draining_in_order_gets_the_rewind_and_no_spurious_error():
 
 
 def test_a_reordered_backlog_is_judged_against_the_states_it_answers_and_drains_clean():
-    # The seed warns that a reordered backlog "can draw a spurious discontinuity report":
-    # here each late datagram is judged against the reference of the state it answers
-    # (what it would have met on time), so it does not.
+    # docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for": a
+    # reordered backlog "can draw a spurious discontinuity report": here each late datagram is
+    # judged against the reference of the state it answers (what it would have met on time), so it
+    # does not.
     ctrl, c, q0 = started()  # enforcement on
     stride = dict(a=4.0)
     for k in range(0, 100):

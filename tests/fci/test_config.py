@@ -1,4 +1,5 @@
-"""The controller configuration: the seed's switches, their environment variables, the robots."""
+"""The controller configuration: the switches of docs/fci-behaviour.md, their environment variables,
+the robots."""
 
 from __future__ import annotations
 

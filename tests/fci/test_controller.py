@@ -15,7 +15,7 @@ from franka_sim_gym.sim.world import HOME_Q
 from tests.fci_helpers import EXT, IMP, JP, JV, NONE, LoopClient, make_controller
 
 HOME_FLANGE = np.array([0.306891, 0.0, 0.590282])
-#: fr3-model.md §6: gravity at home, no EE load.
+#: docs/fr3-model.md §6: gravity at home, no EE load.
 HOME_GRAVITY = np.array([0.0, -1.7090, -0.6395, 18.9582, 0.7919, 1.5879, 0.0])
 
 

@@ -1,4 +1,4 @@
-"""The error enum and its rendering match errors.md §1."""
+"""The error enum and its rendering match docs/errors.md §1."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from franka_sim_gym.fci.errors import (
     format_errors,
 )
 
-# errors.md §1, column "Errors attribute", transcribed in index order.
+# docs/errors.md §1, column "Errors attribute", transcribed in index order.
 ATTRIBUTES = [
     "joint_position_limits_violation",
     "cartesian_position_limits_violation",

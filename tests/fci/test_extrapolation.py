@@ -1,4 +1,5 @@
-"""The lost-cycle laws (seed "What the sim does with a lost cycle"), including the Cartesian
+"""The lost-cycle laws (docs/fci-behaviour.md "What the sim does with a lost cycle"), including the
+Cartesian
 ones the Cartesian generators will use."""
 
 from __future__ import annotations

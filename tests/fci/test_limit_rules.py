@@ -1,9 +1,9 @@
 """The pure motion-limit rules: one provocation and one conforming twin per row.
 
-Rows and precedence: the seed's "What is checked, and what it latches" and
+Rows and precedence: docs/fci-behaviour.md "What is checked, and what it latches" and
 "Which discontinuity you get depends on the interface"; the safety controller:
 "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)". Numbers
-are the FR3 tables (limits.md §1, §4). Each provocation trips exactly the row it
+are the FR3 tables (docs/limits.md §1, §4). Each provocation trips exactly the row it
 is named after (the ``check`` of its description says which row), and a
 conforming stream just inside the same limit (0.99 x) trips nothing.
 """
@@ -40,9 +40,9 @@ from franka_sim_gym.fci.tables import FER, FR3
 pytestmark = pytest.mark.filterwarnings("error")
 
 DT = 1e-3
-TOL = 0.1  # seed "Two deliberate departures": 0.1 rad and 0.1 rad/s (sim choices)
+TOL = 0.1  # docs/fci-behaviour.md "Two deliberate departures": 0.1 rad and 0.1 rad/s (sim choices)
 HOME = np.array([0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4])
-# limits.md §4, reference values of the FR3 envelope at HOME.
+# docs/limits.md §4, reference values of the FR3 envelope at HOME.
 HOME_UPPER = (2.619, 2.619, 2.619, 2.619, 5.259, 4.179, 5.259)
 HOME_LOWER = (-2.619, -2.0800, -2.619, -2.0517, -5.259, -3.0148, -5.259)
 Z = np.zeros(7)
@@ -155,7 +155,8 @@ def test_range_outranks_the_envelope_mid_motion():
 
 
 def test_first_q_c_away_from_q_d_is_11_start_pose():
-    # The seed's reference provocation: +0.2 rad on joint 1 on the opening command.
+    # The classic provocation (docs/fci-behaviour.md "Two deliberate departures"): +0.2 rad on joint
+    # 1 on the opening command.
     error, why, _ = position(on(0, 0.2, HOME), first=True)
     assert error == E11
     assert (why.check, why.joint, why.limit) == ("start pose", 0, TOL)
@@ -170,7 +171,8 @@ def test_start_pose_outranks_discontinuity_but_not_range():
     jump = on(0, 0.2, HOME)
     assert position(jump, first=True)[0] == E11  # 200 rad/s implied: still 11
     assert position(jump, first=False)[0] == E14  # the same step mid-motion
-    # Out of range *and* away from q_d: 12 (seed: a sim ordering).
+    # Out of range *and* away from q_d: 12 (docs/fci-behaviour.md "Which discontinuity you get
+    # depends on the interface": our ordering).
     q_start = on(0, 0.0, HOME)
     q_start[0] = 2.70
     q_c = q_start.copy()
@@ -227,7 +229,7 @@ def test_smoothly_too_fast_is_13():
 
 
 def test_smoothly_too_fast_on_the_lower_envelope_is_13():
-    # Joint 2 at -pi/4: the lower envelope is -2.0800, not -2.62 (limits.md §4).
+    # Joint 2 at -pi/4: the lower envelope is -2.0800, not -2.62 (docs/limits.md §4).
     v = on(1, -2.10)
     error, why, _ = position(moving(v), dq_prev=v)
     assert (error, why.joint) == (E13, 1)
@@ -262,7 +264,7 @@ def test_discontinuity_outranks_envelope_outranks_jerk():
     # 14 and 13 at once: 14.
     v0, a = on(0, 2.61), on(0, 20.0)
     assert position(moving(v0 + a * DT), dq_prev=v0, ddq_prev=a)[0] == E14
-    # 13 and 15 at once: 13 (the seed's table lists the envelope before the jerk).
+    # 13 and 15 at once: 13 (docs/motion-limits.md lists the envelope before the jerk).
     v0 = on(0, 2.65)
     assert position(moving(v0 + on(0, 6.0) * DT), dq_prev=v0)[0] == E13
 
@@ -512,7 +514,8 @@ def test_robots_in_one_call_get_independent_results():
 
 
 def _oracle_position(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps):
-    """The seed's q_c table read row by row, one robot, plain Python control flow."""
+    """The q_c table of docs/motion-limits.md read row by row, one robot, plain Python control
+    flow."""
     h = steps * DT
     dq = (q_c - q_prev) / h
     ddq = (dq - dq_prev) / h

@@ -1,4 +1,4 @@
-"""TCP messages of robot server v10 (fci-wire-protocol.md §2-§6) and our framing contract."""
+"""TCP messages of robot server v10 (docs/wire-protocol.md §2-§6) and our framing contract."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The reflex lifecycle and the safety controller, in-process (seed: "Checking is always on;
+"""The reflex lifecycle and the safety controller, in-process (docs/fci-behaviour.md "Checking is
+always on;
 aborting is opt-in", "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
 "self_collision_avoidance_violation (2)", "Enabling the violation")."""
 

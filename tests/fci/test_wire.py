@@ -1,4 +1,4 @@
-"""The wire dtypes match the byte tables of fci-wire-protocol.md §7, §8, §10.3 exactly."""
+"""The wire dtypes match the byte tables of docs/wire-protocol.md §7, §8, §10.3 exactly."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Every one of the twelve v10 TCP commands is answered, with the seed's status
+"""Every one of the twelve v10 TCP commands is answered, with the robot's status
 (libfranka has no reply timeout: one unanswered request hangs a client for ever)."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The kinematic Franka Hand (franka_sim_gym.sim.gripper), stepped by hand.
 
-Behaviours: state-and-command-fidelity.md "Gripper fidelity".
+Behaviours: docs/fci-behaviour.md "Gripper fidelity".
 """
 
 from __future__ import annotations

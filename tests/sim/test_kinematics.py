@@ -21,7 +21,8 @@ def test_forward_kinematics_is_the_physics_flange_pose():
     p, R = physics.flange_pose()
     np.testing.assert_allclose(T[:, :3, 3], p, atol=1e-12)
     np.testing.assert_allclose(T[:, :3, :3], R, atol=1e-12)
-    np.testing.assert_allclose(T[0, :3, 3], [0.306891, 0.0, 0.590282], atol=1e-4)  # fr3-model.md
+    # docs/fr3-model.md
+    np.testing.assert_allclose(T[0, :3, 3], [0.306891, 0.0, 0.590282], atol=1e-4)
 
 
 def test_jacobian_matches_finite_differences_at_a_tool_frame():

@@ -1,7 +1,7 @@
 """The FR3 model: kinematics, dynamics, served URDF, collision set, world layout.
 
-Reference numbers are fr3-model.md §6 (libfranka's own model of the served
-URDF) and limits.md §4.
+Reference numbers are docs/fr3-model.md §6 (libfranka's own model of the served
+URDF) and docs/limits.md §4.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from franka_sim_gym.sim.world import (
     report_band_params,
 )
 
-# fr3-model.md §6
+# docs/fr3-model.md §6
 FLANGE_HOME_POS = np.array([0.306891, 0.0, 0.590282])
 FLANGE_HOME_ROT = np.array(
     [[0.707107, -0.707107, 0.0], [-0.707107, -0.707107, 0.0], [0.0, 0.0, -1.0]]
@@ -42,7 +42,7 @@ MASS_HOME = np.array(
         [0.0004, -0.0023, 0.0008, 0.0007, -0.0001, 0.0002, 0.0001],
     ]
 )
-# limits.md §4: (v_max, v_off, a_dec, q_min, q_max, effort) per joint
+# docs/limits.md §4: (v_max, v_off, a_dec, q_min, q_max, effort) per joint
 URDF_JOINT_PARAMS = [
     (2.62, 0.30, 6.0, -2.7501, 2.7501, 87),
     (2.62, 0.20, 2.585, -1.7918, 1.7918, 87),

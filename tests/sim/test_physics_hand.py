@@ -2,7 +2,7 @@
 
 The arm holds home while the tick hook (FingerDrive.tick) runs after every 1 ms
 step, and the hand is polled every 4 ticks as the gripper server's 250 Hz
-timer polls it. Behaviours: state-and-command-fidelity.md "Gripper fidelity",
+timer polls it. Behaviours: docs/fci-behaviour.md "Gripper fidelity",
 with its listed divergences closed (force is a limit, stop halts in place,
 is_grasped appears as the fingers close).
 
@@ -169,7 +169,7 @@ def test_undisturbed_move_settles_long_before_the_timeout(caplog):
     ids=["within-tolerance", "short-of-target"],
 )
 def test_fingers_that_never_settle_are_answered_at_the_timeout(caplog, offset, outcome):
-    """Seed "Command coverage": 4 s timeout, here from the ramp's nominal end; the
+    """docs/fci-behaviour.md "Command coverage": 4 s timeout, here from the ramp's nominal end; the
     action is then judged like a settled one (physics_hand.py)."""
     caplog.set_level(logging.WARNING, logger="franka_sim_gym.gripper")
     rig = Rig()

@@ -3,7 +3,7 @@
 Every ``check_*`` function takes arrays with a leading robot axis n ((n, 7) for
 joint signals) and returns an (n,) int64 ``error``: the :class:`~..errors.Error`
 index the robot latches this cycle, or ``NO_ERROR`` (-1). One index per robot:
-within a generator the rows of the seed's table "What is checked, and what it
+within a generator the rows of docs/fci-behaviour.md "What is checked, and what it
 latches" are in precedence order and the first tripped row wins. The per-cycle
 path is a fixed handful of numpy operations, with no Python loop over robots or
 joints; the matching ``describe_*`` function (same arguments plus the robot
@@ -19,19 +19,19 @@ the joint, value and limit for the log line (:class:`Violation`).
 
 What the caller does, not these functions:
 
-* **13 latches 3 with it.** Seed "joint_velocity_violation (3)": when the
+* **13 latches 3 with it.** docs/fci-behaviour.md "joint_velocity_violation (3)": when the
   commanded-envelope check (13) trips during a motion, the sim latches the safety
-  controller's 3 alongside it in the same abort (no margin: "The margin is not
-  applied when the only question is which name an already-certain violation
-  gets"). These functions return one index per generator; pairing 13 with 3 is
+  controller's 3 alongside it in the same abort, without the measured check's
+  margin: the margin only guards against a false trip, and here the violation is
+  already certain. These functions return one index per generator; pairing 13 with 3 is
   the caller's.
 * The safety controller (3, 4, and 2 elsewhere) is not in any generator's chain:
   "they never preempt any row below and no row below preempts them". The caller
   ORs :func:`safety_error` into the latched bits next to the generator's error.
-* Choosing the interval ``steps`` (seed "The difference formulas": the server's
+* Choosing the interval ``steps`` (docs/fci-behaviour.md "The difference formulas": the server's
   own count of published cycles since the command the history sits at, never
   widened by the client's echo) and keeping the history. A non-finite command
-  is refused whether or not enforcement is on (seed: NaN "poisons the backward
+  is refused whether or not enforcement is on (docs/fci-behaviour.md: NaN "poisons the backward
   differences it would be recorded into"), so it must never be recorded; the
   derivatives these functions return for it are NaN / inf.
 * Logging once per error class per motion, and aborting only under
@@ -39,9 +39,9 @@ What the caller does, not these functions:
 
 Constants: every threshold comes from :mod:`..tables` (``ddq_max``, ``dddq_max``
 and ``dtau_max`` already "limit - 1e-3", the envelope's tolerance inside
-``velocity_envelope``); the start tolerances are arguments (seed "Two deliberate
+``velocity_envelope``); the start tolerances are arguments (docs/fci-behaviour.md "Two deliberate
 departures": 0.1 rad, 0.1 rad/s, sim choices; ``ControllerConfig`` holds them);
-the only constant defined here is ``MEASURED_VELOCITY_MARGIN`` (0.1 rad/s, seed
+the only constant defined here is ``MEASURED_VELOCITY_MARGIN`` (0.1 rad/s, docs/fci-behaviour.md
 "joint_velocity_violation (3)").
 """
 

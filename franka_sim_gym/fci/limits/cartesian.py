@@ -1,5 +1,5 @@
 """Cartesian motion generators: the O_T_EE_c rows, the O_dP_EE_c rows, the elbow and the
-joint side of a Cartesian command (seed "What is checked, and what it latches").
+joint side of a Cartesian command (docs/fci-behaviour.md "What is checked, and what it latches").
 
 Rows in precedence order (the first row that trips is the error latched):
 
@@ -26,14 +26,14 @@ elbow_c             joint-3 range, velocity, acceleration, jerk       17
 ==================  ===============================================  =====
 
 The Cartesian limits are norms of the translational and rotational halves
-(seed: "that is how limitRate treats O_dP_EE_c"), with no 0.99 factor on the
-rotation (seed "Two deliberate departures"). The orientation's derivatives
+(docs/fci-behaviour.md "What is checked, and what it latches"), with no 0.99 factor on the
+rotation (docs/fci-behaviour.md "Two deliberate departures"). The orientation's derivatives
 are taken in the body frame — the frame the lost-cycle law composes the
-rotation increment in (seed: "rotation composed on the right") — so an
+rotation increment in (docs/fci-behaviour.md "What the sim does with a lost cycle") — so an
 extrapolated pose stream is differenced onto its own frozen acceleration.
 
 All functions are pure and batch-first; derivatives are backward Euler over
-``steps * dt`` as for q_c (seed "The difference formulas").
+``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas").
 """
 
 from __future__ import annotations
@@ -60,7 +60,8 @@ from .precedence import NO_ERROR, Violation
 
 _E = Error
 
-#: Seed "Cartesian pose ..." rows after 31 (which is refused on arrival, like a NaN).
+#: docs/motion-limits.md (the Cartesian pose table) rows after 31 (which is refused on arrival, like
+#: a NaN).
 POSE_CODES = np.array(
     [
         _E.cartesian_position_motion_generator_start_pose_invalid,  # 16
@@ -87,7 +88,8 @@ POSE_ROWS = (
     "elbow",
 )
 
-#: Seed "Cartesian velocity" rows: "everything shifts by one" — both differences are 20.
+#: docs/motion-limits.md (the Cartesian velocity table) rows: "everything shifts by one" — both
+#: differences are 20.
 TWIST_CODES = np.array(
     [
         _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 acceleration
@@ -102,7 +104,8 @@ TWIST_CODES = np.array(
 TWIST_ROWS = ("acceleration", "jerk", "velocity", "IK joint acceleration", "elbow sign", "elbow")
 
 #: Column of the IK-acceleration row (29) in POSE_CODES; 30 follows it. A command
-#: that breaks both latches both bits (seed: "latched together with 29").
+#: that breaks both latches both bits (docs/fci-behaviour.md "The joint side of a Cartesian
+#: command").
 POSE_IK_ROW = 6
 
 

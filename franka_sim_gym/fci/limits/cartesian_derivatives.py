@@ -2,9 +2,9 @@
 axis, rotation as the body-frame rotation vector), the elbow's and the IK solution's
 (the joint side), with the named views the rules read.
 
-Backward Euler over ``steps * dt`` as for q_c (seed "The difference formulas"); the
+Backward Euler over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas"); the
 orientation's derivatives in the body frame, the frame the lost-cycle law composes
-the rotation increment in (seed: "rotation composed on the right").
+the rotation increment in (docs/fci-behaviour.md "What the sim does with a lost cycle").
 """
 
 from __future__ import annotations

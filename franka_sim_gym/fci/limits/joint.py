@@ -1,6 +1,6 @@
 """Joint motion generators: the q_c rows (11-15) and the dq_c rows (13, 15).
 
-Seed "What is checked, and what it latches", rows in precedence order:
+docs/fci-behaviour.md "What is checked, and what it latches", rows in precedence order:
 
 ========  ============================================  =====
 q_c       inside the joint range                         12
@@ -14,7 +14,7 @@ dq_c      implied jerk                                    15
 dq_c      dq_c inside the envelope at q_d                 13
 ========  ============================================  =====
 
-Derivatives are backward Euler (libfranka docs/overview.rst, seed "The
+Derivatives are backward Euler (libfranka docs/overview.rst, docs/fci-behaviour.md "The
 difference formulas") over ``steps * dt``: dq = (q_c - q_prev) / (steps dt),
 ddq = (dq - dq_prev) / (steps dt), dddq = (ddq - ddq_prev) / (steps dt).
 """
@@ -41,11 +41,11 @@ from .precedence import (
 
 _E = Error
 
-# Seed "What is checked ...", joint-position rows in precedence order. 12 comes
-# before 11 ("Start-pose outranks every discontinuity ... It does not outrank the
+# docs/fci-behaviour.md "What is checked, and what it latches", joint-position rows in precedence
+# order. 12 comes before 11 ("Start-pose outranks every discontinuity ... It does not outrank the
 # joint-range check": a sim ordering, no hardware evidence), 11 before every
 # discontinuity, and the discontinuity (14) before the envelope (13) ("a 1 rad
-# step in q_c is 14, never 13"). 15 last, as the seed's table lists it. The
+# step in q_c is 14, never 13"). 15 last, as docs/motion-limits.md lists it. The
 # start-pose row applies only to a motion's first command; the derivative rows
 # only after it (the motion starts at rest: the start-pose check is the check).
 _POSITION = Precedence(
@@ -60,11 +60,11 @@ _POSITION = Precedence(
     later_only=(2, 3, 4),
 )
 
-# Seed "Which discontinuity you get depends on the interface": on dq_c both the
+# docs/fci-behaviour.md "Which discontinuity you get depends on the interface": on dq_c both the
 # first and the second difference are named 15 ("a 50 rad/s step in dq_c is 15,
 # never 13 or 14"), and every discontinuity outranks the envelope (13). Row 0,
-# non-finite, is ours: the seed's "any" row names it the generator's limits
-# violation (13); it must come first, since inf would otherwise read as a 15
+# non-finite, is ours: docs/fci-behaviour.md "What is checked, and what it latches" names it the
+# generator's limits violation (13); it must come first, since inf would otherwise read as a 15
 # step and NaN would pass every `>` comparison below.
 _VELOCITY = Precedence(
     codes=(
@@ -106,10 +106,10 @@ def _position_terms(
     dq = (q_c - q_prev) / h
     ddq = (dq - dq_prev) / h
     dddq = (ddq - ddq_prev) / h
-    # limits.md §4: the envelope is evaluated at the reference (q_d), never at q.
+    # docs/limits.md §4: the envelope is evaluated at the reference (q_d), never at q.
     upper, lower = table.velocity_envelope(q_prev) if envelope is None else envelope
     masks = [
-        # Written as "not inside", so NaN lands here (seed: a non-finite command is
+        # Written as "not inside", so NaN lands here (docs/fci-behaviour.md: a non-finite command is
         # "the limits violation of the generator it arrived in", i.e. 12 for q_c).
         ~((q_c >= table.q_lower) & (q_c <= table.q_upper)),
         None if q_start is None else np.abs(q_c - q_start) > start_tolerance,
@@ -144,8 +144,9 @@ def check_joint_position(
         steps: (n,) int >= 1, published cycles since the command the history sits
             at (or a scalar for all robots).
         table: the robot's limits.
-        start_tolerance: start-pose tolerance [rad] (seed: 0.1, a sim choice).
-        envelope: ``table.velocity_envelope(q_prev)`` when the caller already has it.
+        start_tolerance: start-pose tolerance [rad] (docs/fci-behaviour.md "Two deliberate
+        departures": 0.1, a sim choice). envelope: ``table.velocity_envelope(q_prev)`` when the
+        caller already has it.
 
     Returns:
         ``PositionCheck(error, dq, ddq)``: error (n,) int64 is 12, 11, 14, 13, 15
@@ -221,7 +222,7 @@ def _velocity_terms(dq_c, q_prev, dq_prev, ddq_prev, dq_start, steps, table, sta
     h = interval(steps)
     ddq = (dq_c - dq_prev) / h
     dddq = (ddq - ddq_prev) / h
-    # limits.md §4: evaluated at q_d on the joint-velocity interface.
+    # docs/limits.md §4: evaluated at q_d on the joint-velocity interface.
     upper, lower = table.velocity_envelope(q_prev)
     masks = [
         ~np.isfinite(dq_c),
@@ -257,7 +258,8 @@ def check_joint_velocity(
         dq_start: (n, 7) the robot's dq_d when the motion started (read where ``first``).
         steps: (n,) int >= 1, published cycles since the command the history sits at.
         table: the robot's limits.
-        start_tolerance: start-velocity tolerance [rad/s] (seed: 0.1, a sim choice).
+        start_tolerance: start-velocity tolerance [rad/s] (docs/fci-behaviour.md "Two deliberate
+        departures": 0.1, a sim choice).
 
     Returns:
         ``VelocityCheck(error, ddq)``: error (n,) int64 is 13 (non-finite), 15 (start

@@ -4,7 +4,7 @@ Every rule function stacks its per-joint findings into one (n, rows, joints)
 bool array — [i, k, j] means "row k of this generator's precedence table trips
 on robot i's joint j" — reduces it over the joints, packs each robot's rows
 into one byte and looks that up in a table mapping a row bitmask to the error
-of the *first* row that is set (seed "What is checked, and what it latches":
+of the *first* row that is set (docs/fci-behaviour.md "What is checked, and what it latches":
 "the first row whose condition trips is the error you get"). That keeps the
 per-cycle path to a handful of numpy operations whatever the number of rows,
 with no Python loop over robots or joints.
@@ -30,7 +30,7 @@ class Violation:
 
     ``joint`` is the 0-based joint index (``-1`` when the signal is not per
     joint, e.g. the end-effector speed); :meth:`message` prints it 1-based,
-    as the seed's log lines and Franka's tables number joints 1-7.
+    as our log lines (docs/fci-behaviour.md) and Franka's tables number joints 1-7.
     ``value`` is the offending (signed) value of ``signal``'s checked quantity,
     ``limit`` the bound it crossed (the magnitude for a symmetric ``|x| <=``
     limit; NaN for a non-finite command, which has no bound), ``check`` which
@@ -46,7 +46,7 @@ class Violation:
     check: str = ""
 
     def message(self) -> str:
-        """The seed's log line ("Checking is always on; aborting is opt-in"), e.g.
+        """The log line of docs/fci-behaviour.md "Checking is always on; aborting is opt-in", e.g.
 
         ``joint_motion_generator_velocity_discontinuity: q_c joint 4 = 294.395 rad/s^2,
         limit 9.999 rad/s^2 (acceleration)``.
@@ -133,7 +133,7 @@ def as_bool(first) -> np.ndarray:
 def interval(steps) -> np.ndarray | float:
     """(n, 1) differencing interval ``steps * dt`` [s] (or (1, 1) for a scalar ``steps``).
 
-    The seed ("The difference formulas"): the interval is the server's own count
+    (docs/fci-behaviour.md "The difference formulas"): the interval is the server's own count
     of published cycles since the command the history sits at, not an assumed
     millisecond. ``steps`` >= 1 is the caller's precondition.
     """
@@ -156,7 +156,7 @@ def describe_row(row: Row, tripped: np.ndarray) -> Violation:
     tripped = np.asarray(tripped, dtype=bool).reshape(-1)
     bad = tripped & ~np.isfinite(value)
     if bad.any():
-        # NaN / inf has no distance to a bound (seed: a non-finite command is
+        # NaN / inf has no distance to a bound (docs/fci-behaviour.md: a non-finite command is
         # "the limits violation of the generator"): name the first such joint.
         j = int(np.flatnonzero(bad)[0])
         nan = float("nan")

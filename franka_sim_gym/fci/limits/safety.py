@@ -1,8 +1,8 @@
 """The safety controller's velocity halves, on measured state: errors 3 and 4.
 
-Seed "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)". Not
-part of any generator's precedence chain (seed "What is checked ..."); judged
-once per cycle in every control mode. Self-collision (2) needs contacts and is
+docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)". Not
+part of any generator's precedence chain (docs/fci-behaviour.md "What is checked, and what it
+latches"); judged once per cycle in every control mode. Self-collision (2) needs contacts and is
 not here.
 """
 
@@ -14,7 +14,7 @@ from ..errors import Error
 from ..tables import RobotTable
 from .precedence import NO_ERROR, Row, Violation, describe_row, robot_row
 
-#: Seed "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
+#: docs/fci-behaviour.md "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
 #: the envelope before firing" (measured dq carries integrator ring / contact spikes).
 #: Same value as ControllerConfig.measured_velocity_margin, which the caller passes.
 MEASURED_VELOCITY_MARGIN = 0.1
@@ -48,13 +48,13 @@ def check_measured_joint_velocity(
 def check_measured_cartesian_speed(v_ee: np.ndarray, table: RobotTable) -> np.ndarray:
     """4 where the measured end-effector translational speed exceeds ``table.v_trans_max``.
 
-    Seed "cartesian_velocity_violation (4)": translation only (no rotational
+    docs/fci-behaviour.md "cartesian_velocity_violation (4)": translation only (no rotational
     bound: hardware answers 3, not 4, for a fast-spinning EE), limit
     kMaxTranslationalVelocity = 3 - 1e-3 m/s, no margin.
 
     Args:
         v_ee: (n, 3) measured EE translational velocity [m/s]. Robots whose
-            backend publishes no reading must be left out by the caller (seed: such
+            backend publishes no reading must be left out by the caller (docs/fci-behaviour.md: such
             a backend "is left alone rather than read as 'the arm is clear'").
         table: the robot's limits.
 
@@ -68,10 +68,9 @@ def check_measured_cartesian_speed(v_ee: np.ndarray, table: RobotTable) -> np.nd
 def safety_error(joint: np.ndarray, cartesian: np.ndarray) -> np.ndarray:
     """One safety-controller error per robot: 4 outranks 3.
 
-    Seed "cartesian_velocity_violation (4)": with the EE moved 0.5 m out, a joint
-    velocity ramp is reported as cartesian_velocity_violation "alone, with no
-    joint_velocity_violation beside it. So when a single cycle breaks both, 4 is
-    the bit that latches."
+    docs/fci-behaviour.md "cartesian_velocity_violation (4)": with the EE moved 0.5 m out, a joint
+    velocity ramp is reported as cartesian_velocity_violation by itself: a cycle
+    that breaks both latches 4 only.
     """
     return np.where(cartesian != NO_ERROR, cartesian, joint)
 

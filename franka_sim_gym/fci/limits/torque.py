@@ -1,6 +1,6 @@
 """The torque interface (kExternalController): rows 34 and 32.
 
-Seed "What is checked, and what it latches", torque rows in precedence order:
+docs/fci-behaviour.md "What is checked, and what it latches", torque rows in precedence order:
 |tau| <= URDF <limit effort> (tau_J_range_violation, 34), then
 |dtau/dt| <= kMaxTorqueRate = 1000 - 1e-3 Nm/s (controller_torque_discontinuity, 32).
 """
@@ -23,10 +23,9 @@ from .precedence import (
     stack,
 )
 
-# Seed: "Ordering between tau_J_range_violation (34) and controller_torque_discontinuity
-# (32) for a command that breaks both is the one precedence here that is not pinned
-# to hardware evidence; the sim reports the range violation." Neither row is gated
-# by `first` (see check_torque).
+# docs/fci-behaviour.md "Which discontinuity you get depends on the interface": 34 before 32 for a
+# torque that breaks both is our ordering, without hardware evidence. Neither row is gated by
+# `first` (see check_torque).
 _TORQUE = Precedence(
     codes=(
         Error.tau_j_range_violation,  # 34 range (and non-finite)
@@ -37,7 +36,7 @@ _TORQUE = Precedence(
 
 def _torque_terms(tau_c, tau_prev, steps, table):
     rate = (tau_c - tau_prev) / interval(steps)
-    # "not inside" so that NaN lands on 34 (seed: a non-finite command is the
+    # "not inside" so that NaN lands on 34 (docs/fci-behaviour.md: a non-finite command is the
     # limits violation of its generator; on the torque interface that is 34).
     masks = [~(np.abs(tau_c) <= table.tau_max), np.abs(rate) > table.dtau_max]
     return masks, rate
@@ -57,7 +56,7 @@ def check_torque(
         tau_prev: (n, 7) the torque the rate is taken against: the last applied
             tau_J_d, or zeros on a torque motion's first command.
         first: (n,) bool, the motion's opening command. Deliberately *not* an
-            exemption: limits.md §5 (Franka docs) requires a torque motion to start
+            exemption: docs/limits.md §5 (Franka docs) requires a torque motion to start
             with tau_d = 0, so a non-zero first torque is a step from the zero
             reference and is judged as one (32). Accepted for a uniform signature.
         steps: (n,) int >= 1, published cycles since tau_prev was applied.

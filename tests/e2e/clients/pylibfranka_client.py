@@ -363,8 +363,9 @@ def _provoke(robot: fr.Robot, kind: str) -> str | None:
                     tau[0] = 5.0
                 control.writeOnce(fr.Torques(tau))
             elif kind == "fold":
-                # Seed: joint 4 folds at -0.1 rad/s while joint 5 turns at 0.2 rad/s
-                # (smooth 0.5 s ramps keep the command inside the jerk limit).
+                # docs/fci-behaviour.md "self_collision_avoidance_violation (2)": joint 4 folds at
+                # -0.1 rad/s while joint 5 turns at 0.2 rad/s (smooth 0.5 s ramps keep the command
+                # inside the jerk limit).
                 ramp = min(1.0, t / 0.5)
                 ramp = ramp * ramp * (3 - 2 * ramp)
                 dq = [0.0, 0.0, 0.0, -0.1 * ramp, 0.2 * ramp, 0.0, 0.0]
