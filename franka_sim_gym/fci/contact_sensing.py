@@ -24,13 +24,9 @@ from .collision import CollisionBehavior, Levels, accelerating, invalid_threshol
 from .contact import ExternalTorqueEstimator, in_frame, wrench_from_torque
 from .engine import MotionLimitEngine
 from .errors import Error
+from .frames import from_wire
 
 _AXES = ("x", "y", "z", "R", "P", "Y")
-
-
-def column_major(flat: np.ndarray) -> np.ndarray:
-    """(n, 4, 4) row-major transforms from (n, 16) column-major wire transforms."""
-    return flat.reshape(-1, 4, 4).transpose(0, 2, 1)
 
 
 class ContactSensing:
@@ -113,7 +109,7 @@ class ContactSensing:
         if load_weight is not None:
             bias = bias + load_weight
         tau = self.estimator.update(self.dynamics.mass_times, bias, physics.tau_J, physics.dq)
-        O_T_K = column_major(f["O_T_EE"]) @ column_major(f["EE_T_K"])
+        O_T_K = from_wire(f["O_T_EE"]) @ from_wire(f["EE_T_K"])
         wrench = wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau)
         f["tau_ext_hat_filtered"][...] = tau
         f["O_F_ext_hat_K"][...] = wrench

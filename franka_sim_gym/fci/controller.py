@@ -29,12 +29,12 @@ import numpy as np
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
 from ..sim.kinematics import ArmKinematics
-from . import arrival, setters
+from . import arrival, frames, setters
 from .accounting import CycleAccounting
 from .cartesian import CartesianGenerators
 from .collision import THRESHOLD_NAMES
 from .config import ControllerConfig
-from .contact_sensing import ContactSensing, column_major
+from .contact_sensing import ContactSensing
 from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
@@ -238,7 +238,7 @@ class FciController:
         load = self.contact.load_weight()
         cartesian = None
         if m.n_cartesian_impedance:
-            EE_T_K = column_major(w.field["EE_T_K"])
+            EE_T_K = frames.from_wire(w.field["EE_T_K"])
             cartesian = self.impedance.target(m.cartesian_impedance, q_ref, w.F_T_EE, EE_T_K)
         self.physics.step(
             q_ref, dq_ref, self.tau_J_d, m.external_arg, cartesian=cartesian, compensation=load
