@@ -1,7 +1,7 @@
 """What every test folder shares: the repository root, its examples and scripts.
 
-The socket tests' helpers are in tests/socket_helpers.py, their fixtures in
-tests/e2e/conftest.py and tests/server/conftest.py.
+The socket tests' helpers and fixtures are in tests/socket_helpers.py (the fixtures
+imported by tests/e2e/conftest.py and tests/server/conftest.py).
 """
 
 from __future__ import annotations

@@ -1,4 +1,6 @@
-"""What the socket tests share: real clients in child processes, and reading a server's log.
+"""What the socket tests share: real clients in child processes, reading a server's log,
+and the fixtures ``serve`` and ``client`` (tests/e2e/conftest.py and
+tests/server/conftest.py import them for their folders).
 
 Servers come from the ``franka_sim_factory`` fixture of the project's own pytest
 plugin (:mod:`franka_sim_gym.server.pytest_plugin`), each on a loopback address of
@@ -77,3 +79,16 @@ def run_client(
             f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
         )
     return json.loads(lines[-1])
+
+
+@pytest.fixture
+def serve(franka_sim_factory):
+    """``serve(*flags, env=None)``: a ready `franka-sim-gym serve` on its own loopback
+    address (the plugin's ``franka_sim_factory``), stopped after the test."""
+    return franka_sim_factory
+
+
+@pytest.fixture
+def client():
+    """``client(kind, scenario, host)``: a real client scenario in a child process."""
+    return run_client

@@ -85,124 +85,157 @@ static int get_double(PyObject *obj, double *out)
     return (*out == -1.0 && PyErr_Occurred()) ? -1 : 0;
 }
 
+/* ---- one call: its arguments checked and borrowed, then the rule row by row --------------- */
+
+/* How a rule takes argument k: a float, or a float64 array (NUM_IN: float32 too, the wire
+ * state's fields; OUT: the writable result, always the last argument). */
+enum { FLOAT, F64_IN, NUM_IN, OUT };
+/* An array axis of length ROWS is the robot axis, COLS the columns: the first argument's
+ * first and second axes (any length on the first argument itself). */
+#define ROWS (-1)
+#define COLS (-2)
+#define MAX_ARGS 11 /* the most a rule takes: limit_pose_core's */
+
+typedef struct {
+    int kind, ndim;
+    Py_ssize_t shape[3];
+    const char *name; /* as errors name it */
+} Arg;
+
+typedef struct {
+    const char *name;
+    int configured; /* reads configure()'s constants */
+    void (*rows)(const F64 *a, const double *s, Py_ssize_t n); /* a[k] / s[k]: argument k */
+    const Arg *args;
+    int nargs;
+} Kernel;
+
+static PyObject *call_kernel(const Kernel *kernel, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, kernel->nargs, kernel->name) < 0 ||
+        (kernel->configured && check_configured() < 0))
+        return NULL;
+    F64 a[MAX_ARGS];
+    double s[MAX_ARGS];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    Py_ssize_t n = -1, cols = -1; /* "any" until the first argument is read */
+    for (int k = 0; k < kernel->nargs; k++) {
+        const Arg *arg = &kernel->args[k];
+        if (arg->kind == FLOAT) {
+            if (get_double(args[k], &s[k]) < 0) goto done;
+            continue;
+        }
+        Py_ssize_t shape[3];
+        for (int d = 0; d < arg->ndim; d++)
+            shape[d] = arg->shape[d] == ROWS ? n : arg->shape[d] == COLS ? cols : arg->shape[d];
+        if ((arg->kind == NUM_IN ? num_get(args[k], &a[k], arg->ndim, shape, 0, arg->name)
+                                 : f64_get(args[k], &a[k], arg->ndim, shape, arg->kind == OUT,
+                                           arg->name)) < 0)
+            goto done;
+        if (k == 0) {
+            n = a[0].shape[0];
+            cols = a[0].ndim > 1 ? a[0].shape[1] : -1;
+        }
+    }
+    kernel->rows(a, s, n);
+    result = Py_NewRef(a[kernel->nargs - 1].view.obj);
+done:
+    f64_release_all(a, kernel->nargs);
+    return result;
+}
+
+/* The arguments of a rule (ARRAY(kind, name, ndim, axes...) and SCALAR(name), in order)
+ * and the module function NAME that calls it: NAME_rows on every robot. */
+#define ARRAY(kind, name, ndim, ...) {kind, ndim, {__VA_ARGS__}, name}
+#define SCALAR(name) {FLOAT, 0, {0}, name}
+#define KERNEL(name, configured, ...)                                                     \
+    static const Arg name##_args[] = {__VA_ARGS__};                                        \
+    static const Kernel name##_kernel = {#name, configured, name##_rows, name##_args,      \
+                                         (int)(sizeof(name##_args) / sizeof(Arg))};       \
+    static PyObject *name(PyObject *self, PyObject *const *args, Py_ssize_t nargs)         \
+    {                                                                                      \
+        (void)self;                                                                        \
+        return call_kernel(&name##_kernel, args, nargs);                                   \
+    }
+
 /* ---- the low-pass filter -------------------------------------------------------------- */
 
 /* lowpass_core(x, x_ref, gain, out): (n, k) each (x_ref float32 or float64), gain a float:
  * gain * x + (1 - gain) * x_ref. */
-static PyObject *lowpass_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void lowpass_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 4, "lowpass_core") < 0) return NULL;
-    enum { X, REF, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any2[2] = {-1, -1};
-    if (f64_get(args[0], &a[X], 2, any2, 0, "x") < 0) goto done;
-    Py_ssize_t n = a[X].shape[0], k = a[X].shape[1];
-    Py_ssize_t shape[2] = {n, k};
-    double gain;
-    if (num_get(args[1], &a[REF], 2, shape, 0, "x_ref") < 0 || get_double(args[2], &gain) < 0 ||
-        f64_get(args[3], &a[OUT], 2, shape, 1, "out") < 0)
-        goto done;
+    enum { X, REF, GAIN, RESULT };
+    const double gain = s[GAIN];
     const double gain_ref = 1.0 - gain;
     for (Py_ssize_t i = 0; i < n; i++)
-        for (Py_ssize_t j = 0; j < k; j++)
-            put2(&a[OUT], i, j, gain * AT2(a[X], i, j) + gain_ref * num2(&a[REF], i, j));
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
+        for (Py_ssize_t j = 0; j < a[X].shape[1]; j++)
+            put2(&a[RESULT], i, j, gain * AT2(a[X], i, j) + gain_ref * num2(&a[REF], i, j));
 }
+KERNEL(lowpass_core, 0, ARRAY(F64_IN, "x", 2, ROWS, COLS), ARRAY(NUM_IN, "x_ref", 2, ROWS, COLS),
+       SCALAR("gain"), ARRAY(OUT, "out", 2, ROWS, COLS))
 
 /* ---- joints and torques -------------------------------------------------------------- */
 
 /* limit_velocities_core / limit_positions_core: (n, 7) commands and history, (n, 7)
  * bounds, (7,) A and J. ``positions``: q_last leads the arguments. */
-static PyObject *joint_limiter(PyObject *const *args, Py_ssize_t nargs, int positions,
-                               const char *name)
+static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
 {
-    if (check_nargs(nargs, positions ? 9 : 8, name) < 0 || check_configured() < 0) return NULL;
-    enum { C, QLAST, VLAST, ALAST, UPPER, LOWER, AMAX, JMAX, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    PyObject *const *rest = args + (positions ? 2 : 1); /* v_last onwards */
-    Py_ssize_t any7[2] = {-1, 7};
-    if (f64_get(args[0], &a[C], 2, any7, 0, "command") < 0) goto done;
-    Py_ssize_t n = a[C].shape[0];
-    Py_ssize_t s7[2] = {n, 7}, j7[1] = {7};
-    if ((positions && num_get(args[1], &a[QLAST], 2, s7, 0, "q_last") < 0) ||
-        num_get(rest[0], &a[VLAST], 2, s7, 0, "v_last") < 0 ||
-        num_get(rest[1], &a[ALAST], 2, s7, 0, "a_last") < 0 ||
-        f64_get(rest[2], &a[UPPER], 2, s7, 0, "upper") < 0 ||
-        f64_get(rest[3], &a[LOWER], 2, s7, 0, "lower") < 0 ||
-        f64_get(rest[4], &a[AMAX], 1, j7, 0, "a_max") < 0 ||
-        f64_get(rest[5], &a[JMAX], 1, j7, 0, "j_max") < 0 ||
-        f64_get(rest[6], &a[OUT], 2, s7, 1, "out") < 0)
-        goto done;
+    enum { C, QLAST };
+    enum { VLAST, ALAST, UPPER, LOWER, AMAX, JMAX, RESULT };
+    const F64 *r = a + (positions ? 2 : 1); /* v_last onwards */
     const double dt = DT;
     for (Py_ssize_t i = 0; i < n; i++)
         for (int j = 0; j < 7; j++) {
             double q_last = positions ? num2(&a[QLAST], i, j) : 0.0;
-            double v_last = num2(&a[VLAST], i, j), a_last = num2(&a[ALAST], i, j);
-            double a_max = AT1(a[AMAX], j), j_max = AT1(a[JMAX], j);
+            double v_last = num2(&r[VLAST], i, j), a_last = num2(&r[ALAST], i, j);
+            double a_max = AT1(r[AMAX], j), j_max = AT1(r[JMAX], j);
             double v_c = positions ? (AT2(a[C], i, j) - q_last) / dt : AT2(a[C], i, j);
             double jerk = (((v_c - v_last) / dt) - a_last) / dt;
             double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
             double ratio = j_max / a_max;
-            double safe_max = np_minimum(ratio * (AT2(a[UPPER], i, j) - v_last), a_max);
-            double safe_min = np_maximum(ratio * (AT2(a[LOWER], i, j) - v_last), -a_max);
+            double safe_max = np_minimum(ratio * (AT2(r[UPPER], i, j) - v_last), a_max);
+            double safe_min = np_maximum(ratio * (AT2(r[LOWER], i, j) - v_last), -a_max);
             double v = v_last + np_maximum(np_minimum(acc, safe_max), safe_min) * dt;
-            put2(&a[OUT], i, j, positions ? q_last + v * dt : v);
+            put2(&r[RESULT], i, j, positions ? q_last + v * dt : v);
         }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
 
-static PyObject *limit_velocities_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    (void)self;
-    return joint_limiter(args, nargs, 0, "limit_velocities_core");
-}
+#define JOINT_HISTORY_AND_LIMITS                                                          \
+    ARRAY(NUM_IN, "v_last", 2, ROWS, 7), ARRAY(NUM_IN, "a_last", 2, ROWS, 7),             \
+        ARRAY(F64_IN, "upper", 2, ROWS, 7), ARRAY(F64_IN, "lower", 2, ROWS, 7),           \
+        ARRAY(F64_IN, "a_max", 1, 7), ARRAY(F64_IN, "j_max", 1, 7),                       \
+        ARRAY(OUT, "out", 2, ROWS, 7)
 
-static PyObject *limit_positions_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void limit_velocities_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    return joint_limiter(args, nargs, 1, "limit_positions_core");
+    (void)s;
+    joint_rows(a, n, 0);
 }
+KERNEL(limit_velocities_core, 1, ARRAY(F64_IN, "command", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
+
+static void limit_positions_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+{
+    (void)s;
+    joint_rows(a, n, 1);
+}
+KERNEL(limit_positions_core, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
+       ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
 /* limit_torques_core(tau_c, tau_last, d_max, out): d_max a float. */
-static PyObject *limit_torques_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void limit_torques_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 4, "limit_torques_core") < 0 || check_configured() < 0) return NULL;
-    enum { C, LAST, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any7[2] = {-1, 7};
-    if (f64_get(args[0], &a[C], 2, any7, 0, "tau_c") < 0) goto done;
-    Py_ssize_t n = a[C].shape[0];
-    Py_ssize_t s7[2] = {n, 7};
-    double d_max;
-    if (num_get(args[1], &a[LAST], 2, s7, 0, "tau_last") < 0 || get_double(args[2], &d_max) < 0 ||
-        f64_get(args[3], &a[OUT], 2, s7, 1, "out") < 0)
-        goto done;
-    const double dt = DT;
+    enum { C, LAST, DMAX, RESULT };
+    const double dt = DT, d_max = s[DMAX];
     for (Py_ssize_t i = 0; i < n; i++)
         for (int j = 0; j < 7; j++) {
             double last = num2(&a[LAST], i, j);
             double rate = (AT2(a[C], i, j) - last) / dt;
-            put2(&a[OUT], i, j, last + np_maximum(np_minimum(rate, d_max), -d_max) * dt);
+            put2(&a[RESULT], i, j, last + np_maximum(np_minimum(rate, d_max), -d_max) * dt);
         }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
+KERNEL(limit_torques_core, 1, ARRAY(F64_IN, "tau_c", 2, ROWS, 7),
+       ARRAY(NUM_IN, "tau_last", 2, ROWS, 7), SCALAR("d_max"), ARRAY(OUT, "out", 2, ROWS, 7))
 
 /* ---- the twist ----------------------------------------------------------------------- */
 
@@ -233,14 +266,6 @@ static void limit_norm(const double *v_c, const double *v_last, const double *a_
     for (int k = 0; k < 3; k++) out[k] = moving ? v_last[k] + unit[k] * size * dt : v_last[k];
 }
 
-/* The six limits [v, a, j, v_rot, a_rot, j_rot] from six float arguments. */
-static int get_limits(PyObject *const *args, double limits[6])
-{
-    for (int k = 0; k < 6; k++)
-        if (get_double(args[k], &limits[k]) < 0) return -1;
-    return 0;
-}
-
 /* One twist through the limiter, both halves. */
 static void limit_twist(const double *x, const double *last, const double *dlast,
                         const double limits[6], double *out)
@@ -251,23 +276,9 @@ static void limit_twist(const double *x, const double *last, const double *dlast
 }
 
 /* limit_twist_core(twist_c, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out) */
-static PyObject *limit_twist_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void limit_twist_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 10, "limit_twist_core") < 0 || check_configured() < 0) return NULL;
-    enum { C, LAST, DLAST, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any6[2] = {-1, 6};
-    if (f64_get(args[0], &a[C], 2, any6, 0, "twist_c") < 0) goto done;
-    Py_ssize_t n = a[C].shape[0];
-    Py_ssize_t s6[2] = {n, 6};
-    double limits[6];
-    if (num_get(args[1], &a[LAST], 2, s6, 0, "twist_last") < 0 ||
-        num_get(args[2], &a[DLAST], 2, s6, 0, "dtwist_last") < 0 || get_limits(args + 3, limits) < 0 ||
-        f64_get(args[9], &a[OUT], 2, s6, 1, "out") < 0)
-        goto done;
+    enum { C, LAST, DLAST, LIMITS, RESULT = 9 };
     for (Py_ssize_t i = 0; i < n; i++) {
         double x[6], last[6], dlast[6], limited[6];
         for (int k = 0; k < 6; k++) {
@@ -275,14 +286,18 @@ static PyObject *limit_twist_core(PyObject *self, PyObject *const *args, Py_ssiz
             last[k] = num2(&a[LAST], i, k);
             dlast[k] = num2(&a[DLAST], i, k);
         }
-        limit_twist(x, last, dlast, limits, limited);
-        for (int k = 0; k < 6; k++) put2(&a[OUT], i, k, limited[k]);
+        limit_twist(x, last, dlast, s + LIMITS, limited);
+        for (int k = 0; k < 6; k++) put2(&a[RESULT], i, k, limited[k]);
     }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
+
+#define TWIST_HISTORY_AND_LIMITS                                                          \
+    ARRAY(NUM_IN, "twist_last", 2, ROWS, 6), ARRAY(NUM_IN, "dtwist_last", 2, ROWS, 6),    \
+        SCALAR("v"), SCALAR("a"), SCALAR("j"), SCALAR("v_rot"), SCALAR("a_rot"),          \
+        SCALAR("j_rot")
+
+KERNEL(limit_twist_core, 1, ARRAY(F64_IN, "twist_c", 2, ROWS, 6), TWIST_HISTORY_AND_LIMITS,
+       ARRAY(OUT, "out", 2, ROWS, 6))
 
 /* ---- rotations (sim/rotations.py, one rotation at a time) ------------------------------ */
 
@@ -445,23 +460,10 @@ static void rotation_of(const double *T, double *R)
 }
 
 /* cartesian_lowpass_core(T_c, T_ref, gain, out): (n, 4, 4) each, gain a float. */
-static PyObject *cartesian_lowpass_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void cartesian_lowpass_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 4, "cartesian_lowpass_core") < 0 || check_configured() < 0)
-        return NULL;
-    enum { C, REF, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any44[3] = {-1, 4, 4};
-    if (f64_get(args[0], &a[C], 3, any44, 0, "T_c") < 0) goto done;
-    Py_ssize_t n = a[C].shape[0];
-    Py_ssize_t s44[3] = {n, 4, 4};
-    double gain;
-    if (f64_get(args[1], &a[REF], 3, s44, 0, "T_ref") < 0 || get_double(args[2], &gain) < 0 ||
-        f64_get(args[3], &a[OUT], 3, s44, 1, "out") < 0)
-        goto done;
+    enum { C, REF, GAIN, RESULT };
+    const double gain = s[GAIN];
     for (Py_ssize_t i = 0; i < n; i++) {
         double T_c[16], T_ref[16], R_c[9], R_ref[9], q_c[4], q_ref[4], q[4], R[9], F[16];
         pose_at(&a[C], i, T_c);
@@ -479,34 +481,19 @@ static PyObject *cartesian_lowpass_core(PyObject *self, PyObject *const *args, P
             for (int c = 0; c < 3; c++) F[4 * r + c] = R[3 * r + c];
             F[4 * r + 3] = gain * T_c[4 * r + 3] + (1.0 - gain) * T_ref[4 * r + 3];
         }
-        pose_put(&a[OUT], i, F);
+        pose_put(&a[RESULT], i, F);
     }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
+KERNEL(cartesian_lowpass_core, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
+       ARRAY(F64_IN, "T_ref", 3, ROWS, 4, 4), SCALAR("gain"), ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
 /* limit_pose_core(T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out) */
-static PyObject *limit_pose_core(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void limit_pose_core_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 11, "limit_pose_core") < 0 || check_configured() < 0) return NULL;
-    enum { C, LAST, TW, DTW, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any44[3] = {-1, 4, 4};
-    if (f64_get(args[0], &a[C], 3, any44, 0, "T_c") < 0) goto done;
-    Py_ssize_t n = a[C].shape[0];
-    Py_ssize_t s44[3] = {n, 4, 4}, s6[2] = {n, 6};
+    enum { C, LAST, TW, DTW, LIMITS, RESULT = 10 };
     double limits[6];
-    if (f64_get(args[1], &a[LAST], 3, s44, 0, "T_last") < 0 ||
-        num_get(args[2], &a[TW], 2, s6, 0, "twist_last") < 0 ||
-        num_get(args[3], &a[DTW], 2, s6, 0, "dtwist_last") < 0 || get_limits(args + 4, limits) < 0 ||
-        f64_get(args[10], &a[OUT], 3, s44, 1, "out") < 0)
-        goto done;
-    for (int k = 3; k < 6; k++) limits[k] = ROTATION_POSE_FACTOR * limits[k];
+    for (int k = 0; k < 3; k++) limits[k] = s[LIMITS + k];
+    for (int k = 3; k < 6; k++) limits[k] = ROTATION_POSE_FACTOR * s[LIMITS + k];
     const double dt = DT;
     for (Py_ssize_t i = 0; i < n; i++) {
         double T_c[16], T_last[16], R_c[9], R_last[9], R_diff[9], twist[6], last[6], dlast[6];
@@ -539,29 +526,19 @@ static PyObject *limit_pose_core(PyObject *self, PyObject *const *args, Py_ssize
         }
         T[12] = T[13] = T[14] = 0.0;
         T[15] = 1.0;
-        pose_put(&a[OUT], i, T);
+        pose_put(&a[RESULT], i, T);
     }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
+KERNEL(limit_pose_core, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
+       ARRAY(F64_IN, "T_last", 3, ROWS, 4, 4), TWIST_HISTORY_AND_LIMITS,
+       ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
 /* reference_pose(O_T_EE_c, out): (n, 16) column-major (float32 or float64) to (n, 4, 4)
  * row-major, each rotation its nearest rotation. */
-static PyObject *reference_pose(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+static void reference_pose_rows(const F64 *a, const double *s, Py_ssize_t n)
 {
-    (void)self;
-    if (check_nargs(nargs, 2, "reference_pose") < 0) return NULL;
-    enum { WIRE, OUT, COUNT };
-    F64 a[COUNT];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t any16[2] = {-1, 16};
-    if (num_get(args[0], &a[WIRE], 2, any16, 0, "O_T_EE_c") < 0) goto done;
-    Py_ssize_t n = a[WIRE].shape[0];
-    Py_ssize_t s44[3] = {n, 4, 4};
-    if (f64_get(args[1], &a[OUT], 3, s44, 1, "out") < 0) goto done;
+    enum { WIRE, RESULT };
+    (void)s;
     for (Py_ssize_t i = 0; i < n; i++) {
         double T[16], R[9];
         for (int r = 0; r < 4; r++)
@@ -570,13 +547,11 @@ static PyObject *reference_pose(PyObject *self, PyObject *const *args, Py_ssize_
         nearest_rotation(R);
         for (int r = 0; r < 3; r++)
             for (int c = 0; c < 3; c++) T[4 * r + c] = R[3 * r + c];
-        pose_put(&a[OUT], i, T);
+        pose_put(&a[RESULT], i, T);
     }
-    result = Py_NewRef(a[OUT].view.obj);
-done:
-    f64_release_all(a, COUNT);
-    return result;
 }
+KERNEL(reference_pose, 0, ARRAY(NUM_IN, "O_T_EE_c", 2, ROWS, 16),
+       ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
 #define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
 

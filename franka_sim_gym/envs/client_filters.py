@@ -118,6 +118,8 @@ _MSG_SIGNAL = (
 )
 
 _INTERPOLATION_KINDS = ("linear", "cosine")
+#: The joint limiters' arguments after the command (and q_last), as errors name them.
+_LIMITER_ARGS = ("dq_last", "ddq_last", "upper", "lower", "ddq_max", "dddq_max")
 
 
 def finite(name: str, value: ArrayLike, message: str | None = None) -> np.ndarray:
@@ -278,13 +280,8 @@ def limit_rate_joint_velocities(
             command up front and the result before sending).
     """
     dq_c = finite("dq_c", dq_c, _MSG_COMMAND)
-    v_last = finite("dq_last", dq_last)
-    a_last = finite("ddq_last", ddq_last)
-    upper = finite("upper", upper)
-    lower = finite("lower", lower)
-    a_max = finite("ddq_max", ddq_max)
-    j_max = finite("dddq_max", dddq_max)
-    return limit_velocities_core(dq_c, v_last, a_last, upper, lower, a_max, j_max)
+    limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
+    return limit_velocities_core(dq_c, *limiter)
 
 
 def limit_rate_joint_positions(
@@ -318,13 +315,8 @@ def limit_rate_joint_positions(
     """
     q_c = finite("q_c", q_c, _MSG_COMMAND)
     q_last = finite("q_last", q_last)
-    v_last = finite("dq_last", dq_last)
-    a_last = finite("ddq_last", ddq_last)
-    upper = finite("upper", upper)
-    lower = finite("lower", lower)
-    a_max = finite("ddq_max", ddq_max)
-    j_max = finite("dddq_max", dddq_max)
-    return limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max)
+    limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
+    return limit_positions_core(q_c, q_last, *limiter)
 
 
 def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLike) -> np.ndarray:
@@ -342,6 +334,12 @@ def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLik
     tau_last = finite("tau_last", tau_last)
     d_max = finite("dtau_max", dtau_max)
     return limit_torques_core(tau_c, tau_last, d_max)
+
+
+def _finite_limiter_args(*values: ArrayLike) -> list[np.ndarray]:
+    """The velocity limiter's last velocity and acceleration, bounds and limits, as the
+    joint overloads of limitRate take them, each through :func:`finite` in that order."""
+    return [finite(name, value) for name, value in zip(_LIMITER_ARGS, values, strict=True)]
 
 
 def interpolate_core(q_from: np.ndarray, q_to: np.ndarray, s: float) -> np.ndarray:

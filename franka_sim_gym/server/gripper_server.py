@@ -41,9 +41,9 @@ from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, HandModel, Outcome
 from .client_slot import ClientSlot, stop_serving
-from .connection import Connection
 from .logging_util import RateLimitedLog
 from .request_queue import apply_pending
+from .tcp_session import TcpSession
 
 log = logging.getLogger("franka_sim_gym.gripper")
 
@@ -96,40 +96,18 @@ def encode_reply(command: int, command_id: int, status: int, version: int | None
     return HEADER.pack(command, command_id, HEADER.size + len(body)) + body
 
 
-class GripperSession:
+class GripperSession(TcpSession):
     """The TCP side of one gripper client (connected once its Connect succeeded)."""
 
+    host: GripperServer
+
     def __init__(self, server: GripperServer, sock: socket.socket, peer: tuple[str, int]) -> None:
-        self.server = server
-        self.udp_port: int | None = None
         self._decoder = FrameDecoder(max_message_size=MAX_REQUEST_SIZE, header=HEADER)
-        self.connection = Connection(
-            sock,
-            peer,
-            f"gripper client {peer[0]}:{peer[1]}",
-            log,
-            self._decoder.feed,
-            self._handle,
-            lambda: server.session_closed(self),
-        )
-
-    @property
-    def sock(self) -> socket.socket:
-        return self.connection.sock
-
-    @property
-    def peer(self) -> tuple[str, int]:
-        return self.connection.peer
-
-    def start(self) -> None:
-        self.connection.start()
-
-    def close(self) -> None:
-        self.connection.close()
+        super().__init__(server, sock, peer, "gripper ", log, self._decoder.feed, self._handle)
 
     def reply(self, command: int, command_id: int, status: int, version: int | None = None):
         """Queue a reply; never blocks (a client that does not read is dropped)."""
-        self.connection.send(encode_reply(command, command_id, int(status), version))
+        self.send(encode_reply(command, command_id, int(status), version))
 
     def _handle(self, item: Frame | FramingError) -> None:
         if isinstance(item, FramingError):
@@ -183,14 +161,7 @@ class GripperSession:
                 )
                 self.reply(frame.command, frame.command_id, 1, VERSION)
                 return
-            if not self.server.claim(self):
-                self.close()
-                return
-            self.udp_port = udp_port
-            self.reply(frame.command, frame.command_id, 0, VERSION)
-            self.connection.mark_connected()
-            log.info("gripper client %s connected (UDP port %d)", self.peer, udp_port)
-            self.server.client_connected(self)
+            self.connect(encode_reply(frame.command, frame.command_id, 0, VERSION), udp_port)
             return
         if self.udp_port is None:
             self._fail(frame, "before-connect", f"{command.name} before Connect")
@@ -201,7 +172,7 @@ class GripperSession:
             args = _MOVE_REQ.unpack(frame.payload)
         else:
             args = ()
-        self.server.submit(self, command, frame.command_id, args)
+        self.host.submit(self, command, frame.command_id, args)
 
 
 class GripperServer:

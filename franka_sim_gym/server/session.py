@@ -15,7 +15,7 @@ import socket
 from typing import Protocol
 
 from ..fci import protocol as p
-from .connection import Connection
+from .tcp_session import SlotHost, TcpSession
 
 log = logging.getLogger("franka_sim_gym.server")
 
@@ -53,57 +53,24 @@ NOT_POSSIBLE = {
 }
 
 
-class SessionHost(Protocol):
+class SessionHost(SlotHost, Protocol):
     """What a session needs of its server (the robot server is one)."""
 
     urdf: str
-
-    def claim(self, session: ClientSession) -> bool: ...
-
-    def client_connected(self, session: ClientSession) -> None: ...
-
-    def session_closed(self, session: ClientSession) -> None: ...
 
     def submit_request(
         self, session: ClientSession, command: p.Command, command_id: int, request: object
     ) -> None: ...
 
 
-class ClientSession:
+class ClientSession(TcpSession):
     """The TCP side of one client of the arm (connected once its Connect succeeded)."""
 
+    host: SessionHost
+
     def __init__(self, host: SessionHost, sock: socket.socket, peer: tuple[str, int]) -> None:
-        self.host = host
-        self.udp_port: int | None = None
         self._decoder = p.FrameDecoder()
-        self.connection = Connection(
-            sock,
-            peer,
-            f"client {peer[0]}:{peer[1]}",
-            log,
-            self._decoder.feed,
-            self._handle,
-            lambda: host.session_closed(self),
-        )
-
-    @property
-    def sock(self) -> socket.socket:
-        return self.connection.sock
-
-    @property
-    def peer(self) -> tuple[str, int]:
-        return self.connection.peer
-
-    def start(self) -> None:
-        self.connection.start()
-
-    def close(self) -> None:
-        """Close the connection (server shutdown, or the client was refused)."""
-        self.connection.close()
-
-    def send(self, data: bytes) -> None:
-        """Queue one reply; never blocks (a client that does not read is dropped)."""
-        self.connection.send(data)
+        super().__init__(host, sock, peer, "", log, self._decoder.feed, self._handle)
 
     def reply(self, command: int, command_id: int, status: int) -> None:
         self.send(p.encode_reply(command, command_id, int(status)))
@@ -179,11 +146,5 @@ class ClientSession:
                 p.encode_connect_reply(command_id, int(p.ConnectStatus.kIncompatibleLibraryVersion))
             )
             return
-        if not self.host.claim(self):
-            self.close()
-            return
-        self.send(p.encode_connect_reply(command_id, int(p.ConnectStatus.kSuccess)))
-        self.connection.mark_connected()
-        self.udp_port = request.udp_port
-        log.info("client %s connected (UDP port %d)", self.peer, request.udp_port)
-        self.host.client_connected(self)
+        success = p.encode_connect_reply(command_id, int(p.ConnectStatus.kSuccess))
+        self.connect(success, request.udp_port)
