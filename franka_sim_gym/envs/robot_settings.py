@@ -55,7 +55,10 @@ class RobotSettings:
             raise ValueError("controller_mode: the torque interface is its own controller")
         joint = None
         if joint_impedance is not None:
-            joint = np.broadcast_to(np.asarray(joint_impedance, dtype=float), (7,)).copy()
+            joint = np.asarray(joint_impedance, dtype=float)
+            if joint.shape not in ((), (7,)):
+                raise ValueError(f"joint_impedance {joint.tolist()}: 7 values or one")
+            joint = np.broadcast_to(joint, (7,)).copy()
             if not (np.isfinite(joint).all() and (0 <= joint).all()):
                 raise ValueError(f"joint_impedance {joint.tolist()}: finite, >= 0 Nm/rad")
             if (joint > MAX_JOINT_STIFFNESS).any():
