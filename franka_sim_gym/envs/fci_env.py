@@ -10,9 +10,9 @@ because the controller raised a reflex, and ``info`` names it.
 Copies (``copy.deepcopy``, ``pickle``) are rebuilt, not cloned: a new env made with the
 same arguments replays the episode so far — its reset from the random state it started
 from, then its actions — and so continues bit for bit as the original would, because an
-episode is a function of its seed and actions (tests/envs/test_env_copy.py). MuJoCo's
-data and the C kernels are never copied: numpy views and kernels bound to one MjData's
-memory could not follow a copy.
+episode is a function of its seed and actions (the copy tests of
+tests/envs/test_env_gymnasium.py). MuJoCo's data and the C kernels are never copied:
+numpy views and kernels bound to one MjData's memory could not follow a copy.
 """
 
 from __future__ import annotations
