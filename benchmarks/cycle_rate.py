@@ -25,6 +25,7 @@ from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
 
 IMPEDANCE = MoveControllerMode.kJointImpedance
+CARTESIAN_IMPEDANCE = MoveControllerMode.kCartesianImpedance
 JOINT_POSITION = MoveMotionGeneratorMode.kJointPosition
 CARTESIAN_POSITION = MoveMotionGeneratorMode.kCartesianPosition
 CARTESIAN_VELOCITY = MoveMotionGeneratorMode.kCartesianVelocity
@@ -88,7 +89,7 @@ def _turn(angle: np.ndarray) -> np.ndarray:
     return R
 
 
-def motion(n: int, generator, rotate: bool = False):
+def motion(n: int, generator, rotate: bool = False, controller=IMPEDANCE):
     """A started controller and its streaming cycle (one command per arm per call).
 
     The client's waypoints are computed before timing (client work, not the
@@ -99,7 +100,7 @@ def motion(n: int, generator, rotate: bool = False):
     """
     ctrl = FciController(ArmPhysics(n_arms=n), ControllerConfig())
     for i in range(n):
-        ctrl.move(i, int(IMPEDANCE), int(generator))
+        ctrl.move(i, int(controller), int(generator))
     for _ in range(2):
         ctrl.step()
     t = np.arange(PERIOD) * 1e-3
@@ -166,10 +167,13 @@ def main() -> None:
         rows.append((f"controller Cartesian-pose motion, n={n}", n, pose))
         twist = cartesian_rate(n, args.seconds, CARTESIAN_VELOCITY)
         rows.append((f"controller Cartesian-velocity motion, n={n}", n, twist))
+        # The same joint motion with the robot's Cartesian impedance servo holding K.
+        spring = rate(motion(n, JOINT_POSITION, controller=CARTESIAN_IMPEDANCE)[1], args.seconds)
+        rows.append((f"joint-position motion, Cartesian impedance, n={n}", n, spring))
     print(describe())
-    print(f"{'row':<42}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
+    print(f"{'row':<50}{'cycles/s':>12}{'arm-cycles/s':>15}{'vs mj_step':>12}")
     for name, n, cycles in rows:
-        print(f"{name:<42}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
+        print(f"{name:<50}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
     for n, share in ACCOUNTING_SHARE.items():
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
     for n, share in SENSING_SHARE.items():
