@@ -16,7 +16,7 @@ import numpy as np
 from ..fci.collision import four_argument_form
 from ..fci.controller import FciController
 from ..fci.impedance import invalid_stiffness
-from ..fci.setters import MAX_JOINT_STIFFNESS
+from ..fci.setters import invalid_joint_stiffness
 from ..fci.statuses import SetterStatus
 from ..fci.wire import MoveControllerMode
 
@@ -59,10 +59,9 @@ class RobotSettings:
             if joint.shape not in ((), (7,)):
                 raise ValueError(f"joint_impedance {joint.tolist()}: 7 values or one")
             joint = np.broadcast_to(joint, (7,)).copy()
-            if not (np.isfinite(joint).all() and (0 <= joint).all()):
-                raise ValueError(f"joint_impedance {joint.tolist()}: finite, >= 0 Nm/rad")
-            if (joint > MAX_JOINT_STIFFNESS).any():
-                raise ValueError(f"joint_impedance {joint.tolist()}: at most 14250 Nm/rad")
+            why = invalid_joint_stiffness(joint)
+            if why is not None:
+                raise ValueError(f"joint_impedance: {why} Nm/rad")
         cartesian = None
         if cartesian_impedance is not None:
             cartesian = np.asarray(cartesian_impedance, dtype=float)

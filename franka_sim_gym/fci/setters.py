@@ -49,8 +49,17 @@ def check_load(robot: int, m_load: float, F_x_Cload, I_load) -> SetterStatus:
     return SetterStatus.kSuccess
 
 
-def check_joint_stiffness(robot: int, K_theta) -> SetterStatus:
+def invalid_joint_stiffness(K_theta) -> str | None:
+    """Why a SetJointImpedance payload is refused (7 finite values in 0 ... 14250 Nm/rad),
+    or None."""
     K = np.asarray(K_theta, dtype=float).reshape(-1)
     if K.shape != (7,) or not np.all(np.isfinite(K)) or np.any((K < 0) | (K > MAX_JOINT_STIFFNESS)):
-        return _reject("SetJointImpedance", robot, f"K_theta {K.tolist()} outside 0..14250")
+        return f"K_theta {K.tolist()} outside 0..14250"
+    return None
+
+
+def check_joint_stiffness(robot: int, K_theta) -> SetterStatus:
+    why = invalid_joint_stiffness(K_theta)
+    if why is not None:
+        return _reject("SetJointImpedance", robot, why)
     return SetterStatus.kSuccess

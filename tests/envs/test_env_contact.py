@@ -103,7 +103,7 @@ def test_under_cartesian_impedance_a_soft_spring_presses_the_table_gently():
     ("kwargs", "message"),
     [
         ({"controller_mode": "impedance"}, "unknown controller_mode 'impedance'"),
-        ({"joint_impedance": 20000.0}, "joint_impedance .* at most 14250"),
+        ({"joint_impedance": 20000.0}, "joint_impedance: K_theta .* outside 0..14250"),
         ({"joint_impedance": [1.0] * 6}, "joint_impedance .* 7 values or one"),
         ({"cartesian_impedance": [5.0, 100, 100, 10, 10, 10]}, "cartesian_impedance: K_x"),
     ],
