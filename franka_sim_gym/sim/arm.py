@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
-from .dynamics import jacobian_at
+from .dynamics import jacobian_at, weight_torque
 from .views import strided_rows
 from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 
@@ -100,6 +100,8 @@ class ArmPhysics:
         self.kp = np.empty((n_arms, 7))
         self.kd = np.empty((n_arms, 7))
         self.coriolis = np.zeros((n_arms, 7))
+        #: (n, 7) the weight torque of a payload nobody configured (zero without one)
+        self.payload_weight = np.zeros((n_arms, 7))
         self._tau = np.zeros((n_arms, 7))
         self._tmp = np.zeros((n_arms, 7))
         self._copies = any(
@@ -165,6 +167,13 @@ class ArmPhysics:
             self.data.qpos[lay.finger_qpos_adr[arms]] = FINGER_OPEN
             self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
             self.data.ctrl[lay.finger_actuator[arms]] = FINGER_OPEN
+        # The arms' scene objects back where their fragment put them, at rest (a task
+        # then places them for its episode).
+        for joint, qadr in lay.scene_qpos_adr.items():
+            rows = (qadr[arms][:, None] + np.arange(7)).ravel()
+            self.data.qpos[rows] = self.model.qpos0[rows]
+            dofs = (lay.scene_dof_adr[joint][arms][:, None] + np.arange(6)).ravel()
+            self.data.qvel[dofs] = 0.0
         mujoco.mj_forward(self.model, self.data)
         self._refresh()
 
@@ -178,7 +187,24 @@ class ArmPhysics:
         self.dq = self._qvel.get()
         # qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone.
         self.tau_J = self._actuator.get()
+        self._update_coriolis()
+
+    def _update_coriolis(self) -> None:
+        """C(q, dq) dq of the new state: the bias forces without the gravity MuJoCo's
+        actuators compensate; a payload nobody configured (gravcomp 0) is not in that
+        compensation, and its weight is not Coriolis: it is left to sag the arm."""
         np.subtract(self._bias.get(), self._gravcomp.get(), out=self.coriolis)
+        if self.layout.payload_body is not None:
+            self.payload_weight[...] = self._payload_weight()
+            self.coriolis -= self.payload_weight
+
+    def _payload_weight(self) -> np.ndarray:
+        """(n, 7) the joint torques that would hold the payloads against gravity."""
+        data, lay = self.data, self.layout
+        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
+        com = data.xipos[lay.payload_body] - self.base_pos
+        J = jacobian_at(data.xaxis[self._joints], anchors, com)
+        return weight_torque(J, self.model.body_mass[lay.payload_body], self.model.opt.gravity)
 
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo
@@ -250,7 +276,7 @@ class ArmPhysics:
         if self._copies:
             self._refresh()
         else:
-            np.subtract(self._bias.view, self._gravcomp.view, out=self.coriolis)
+            self._update_coriolis()
 
     def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
         """(n, 7) the Cartesian impedance servo's torque (without Coriolis) of every arm."""

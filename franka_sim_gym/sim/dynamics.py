@@ -61,9 +61,6 @@ class ArmDynamics:
         self._dofs = np.asarray(lay.dof_adr)
         self._bias = np.zeros((physics.n, 7))
         self._payload = lay.payload_body
-        if self._payload is not None:
-            self._payload_mass = physics.model.body_mass[self._payload].copy()
-            self._gravity = np.asarray(physics.model.opt.gravity, dtype=float).copy()
         self._full = np.zeros(physics.model.nv)
         self._product = np.zeros(physics.model.nv)
         # The arms' hinge joints, in the arm's order: their world axes and anchors.
@@ -99,8 +96,7 @@ class ArmDynamics:
         bias = np.subtract(data.qfrc_bias[self._dofs], data.qfrc_passive[self._dofs],
                            out=self._bias)  # fmt: skip
         if self._payload is not None:  # a payload the robot is not told of: not its model
-            com = data.xipos[self._payload] - self.physics.base_pos
-            bias -= weight_torque(self.jacobian(com), self._payload_mass, self._gravity)
+            bias -= self.physics.payload_weight
         return bias
 
     def joint_axes(self) -> tuple[np.ndarray, np.ndarray]:

@@ -87,6 +87,7 @@ class ArmLayout:
     payload_body: np.ndarray | None = None  # (n,) the payload nobody configured, if any
     scene_body: dict[str, np.ndarray] = field(default_factory=dict)
     scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
+    scene_dof_adr: dict[str, np.ndarray] = field(default_factory=dict)  # (n,) 6 dofs each
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -285,6 +286,10 @@ def _layout(
             },
             scene_qpos_adr={
                 j: model.jnt_qposadr[_ids(model, "joint", [[p + j] for p in pre])[:, 0]]
+                for j in free_joint_names(fragment)
+            },
+            scene_dof_adr={
+                j: model.jnt_dofadr[_ids(model, "joint", [[p + j] for p in pre])[:, 0]]
                 for j in free_joint_names(fragment)
             },
         )

@@ -116,3 +116,17 @@ def test_bad_servo_settings_are_a_value_error_naming_them(kwargs, message):
 def test_the_torque_interface_takes_no_controller_mode():
     with pytest.raises(ValueError, match="torque interface is its own controller"):
         gym.make("FrankaFCITorque-v0", controller_mode="cartesian_impedance")
+
+
+def test_a_reset_puts_the_scene_objects_back_where_the_scene_placed_them():
+    env = gym.make("FrankaFCI-v0", scene="block")
+    env.reset(seed=0)
+    physics = env.unwrapped.core.controller.physics
+    adr = physics.layout.scene_qpos_adr["block"][0]
+    start = physics.data.qpos[adr : adr + 7].copy()
+    physics.data.qpos[adr : adr + 2] += (0.1, 0.2)  # knocked away during an episode
+    physics.data.qvel[physics.layout.scene_dof_adr["block"][0]] = 1.0
+    env.reset(seed=0)
+    np.testing.assert_array_equal(physics.data.qpos[adr : adr + 7], start)
+    dof = physics.layout.scene_dof_adr["block"][0]
+    assert not physics.data.qvel[dof : dof + 6].any()

@@ -52,3 +52,15 @@ def test_without_a_load_the_arm_floats():
 def test_a_payload_needs_a_positive_mass_and_a_finite_centre(payload):
     with pytest.raises(ValueError, match="payload"):
         ArmPhysics(1, payload=payload)
+
+
+def test_the_joint_servo_does_not_hold_up_a_payload_nobody_configured():
+    """The servo's Coriolis term is C dq only: the unconfigured payload's weight sags the
+    held arm by K^-1 times its torque (2 kg: a millimetre or two), as on the robot."""
+    physics = ArmPhysics(1, payload=(2.0, 0.0, 0.0, 0.05))
+    q = physics.q.copy()
+    z0 = physics.flange_pose()[0][0, 2]
+    for _ in range(1000):
+        physics.step(q, None)
+    assert z0 - physics.flange_pose()[0][0, 2] > 5e-4
+    assert np.abs(physics.payload_weight).max() > 5.0  # its weight torque, Nm
