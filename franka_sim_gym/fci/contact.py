@@ -51,7 +51,8 @@ ALPHA = DELTA_T / (ESTIMATE_TIME_CONSTANT + DELTA_T)
 #: any threshold). MuJoCo computes in world coordinates, and n arms stand 2 m apart in
 #: one world: their model terms round differently from a lone arm's at the last bits
 #: (1e-16 relative), which the differentiated velocity lifts to ~1e-14 Nm. Rounded,
-#: an arm of a batched world publishes what the same arm alone publishes.
+#: an arm of a batched world publishes what the same arm alone publishes, except when
+#: a value lies within ~1e-14 of a rounding boundary (a chance of about 1e-10 a value).
 RESOLUTION_DECIMALS = 4
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.

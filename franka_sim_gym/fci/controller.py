@@ -414,14 +414,16 @@ class FciController:
         return status
 
     def set_ee_to_k(self, robot: int, EE_T_K) -> SetterStatus:
-        """SetEEToK (command 7): reflected in EE_T_K; no Cartesian impedance uses it."""
+        """SetEEToK (command 7): reflected in EE_T_K; moves K, where the external wrench is
+        estimated and the Cartesian impedance servo holds the pose."""
         status = setters.check_transform("SetEEToK", robot, EE_T_K)
         if status == SetterStatus.kSuccess:
             self.writer.set_end_effector(robot, EE_T_K=np.asarray(EE_T_K, dtype=float))
         return status
 
     def set_load(self, robot: int, m_load: float, F_x_Cload, I_load) -> SetterStatus:
-        """SetLoad (command 9): reflected in m_load / F_x_Cload / I_load (not simulated)."""
+        """SetLoad (command 9): reflected in m_load / F_x_Cload / I_load, and in the robot's
+        model: the drives carry its weight, the external-torque estimate expects it."""
         status = setters.check_load(robot, m_load, F_x_Cload, I_load)
         if status == SetterStatus.kSuccess:
             self.writer.set_load(robot, m_load, np.ravel(F_x_Cload), np.ravel(I_load))

@@ -8,13 +8,15 @@ frame"). The torque, per arm:
     tau = J_K^T ( Kw e - Dw v ) + N ( Kn (q_ref - q) - Dn dq ) + C(q, dq) dq
 
 * e = [p_d - p; e_o], the pose error of K: position, and the orientation error
-  e_o = 1/2 sum_i r_i x r_d,i of the rotations' columns (Siciliano's vector error: the
-  rotation vector to first order, exact in direction, defined for any error);
+  e_o = 1/2 sum_i r_i x r_d,i of the rotations' columns (Siciliano's vector error:
+  sin(angle) times the axis, the rotation vector to first order; it weakens past 90
+  degrees and vanishes at 180, which a commanded pose stream never comes near);
 * v = J_K dq, the K frame's twist;
 * Kw = R_K diag(K) R_K^T per block (the stiffness acts along K's axes), Dw the same
   with D = 2 sqrt(K Lambda): critically damped against the Cartesian inertia Lambda
-  of the arm at home (its diagonal, as the joint servo damps against the joint
-  inertia at home, sim/arm.py);
+  of the arm at home (its diagonal at the flange, in the base's axes, as the joint
+  servo damps against the joint inertia at home, sim/arm.py; with K turned or offset
+  far from the flange the damping ratio departs somewhat from 1);
 * N = I - J^T (J J^T)^-1 J, the nullspace projector, with a weak joint spring toward
   q_ref that holds the elbow (``NULLSPACE_STIFFNESS``);
 * gravity is compensated by the actuators as in every mode (models/fr3.xml).

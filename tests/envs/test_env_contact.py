@@ -52,6 +52,8 @@ def test_free_space_episodes_sense_nothing_under_the_default_thresholds():
         _, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 7).astype(np.float32))
         assert "joint_reflex" not in info["reflex_reason"]
         assert "cartesian_reflex" not in info["reflex_reason"]
+        # ... and the estimate stays under the default lower thresholds (20 N): no contact
+        assert not info["cartesian_contact"].any() and not info["joint_contact"].any()
         if terminated or truncated:
             env.reset()
 

@@ -68,3 +68,11 @@ def test_set_cartesian_impedance_refuses_what_libfranka_documents_as_out_of_rang
     before = ctrl.impedance.stiffness.copy()
     assert ctrl.set_cartesian_impedance(0, K_x) == SetterStatus.kInvalidArgumentRejected
     np.testing.assert_array_equal(ctrl.impedance.stiffness, before)
+
+
+def test_a_new_client_starts_from_the_default_cartesian_stiffness():
+    ctrl = make_controller(1)
+    default = ctrl.impedance.stiffness[0].copy()
+    assert ctrl.set_cartesian_impedance(0, [500.0] * 3 + [50.0] * 3) == SetterStatus.kSuccess
+    ctrl.end_session(0)
+    np.testing.assert_array_equal(ctrl.impedance.stiffness[0], default)
