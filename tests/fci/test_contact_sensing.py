@@ -11,6 +11,7 @@ import pytest
 from franka_sim_gym.fci.collision import THRESHOLD_NAMES
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.events import EventKind
+from franka_sim_gym.fci.frames import from_wire
 from franka_sim_gym.fci.statuses import MoveStatus, SetterStatus
 from franka_sim_gym.fci.wire import MoveMotionGeneratorMode, RobotMode
 from tests.fci_helpers import LoopClient, make_controller
@@ -143,3 +144,29 @@ def test_a_payload_nobody_configured_reads_as_its_weight_and_setload_takes_it_aw
     assert ctrl.set_load(0, 1.0, [0.0, 0.0, 0.05], np.zeros(9)) == SetterStatus.kSuccess
     client.idle(1500)
     assert abs(client.state["O_F_ext_hat_K"][2]) < 0.05 * weight
+
+
+def test_the_wrench_is_estimated_at_k_and_expressed_in_its_axes():
+    """SetEEToK 10 cm along the flange's z and turned 90 deg about it: pressing on the
+    table, O_F_ext_hat_K is the same force (the table pushes where it pushes), its
+    moment is taken about K, and K_F_ext_hat_K is that wrench in K's turned axes."""
+    ctrl, client = over_the_table(enforce_motion_limits=True)
+    ctrl.set_collision_behavior(0, thresholds(force=(100.0, 200.0)))
+    EE_T_K = np.eye(4)
+    EE_T_K[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    EE_T_K[:3, 3] = [0.0, 0.0, 0.1]
+    assert ctrl.set_ee_to_k(0, EE_T_K.T.reshape(16)) == SetterStatus.kSuccess  # wire order
+    client.start(CARTESIAN_VELOCITY)
+    descend(client, cycles=4200)
+    s = client.state
+    O_F, K_F = s["O_F_ext_hat_K"].astype(float), s["K_F_ext_hat_K"].astype(float)
+    assert O_F[2] < -20.0  # pressing down
+    O_T_K = from_wire(s["O_T_EE"]) @ EE_T_K
+    R = O_T_K[:3, :3]
+    np.testing.assert_allclose(K_F[:3], R.T @ O_F[:3], atol=1e-3)
+    np.testing.assert_allclose(K_F[3:], R.T @ O_F[3:], atol=1e-3)
+    # The moment about K, 10 cm under the flange along the flange's z (pointing down)
+    # and so about at the contact: smaller than the same force's moment at the flange.
+    p_flange = from_wire(s["O_T_EE"])[:3, 3]
+    moment_at_flange = O_F[3:] + np.cross(O_T_K[:3, 3] - p_flange, O_F[:3])
+    assert np.linalg.norm(O_F[3:]) < np.linalg.norm(moment_at_flange)
