@@ -30,15 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sim.dynamics import jacobian_at
 from .tables import DELTA_T
 
-__all__ = [
-    "ExternalTorqueEstimator",
-    "in_frame",
-    "jacobian_at",
-    "wrench_from_torque",
-]
+__all__ = ["ExternalTorqueEstimator", "in_frame", "wrench_from_torque"]
 
 #: Time constant of the estimate's low-pass filter [s]. Not published for the FR3: a
 #: choice. 10 ms (16 Hz) passes a press on a table within a few cycles and smooths

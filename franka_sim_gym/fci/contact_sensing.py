@@ -16,17 +16,27 @@ latches both (docs/motion-limits.md).
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from ..sim.arm import ArmPhysics
 from ..sim.dynamics import ArmDynamics, weight_torque
-from .collision import CollisionBehavior, Levels, accelerating, invalid_thresholds
+from .collision import (
+    THRESHOLD_NAMES,
+    CollisionBehavior,
+    Levels,
+    accelerating,
+    invalid_thresholds,
+)
 from .contact import ExternalTorqueEstimator, in_frame, wrench_from_torque
 from .engine import MotionLimitEngine
 from .errors import Error
 from .frames import from_wire
+from .statuses import SetterStatus
 
 _AXES = ("x", "y", "z", "R", "P", "Y")
+log = logging.getLogger("franka_sim_gym.fci")
 
 
 class ContactSensing:
@@ -93,13 +103,22 @@ class ContactSensing:
 
     # -- the cycle --------------------------------------------------------------------------
 
-    def configure(self, i: int, thresholds: dict[str, np.ndarray]) -> str | None:
-        """SetCollisionBehavior for robot i: stored from the next cycle on; or the reason
-        the thresholds are refused (nothing stored)."""
-        why = invalid_thresholds(thresholds)
-        if why is None:
-            self.behavior.configure(i, thresholds)
-        return why
+    def configure(self, i: int, thresholds) -> SetterStatus:
+        """SetCollisionBehavior for robot i (the eight arrays by name): stored from the
+        next cycle on, or refused (nothing stored), logged either way."""
+        values = {name: np.asarray(thresholds[name], dtype=float) for name in THRESHOLD_NAMES}
+        why = invalid_thresholds(values)
+        if why is not None:
+            log.warning("robot %d: SetCollisionBehavior rejected: %s", i, why)
+            return SetterStatus.kInvalidArgumentRejected
+        self.behavior.configure(i, values)
+        log.info(
+            "robot %d: SetCollisionBehavior: upper thresholds %s Nm, %s N/Nm (nominal phase)",
+            i,
+            values["upper_torque_thresholds_nominal"].tolist(),
+            values["upper_force_thresholds_nominal"].tolist(),
+        )
+        return SetterStatus.kSuccess
 
     def sense(self, in_motion: np.ndarray, load_weight: np.ndarray | None) -> Levels:
         """Estimate, write the contact group, judge the thresholds (after the state's

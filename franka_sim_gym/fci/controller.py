@@ -32,14 +32,13 @@ from ..sim.kinematics import ArmKinematics
 from . import arrival, frames, setters
 from .accounting import CycleAccounting
 from .cartesian import CartesianGenerators
-from .collision import THRESHOLD_NAMES
 from .config import ControllerConfig
 from .contact_sensing import ContactSensing
 from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
-from .impedance import CartesianImpedance, invalid_stiffness
+from .impedance import CartesianImpedance
 from .joint_generators import JointGenerators
 from .late import LateIntents
 from .log_limit import CycleLogLimit
@@ -441,29 +440,12 @@ class FciController:
         from the next cycle (``thresholds``: the payload's eight arrays by name,
         fci/collision.py THRESHOLD_NAMES; libfranka's 4-argument form sends each pair
         twice). Non-finite or negative thresholds: kInvalidArgumentRejected."""
-        values = {name: np.asarray(thresholds[name], dtype=float) for name in THRESHOLD_NAMES}
-        why = self.contact.configure(robot, values)
-        if why is not None:
-            log.warning("robot %d: SetCollisionBehavior rejected: %s", robot, why)
-            return SetterStatus.kInvalidArgumentRejected
-        log.info(
-            "robot %d: SetCollisionBehavior: upper thresholds %s Nm, %s N/Nm (nominal phase)",
-            robot,
-            values["upper_torque_thresholds_nominal"].tolist(),
-            values["upper_force_thresholds_nominal"].tolist(),
-        )
-        return SetterStatus.kSuccess
+        return self.contact.configure(robot, thresholds)
 
     def set_cartesian_impedance(self, robot: int, K_x) -> SetterStatus:
         """SetCartesianImpedance (command 5): the Cartesian servo's stiffness along K's axes,
         applied from the next cycle (fci/impedance.py); out of range: refused."""
-        why = invalid_stiffness(K_x)
-        if why is not None:
-            log.warning("robot %d: SetCartesianImpedance rejected: %s", robot, why)
-            return SetterStatus.kInvalidArgumentRejected
-        self.impedance.stiffness[robot] = np.ravel(np.asarray(K_x, dtype=float))
-        log.info("robot %d: SetCartesianImpedance: K_x %s", robot, self.impedance.stiffness[robot])
-        return SetterStatus.kSuccess
+        return self.impedance.configure(robot, K_x)
 
     def acknowledge_setter(self, robot: int, name: str, values) -> SetterStatus:
         """SetGuidingMode: accepted, not simulated."""

@@ -16,10 +16,15 @@ values Franka's examples set (libfranka ``examples/examples_common.cpp``,
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from ..sim.cartesian_servo import CartesianTarget
 from ..sim.kinematics import ArmKinematics
+from .statuses import SetterStatus
+
+log = logging.getLogger("franka_sim_gym.fci")
 
 #: K_x before any SetCartesianImpedance [N/m, N/m, N/m, Nm/rad, Nm/rad, Nm/rad].
 DEFAULT_CARTESIAN_STIFFNESS = (3000.0, 3000.0, 3000.0, 300.0, 300.0, 300.0)
@@ -48,6 +53,17 @@ class CartesianImpedance:
 
     def reset(self, i: int) -> None:
         self.stiffness[i] = DEFAULT_CARTESIAN_STIFFNESS
+
+    def configure(self, i: int, K_x) -> SetterStatus:
+        """SetCartesianImpedance for robot i: applied from the next cycle, or refused
+        (nothing changes), logged either way."""
+        why = invalid_stiffness(K_x)
+        if why is not None:
+            log.warning("robot %d: SetCartesianImpedance rejected: %s", i, why)
+            return SetterStatus.kInvalidArgumentRejected
+        self.stiffness[i] = np.ravel(np.asarray(K_x, dtype=float))
+        log.info("robot %d: SetCartesianImpedance: K_x %s", i, self.stiffness[i])
+        return SetterStatus.kSuccess
 
     def target(
         self, mask: np.ndarray, q_ref: np.ndarray, F_T_EE: np.ndarray, EE_T_K: np.ndarray

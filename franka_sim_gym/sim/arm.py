@@ -119,6 +119,7 @@ class ArmPhysics:
         if pos is not None and R is not None and np.shares_memory(R, self.data.site_xmat):
             self.flange_views = (pos, R.transpose(0, 2, 1))
         self._effective_inertia, self._cartesian_inertia = self._home_inertia()
+        self._nullspace_damping = damping_for(NULLSPACE_STIFFNESS, self._effective_inertia)
         self._joints = self.model.dof_jntid[np.asarray(lay.dof_adr)]
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
@@ -200,11 +201,16 @@ class ArmPhysics:
 
     def _payload_weight(self) -> np.ndarray:
         """(n, 7) the joint torques that would hold the payloads against gravity."""
-        data, lay = self.data, self.layout
-        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
-        com = data.xipos[lay.payload_body] - self.base_pos
-        J = jacobian_at(data.xaxis[self._joints], anchors, com)
+        lay = self.layout
+        J = self.jacobian(self.data.xipos[lay.payload_body] - self.base_pos)
         return weight_torque(J, self.model.body_mass[lay.payload_body], self.model.opt.gravity)
+
+    def jacobian(self, point: np.ndarray) -> np.ndarray:
+        """(n, 6, 7) geometric Jacobian of ``point`` (n, 3, each arm's base frame) on each
+        arm's last link, from the joints' axes and anchors of the current state."""
+        data = self.data
+        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
+        return jacobian_at(data.xaxis[self._joints], anchors, point)
 
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo
@@ -284,13 +290,10 @@ class ArmPhysics:
         k = target.flange_to_k
         rotation = flange_R @ k[:, :3, :3]
         position = flange_p + np.einsum("nij,nj->ni", flange_R, k[:, :3, 3])
-        data = self.data
-        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
-        J = jacobian_at(data.xaxis[self._joints], anchors, position)
+        J = self.jacobian(position)
         damping = damping_for(target.stiffness, self._cartesian_inertia)
-        nullspace_damping = damping_for(NULLSPACE_STIFFNESS, self._effective_inertia)
         return impedance_torque(
-            J, position, rotation, target, damping, self.q, self.dq, q_ref, nullspace_damping
+            J, position, rotation, target, damping, self.q, self.dq, q_ref, self._nullspace_damping
         )
 
     # -- kinematics ----------------------------------------------------------------------------

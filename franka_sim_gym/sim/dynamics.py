@@ -48,7 +48,7 @@ def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -
 
 
 class ArmDynamics:
-    """M(q) x, C(q, dq) dq + g(q) and the joint axes of n arms, at the current state.
+    """M(q) x, C(q, dq) dq + g(q) and the Jacobian of n arms, at the current state.
 
     Args:
         physics: the arms (after a step, mj_step1 has left M and the bias forces of
@@ -63,12 +63,6 @@ class ArmDynamics:
         self._payload = lay.payload_body
         self._full = np.zeros(physics.model.nv)
         self._product = np.zeros(physics.model.nv)
-        # The arms' hinge joints, in the arm's order: their world axes and anchors.
-        model = physics.model
-        joints = np.array(
-            [[model.dof_jntid[d] for d in row] for row in lay.dof_adr], dtype=np.int64
-        )
-        self._joints = joints
 
     def mass_times(self, x: np.ndarray) -> np.ndarray:
         """(n, 7) M(q) x per arm: the joint-space inertia of each arm times ``x`` (n, 7).
@@ -99,14 +93,6 @@ class ArmDynamics:
             bias -= self.physics.payload_weight
         return bias
 
-    def joint_axes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(n, 7, 3) unit axes and (n, 7, 3) anchor points of joints 1..7, base frame."""
-        data = self.physics.data
-        axes = data.xaxis[self._joints]
-        anchors = data.xanchor[self._joints] - self.physics.base_pos[:, None, :]
-        return axes, anchors
-
     def jacobian(self, point: np.ndarray) -> np.ndarray:
         """(n, 6, 7) Jacobian of ``point`` (n, 3, base frame) on each arm's last link."""
-        axes, anchors = self.joint_axes()
-        return jacobian_at(axes, anchors, point)
+        return self.physics.jacobian(point)

@@ -13,7 +13,6 @@ import numpy as np
 from franka_sim_gym.fci.contact import (
     ExternalTorqueEstimator,
     in_frame,
-    jacobian_at,
     wrench_from_torque,
 )
 from franka_sim_gym.sim.arm import ArmPhysics
@@ -25,8 +24,7 @@ from tests.sim.test_scene import OVER_THE_TABLE
 def flange_jacobian(physics: ArmPhysics, dyn: ArmDynamics) -> tuple[np.ndarray, np.ndarray]:
     """(n, 6, 7) Jacobian at the flange and (n, 3) its position, base frame."""
     point = physics.data.site_xpos[physics.layout.flange_site] - physics.base_pos
-    axes, anchors = dyn.joint_axes()
-    return jacobian_at(axes, anchors, point), point
+    return dyn.jacobian(point), point
 
 
 def test_the_jacobian_at_a_point_is_mujocos():
