@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..fci.config import ControllerConfig
+from ..fci.config import ControllerConfig, env_flag, env_float
 from ..fci.protocol import COMMAND_PORT
 from ..sim.arm import ArmPhysics
 from ..sim.finger_drive import FingerDrive
@@ -21,6 +21,7 @@ from ..sim.gripper import FrankaHand, HandModel
 from ..sim.physics_hand import PhysicsHand
 from .check import wait_until_ready
 from .gripper_server import GRIPPER_PORT, GripperServer
+from .lockstep import DEFAULT_TIMEOUT_S
 from .robot_server import RobotServer, ServerOptions
 
 
@@ -61,6 +62,9 @@ in pytest (installed with the package):
       robot = pylibfranka.Robot(franka_sim.host)  # address, stopped after the test
   @pytest.mark.franka_sim("--enforce-motion-limits") chooses its flags;
   franka_sim.log() is its log.
+faster than real time, reproducible (the clock waits for the client in motions):
+  franka-sim-gym serve --lockstep --enforce-comm-constraints
+  pytest --franka-sim-lockstep                # every franka_sim server in lockstep
 """
 
 
@@ -84,6 +88,22 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
         default=None,
         help="abort a motion after 20 consecutive lost cycles "
         "(env FRANKA_SIM_ENFORCE_COMM_CONSTRAINTS)",
+    )
+    serve.add_argument(
+        "--lockstep",
+        action="store_true",
+        default=None,
+        help="during a motion, run each cycle as soon as the client's command for the last "
+        "state arrived instead of every 1 ms of wall time; outside motions the stream stays "
+        "at 1 kHz (env FRANKA_SIM_LOCKSTEP; docs/socket.md)",
+    )
+    serve.add_argument(
+        "--lockstep-timeout",
+        type=float,
+        default=None,
+        metavar="MS",
+        help="with --lockstep, how long a state waits for its answer before the cycle counts "
+        f"as lost (default {DEFAULT_TIMEOUT_S * 1e3:g} ms; env FRANKA_SIM_LOCKSTEP_TIMEOUT)",
     )
     serve.add_argument(
         "--joint-discontinuity-scale",
@@ -154,7 +174,18 @@ def serve(args: argparse.Namespace) -> int:
     if args.urdf is not None and not args.urdf.is_file():
         print(f"franka-sim-gym serve: --urdf {args.urdf}: no such file", file=sys.stderr)
         return 2
-    options = ServerOptions(host=args.host, port=args.port, urdf=args.urdf)
+    try:
+        lockstep, timeout = lockstep_options(args.lockstep, args.lockstep_timeout)
+    except ValueError as exc:
+        print(f"franka-sim-gym serve: {exc}", file=sys.stderr)
+        return 2
+    options = ServerOptions(
+        host=args.host,
+        port=args.port,
+        urdf=args.urdf,
+        lockstep=lockstep,
+        lockstep_timeout=timeout,
+    )
     try:
         server, gripper = _servers(args, config, options)
     except ValueError as exc:
@@ -183,6 +214,20 @@ def serve(args: argparse.Namespace) -> int:
         if gripper is not None:
             gripper.stop()
     return 0
+
+
+def lockstep_options(flag: bool | None, timeout_ms: float | None) -> tuple[bool, float]:
+    """(lockstep, its timeout [s]) from --lockstep / --lockstep-timeout MS, else from
+    FRANKA_SIM_LOCKSTEP / FRANKA_SIM_LOCKSTEP_TIMEOUT (the flag wins); ValueError when
+    the timeout is not a positive number of milliseconds."""
+    lockstep = flag if flag is not None else bool(env_flag("FRANKA_SIM_LOCKSTEP"))
+    if timeout_ms is None:
+        timeout_ms = env_float("FRANKA_SIM_LOCKSTEP_TIMEOUT")
+    if timeout_ms is None:
+        return lockstep, DEFAULT_TIMEOUT_S
+    if not (timeout_ms > 0 and timeout_ms < float("inf")):
+        raise ValueError(f"--lockstep-timeout {timeout_ms!r}: expected a positive number of ms")
+    return lockstep, timeout_ms / 1e3
 
 
 def _object_width(args: argparse.Namespace) -> float | None:

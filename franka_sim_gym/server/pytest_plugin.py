@@ -16,7 +16,11 @@ Fixtures:
   need several servers or choose the flags as they go; all are stopped after it.
 
 Both yield :class:`~franka_sim_gym.server.testing.SimServer` handles (``host``,
-``address``, ``log()``, ``alive()``, ``stop()``). docs/socket.md has more.
+``address``, ``log()``, ``alive()``, ``stop()``).
+
+``pytest --franka-sim-lockstep`` serves every one of them with ``--lockstep`` (motions
+faster than real time and reproducible; so does ``FRANKA_SIM_LOCKSTEP=1`` in the
+environment, which the servers inherit). docs/socket.md has more.
 """
 
 from __future__ import annotations
@@ -28,6 +32,16 @@ import pytest
 from .testing import SimServer, start_server
 
 
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--franka-sim-lockstep",
+        action="store_true",
+        default=False,
+        help="serve every franka_sim / franka_sim_factory robot with `serve --lockstep`: "
+        "motions run as fast as the client answers, reproducibly (docs/socket.md)",
+    )
+
+
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers", "franka_sim(*flags): `franka-sim-gym serve` flags for the franka_sim fixture"
@@ -35,13 +49,14 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 @pytest.fixture
-def franka_sim_factory(tmp_path) -> Iterator[Callable[..., SimServer]]:
+def franka_sim_factory(request, tmp_path) -> Iterator[Callable[..., SimServer]]:
     """Start servers with ``start(*flags, env=None)``; each is stopped after the test."""
     servers: list[SimServer] = []
+    lockstep = bool(request.config.getoption("--franka-sim-lockstep", default=False))
 
     def start(*flags: str, env: dict[str, str] | None = None) -> SimServer:
         log_path = tmp_path / f"franka-sim-{len(servers)}.log"
-        server = start_server(*flags, log_path=log_path, env=env)
+        server = start_server(*flags, log_path=log_path, env=env, lockstep=lockstep)
         servers.append(server)
         return server
 

@@ -2,7 +2,9 @@
 
 Threads (architecture.md "The two clocks"):
 
-* the tick thread waits for each millisecond boundary, applies the TCP
+* the tick thread waits for each millisecond boundary (with ``--lockstep``, during
+  a motion, for the command answering the last state instead:
+  :mod:`~franka_sim_gym.server.lockstep`), applies the TCP
   requests posted since the last tick, hands the command datagrams received
   since then to the controller, runs one cycle, sends the state, and then
   delivers the cycle's events (so a kReflexAborted is sent only after the
@@ -41,6 +43,7 @@ from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
 from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
 from .client_slot import ClientSlot, stop_serving
+from .lockstep import DEFAULT_TIMEOUT_S, AnswerWait
 from .logging_util import RateLimitedLog
 from .pacing import next_tick
 from .request_queue import apply_pending
@@ -57,6 +60,10 @@ class ServerOptions:
     port: int = p.COMMAND_PORT
     urdf: Path | None = None
     visualize: bool = False
+    #: during a motion, run each cycle as soon as the client answered (docs/socket.md)
+    lockstep: bool = False
+    #: in lockstep, how long a state waits for its answer before the cycle is lost [s]
+    lockstep_timeout: float = DEFAULT_TIMEOUT_S
 
 
 class RobotServer:
@@ -98,6 +105,7 @@ class RobotServer:
         self._state_bytes = memoryview(self.controller.states.view(np.uint8))
         self.ticks = 0
         self._viewer = None
+        self._answer_wait: AnswerWait | None = None
 
     # -- lifecycle ----------------------------------------------------------------------------
 
@@ -109,6 +117,8 @@ class RobotServer:
         self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._udp.bind((host, 0))
         self._udp.setblocking(False)
+        if self.options.lockstep:
+            self._answer_wait = AnswerWait(self._udp.fileno(), self.options.lockstep_timeout)
         self._running.set()
         accept = lambda: self._slot.accept_loop(self._tcp, self._running)  # noqa: E731
         for target, name in ((self._tick_loop, "fci-tick"), (accept, "fci-accept")):
@@ -116,17 +126,25 @@ class RobotServer:
             thread.start()
             self._threads.append(thread)
         log.info(
-            "serving FR3 FCI v%d on %s:%d (enforce motion limits: %s, comm constraints: %s)",
+            "serving FR3 FCI v%d on %s:%d (enforce motion limits: %s, comm constraints: %s, "
+            "clock: %s)",
             p.VERSION,
             host,
             port,
             self.config.enforce_motion_limits,
             self.config.enforce_comm_constraints,
+            (
+                f"lockstep during motions, {self.options.lockstep_timeout * 1e3:g} ms for an answer"
+                if self.options.lockstep
+                else "1 kHz"
+            ),
         )
 
     def stop(self) -> None:
         """Stop the threads and close every socket."""
         stop_serving(self._running, self._slot, self._threads, self._tcp, self._udp)
+        if self._answer_wait is not None:
+            self._answer_wait.close()
         if self._viewer is not None:
             self._viewer.close()
         log.info("server stopped")
@@ -161,7 +179,7 @@ class RobotServer:
     def client_connected(self, session: ClientSession) -> None:
         """Connect succeeded: stream states to (peer IP, UDP port from Connect)."""
         addr = (session.peer[0], int(session.udp_port))
-        self._requests.put(lambda: setattr(self, "_client_addr", addr))
+        self._post(lambda: setattr(self, "_client_addr", addr))
 
     def session_closed(self, session: ClientSession) -> None:
         """A connection ended; if it held the robot, reset it to a clean idle for the next."""
@@ -180,7 +198,7 @@ class RobotServer:
 
         # Posted before the slot frees, so it runs before the next client's Connect
         # is applied: a client that reconnects at once is never refused.
-        self._requests.put(reset)
+        self._post(reset)
         self._slot.release(session)
 
     def submit_request(self, session: ClientSession, command: p.Command, command_id: int, request):
@@ -197,7 +215,13 @@ class RobotServer:
                 log.exception("%s (request %d) failed; answered status 1", command.name, command_id)
                 session.reply(command, command_id, 1)
 
-        self._requests.put(apply)
+        self._post(apply)
+
+    def _post(self, request: Callable[[], None]) -> None:
+        """Queue ``request`` for the tick thread (and end a lockstep wait to apply it)."""
+        self._requests.put(request)
+        if self._answer_wait is not None:
+            self._answer_wait.notify()
 
     def _apply(self, session: ClientSession, command: p.Command, command_id: int, request) -> None:
         ctrl = self.controller
@@ -249,15 +273,33 @@ class RobotServer:
 
     def _tick_loop(self) -> None:
         slot = time.perf_counter()
+        wait = self._answer_wait
         while self._running.is_set():
             self._tick()
+            if wait is not None and self._in_motion():
+                wait.wait(
+                    self._in_motion, self._answered, self._receive_datagrams, self._apply_requests
+                )
+                # Back on the 1 kHz clock, the next state leaves 1 ms after this cycle's.
+                slot = time.perf_counter()
+                continue
             now = time.perf_counter()
             wake, slot = next_tick(slot, now)
             if wake > now:
                 time.sleep(wake - now)
 
-    def _tick(self) -> None:
+    def _in_motion(self) -> bool:
+        return self.controller.modes.n_motion > 0
+
+    def _answered(self) -> bool:
+        """Whether a command answering the last published state has arrived."""
+        return bool(self.controller.accounting.answered[0])
+
+    def _apply_requests(self) -> None:
         apply_pending(self._requests, log, "request")
+
+    def _tick(self) -> None:
+        self._apply_requests()
         self._receive_datagrams()
         events = self.controller.step()
         self.ticks += 1
@@ -317,6 +359,8 @@ class RobotServer:
                     event.lost_cycles,
                     event.longest_lost_run,
                 )
+                if self._answer_wait is not None:
+                    log.info("%s", self._answer_wait.take_times().summary())
             if event.kind is EventKind.MOVE_FINISHED and self._pending_move is not None:
                 session, command_id = self._pending_move
                 self._pending_move = None

@@ -87,6 +87,7 @@ def start_server(
     cwd: Path | None = None,
     ready_timeout: float = 60.0,
     attempts: int = 3,
+    lockstep: bool = False,
 ) -> SimServer:
     """Start `python -m franka_sim_gym.server --host HOST FLAGS...` and wait until it is ready.
 
@@ -98,6 +99,8 @@ def start_server(
         env: extra environment variables (e.g. ``FRANKA_SIM_*``).
         cwd: its working directory.
         ready_timeout: how long to wait for Connect and a state [s].
+        lockstep: add ``--lockstep`` (motions run as fast as the client answers,
+            reproducibly; docs/socket.md) unless ``flags`` has it already.
 
     Raises:
         RuntimeError: the server exited or did not become ready (its log attached).
@@ -106,6 +109,8 @@ def start_server(
         handle, name = tempfile.mkstemp(prefix="franka-sim-", suffix=".log")
         os.close(handle)
         log_path = Path(name)
+    if lockstep and "--lockstep" not in flags:
+        flags = (*flags, "--lockstep")
     why = ""
     for _ in range(attempts if host is None else 1):
         address = host or free_loopback_address()
