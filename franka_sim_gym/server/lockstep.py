@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import select
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -67,6 +68,10 @@ class AnswerWait:
             raise ValueError(f"the lockstep timeout must be > 0 s, got {timeout!r}")
         self.timeout = timeout
         self._wake_read, self._wake_write = os.pipe()
+        # notify() runs on TCP threads, possibly while the server shuts down: it must
+        # never write to a descriptor number that close() released (and the OS reused).
+        self._wake_lock = threading.Lock()
+        self._closed = False
         os.set_blocking(self._wake_read, False)
         os.set_blocking(self._wake_write, False)
         self._poller = select.poll()
@@ -78,10 +83,13 @@ class AnswerWait:
 
     def notify(self) -> None:
         """A request was queued for the tick thread (any thread): end a poll at once."""
-        try:
-            os.write(self._wake_write, b"\0")
-        except (BlockingIOError, OSError):
-            pass  # the pipe is full (a wake-up is pending anyway) or closed at shutdown
+        with self._wake_lock:
+            if self._closed:
+                return
+            try:
+                os.write(self._wake_write, b"\0")
+            except OSError:  # BlockingIOError included: full, so a wake-up is pending anyway
+                pass
 
     def wait(
         self,
@@ -121,11 +129,13 @@ class AnswerWait:
         return times
 
     def close(self) -> None:
-        for fd in (self._wake_read, self._wake_write):
-            try:
+        """Release the wake-up pipe (after the tick thread has stopped)."""
+        with self._wake_lock:
+            if self._closed:
+                return
+            self._closed = True
+            for fd in (self._wake_read, self._wake_write):
                 os.close(fd)
-            except OSError:
-                pass
 
     def _drain(self) -> None:
         try:
