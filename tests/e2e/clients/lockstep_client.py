@@ -20,14 +20,14 @@ import time
 import pylibfranka as fr
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
 
-#: Every RobotState attribute but ``time`` (absolute robot time depends on how long
-#: the server idled before the motion, which runs on the wall clock).
+#: Every numeric RobotState attribute but ``time`` (absolute robot time depends on how
+#: long the server idled before the motion, which runs on the wall clock); the modes
+#: and the error lists are added as text (state_values).
 FIELDS = tuple(
     name
     for name in dir(fr.RobotState)
     if not name.startswith("_")
-    and name not in ("time", "robot_mode", "current_errors")
-    and name != "last_motion_errors"
+    and name not in ("time", "robot_mode", "current_errors", "last_motion_errors")
 )
 
 
