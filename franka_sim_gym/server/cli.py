@@ -103,7 +103,8 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
         default=None,
         metavar="MS",
         help="with --lockstep, how long a state waits for its answer before the cycle counts "
-        f"as lost (default {DEFAULT_TIMEOUT_S * 1e3:g} ms; env FRANKA_SIM_LOCKSTEP_TIMEOUT)",
+        f"as lost, below 1000 (default {DEFAULT_TIMEOUT_S * 1e3:g} ms; env "
+        "FRANKA_SIM_LOCKSTEP_TIMEOUT)",
     )
     serve.add_argument(
         "--joint-discontinuity-scale",
@@ -216,6 +217,12 @@ def serve(args: argparse.Namespace) -> int:
     return 0
 
 
+#: libfranka's blocking state receive gives up after 1 s (docs/libfranka-client.md §10):
+#: a client waiting for the state after the motion's first (which it does not answer)
+#: must get it sooner, so a lockstep wait stays below that [ms].
+MAX_LOCKSTEP_TIMEOUT_MS = 1000.0
+
+
 def lockstep_options(flag: bool | None, timeout_ms: float | None) -> tuple[bool, float]:
     """(lockstep, its timeout [s]) from --lockstep / --lockstep-timeout MS, else from
     FRANKA_SIM_LOCKSTEP / FRANKA_SIM_LOCKSTEP_TIMEOUT (the flag wins); ValueError when
@@ -225,8 +232,11 @@ def lockstep_options(flag: bool | None, timeout_ms: float | None) -> tuple[bool,
         timeout_ms = env_float("FRANKA_SIM_LOCKSTEP_TIMEOUT")
     if timeout_ms is None:
         return lockstep, DEFAULT_TIMEOUT_S
-    if not (timeout_ms > 0 and timeout_ms < float("inf")):
-        raise ValueError(f"--lockstep-timeout {timeout_ms!r}: expected a positive number of ms")
+    if not (timeout_ms > 0 and timeout_ms < MAX_LOCKSTEP_TIMEOUT_MS):
+        raise ValueError(
+            f"--lockstep-timeout {timeout_ms!r}: expected more than 0 and less than "
+            f"{MAX_LOCKSTEP_TIMEOUT_MS:g} ms (libfranka gives up on a state after 1 s)"
+        )
     return lockstep, timeout_ms / 1e3
 
 

@@ -50,8 +50,9 @@ def test_the_variables_set_lockstep_and_the_flags_win(monkeypatch):
 @pytest.mark.parametrize(
     ("flags", "env", "message"),
     [
-        (["--lockstep-timeout", "0"], {}, "--lockstep-timeout 0.0: expected a positive number"),
-        (["--lockstep-timeout", "nan"], {}, "--lockstep-timeout nan: expected a positive number"),
+        (["--lockstep-timeout", "0"], {}, "--lockstep-timeout 0.0: expected more than 0"),
+        (["--lockstep-timeout", "nan"], {}, "--lockstep-timeout nan: expected more than 0"),
+        (["--lockstep-timeout", "1000"], {}, "libfranka gives up on a state after 1 s"),
         ([], {"FRANKA_SIM_LOCKSTEP_TIMEOUT": "soon"}, "FRANKA_SIM_LOCKSTEP_TIMEOUT='soon' is not"),
     ],
 )
@@ -162,8 +163,8 @@ def test_outside_a_motion_the_stream_keeps_1_khz(serve):
 
 @pytest.mark.socket
 def test_stop_move_during_a_wait_is_answered_without_waiting_out_the_bound(serve):
-    """A motion nobody answers waits 2 s per state here; StopMove still ends it at once."""
-    server = serve("--lockstep", "--lockstep-timeout", "2000", "--no-gripper")
+    """A motion nobody answers waits 900 ms per state here; StopMove still ends it at once."""
+    server = serve("--lockstep", "--lockstep-timeout", "900", "--no-gripper")
     client = RawClient(server.host)
     client.connect()
     client.state()
@@ -182,7 +183,7 @@ def test_stop_move_during_a_wait_is_answered_without_waiting_out_the_bound(serve
     stop = client.request(p.Command.kStopMove)
     assert client.reply(stop, timeout=10).payload[0] == p.StopMoveStatus.kSuccess
     assert client.reply(move, timeout=10).payload[0] == p.MoveStatus.kPreempted
-    assert time.monotonic() - start < 1.0
+    assert time.monotonic() - start < 0.4  # not when the 900 ms wait runs out
     after = client.latest_state()
     assert after["robot_mode"] == 1 and np.all(np.isfinite(after["q"]))
     client.close()
