@@ -82,7 +82,7 @@ def test_a_client_skipping_states_loses_them_as_on_the_robot_clock(serve, client
 def test_frankys_callback_loop_runs_in_lockstep(serve, client):
     """franky's Robot.move runs libfranka's C++ Robot::control loop."""
     server = serve(*LOCKSTEP)
-    r = client("franky", "joint_motion", server.host, timeout=60)
+    r = client("franky_lockstep", "joint_motion", server.host, timeout=60)
     assert r["error"] is None, r["error"]
     np.testing.assert_allclose(r["q_after"], r["target"], atol=2e-3)
     assert r["robot_mode"] == "Idle"
