@@ -50,7 +50,7 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
-MODULES = ("sim._ik", "envs._client_filters", "fci.limits._joint")
+MODULES = ("sim._ik", "envs._client_filters", "fci.limits._joint", "fci._contact")
 
 
 def loaded() -> dict[str, bool]:

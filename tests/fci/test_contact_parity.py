@@ -1,0 +1,96 @@
+"""The contact estimate's C replacements (fci/_contact.c) against their numpy reference.
+
+``filter_residual`` is elementwise: bit for bit. The wrench's products and 6 x 6 solve
+are numpy's BLAS and LAPACK on one side and a plain elimination on the other: they agree
+to rounding (times J J^T's condition), so the published (rounded) wrench is the same
+unless a value lies that close to a rounding boundary; the rounded results are compared
+exactly where no value does, and the unrounded ones to 1e-9 of the wrench's size.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from franka_sim_gym.fci import contact
+from franka_sim_gym.fci.tables import FR3
+from franka_sim_gym.sim.arm import ArmPhysics
+
+pytestmark = pytest.mark.skipif(contact.KERNEL is None, reason="fci._contact not built")
+
+C, NP = contact.KERNEL, contact.NUMPY_RULES
+DECIMALS = contact.RESOLUTION_DECIMALS
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> None:
+    np.testing.assert_array_equal(a, b)
+    assert np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def _arm_jacobians(n: int, seed: int) -> np.ndarray:
+    """(n, 6, 7) Jacobians of the FR3 at random configurations, at points near the flange."""
+    rng = np.random.default_rng(seed)
+    physics = ArmPhysics(n_arms=n)
+    q = rng.uniform(FR3.q_lower, FR3.q_upper, (n, 7))
+    if n > 2:
+        q[0] = [0.0, 0.0, 0.0, -0.1458, 0.0, 0.54092, 0.0]  # near the stretched singularity
+    physics.reset_arms(np.arange(n), q)
+    point = physics.flange_pose()[0] + rng.normal(scale=0.05, size=(n, 3))
+    return physics.jacobian(point)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_filter_residual_matches_numpy_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 33))
+    state = rng.normal(scale=rng.choice([1e-6, 0.01, 5.0]), size=(n, 7))
+    state[rng.random((n, 7)) < 0.05] = 0.0
+    tau_ext = {"c": state.copy(), "np": state.copy()}
+    for _ in range(5):
+        tau_J, m_ddq, bias = (rng.normal(scale=10.0, size=(n, 7)) for _ in range(3))
+        m_ddq[rng.random((n, 7)) < 0.1] = -bias[rng.random((n, 7)) < 0.1][:1].sum()
+        out_c, out_np = np.empty((n, 7)), np.empty((n, 7))
+        C.filter_residual(tau_ext["c"], tau_J, m_ddq, bias, contact.ALPHA, DECIMALS, out_c)
+        NP.filter_residual(tau_ext["np"], tau_J, m_ddq, bias, contact.ALPHA, DECIMALS, out_np)
+        _same(tau_ext["c"], tau_ext["np"])
+        _same(out_c, out_np)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_wrench_and_its_frame_match_numpy(seed):
+    rng = np.random.default_rng(seed)
+    n = 16
+    J = _arm_jacobians(n, seed)
+    tau = rng.normal(scale=rng.choice([1e-5, 0.05, 10.0]), size=(n, 7))
+    tau[0] = 0.0  # rest: zero, never a negative zero
+    damping = contact.WRENCH_DAMPING
+    # the solve itself (15 decimals: no rounding at these magnitudes), to rounding
+    # amplified by J J^T's condition (up to ~1e6 at these poses, one near a singularity)
+    raw_c = C.wrench_from_torque(J, tau, damping, 15, np.empty((n, 6)))
+    raw_np = NP.wrench_from_torque(J, tau, damping, 15, np.empty((n, 6)))
+    scale = np.abs(raw_np).max(axis=1, keepdims=True) + 1e-12
+    np.testing.assert_array_less(np.abs(raw_c - raw_np) / scale, 1e-9)
+    # published: the same values, away from a rounding boundary
+    scaled = raw_np * 10.0**DECIMALS
+    clear = np.abs(scaled - np.floor(scaled) - 0.5) > 1e-3
+    got = C.wrench_from_torque(J, tau, damping, DECIMALS, np.empty((n, 6)))
+    want = NP.wrench_from_torque(J, tau, damping, DECIMALS, np.empty((n, 6)))
+    _same(got[clear], want[clear])
+    assert not np.signbit(got[got == 0]).any() and not np.signbit(want[want == 0]).any()
+    # in K's axes
+    R = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
+    got_k = C.in_frame(want, R, DECIMALS, np.empty((n, 6)))
+    want_k = NP.in_frame(want, R, DECIMALS, np.empty((n, 6)))
+    scaled = np.abs((want.reshape(-1, 2, 3) @ R).reshape(-1, 6)) * 10.0**DECIMALS
+    clear = np.abs(scaled - np.floor(scaled) - 0.5) > 1e-3
+    _same(got_k[clear], want_k[clear])
+    assert not np.signbit(got_k[got_k == 0]).any()
+
+
+def test_the_estimate_runs_the_same_on_both_paths(monkeypatch):
+    """The public functions take the C rules where loaded and numpy where RULES says so."""
+    J = _arm_jacobians(4, 9)
+    tau = np.random.default_rng(9).normal(size=(4, 7))
+    with_kernel = contact.wrench_from_torque(J, tau)
+    monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
+    np.testing.assert_allclose(contact.wrench_from_torque(J, tau), with_kernel, atol=1e-4)
