@@ -123,23 +123,29 @@ KERNEL: ModuleType | None = native.load("fci._contact")
 RULES: ModuleType | SimpleNamespace = NUMPY_RULES if KERNEL is None else KERNEL
 
 
-def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:
+def wrench_from_torque(
+    jacobian: np.ndarray, tau: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 6) the wrench F at the Jacobian's point with J^T F = tau, least squares.
 
     A 7-joint arm maps a 6-dof wrench one to one (away from singularities); a torque
     no wrench there can cause (a contact on an inner link) gets its least-squares
     wrench, as a robot estimating at K reports it. Damped by :data:`WRENCH_DAMPING`,
-    published at :data:`RESOLUTION_DECIMALS`.
+    published at :data:`RESOLUTION_DECIMALS` (into ``out`` where given).
     """
-    out = np.empty((len(jacobian), 6))
+    if out is None:
+        out = np.empty((len(jacobian), 6))
     return RULES.wrench_from_torque(jacobian, tau, WRENCH_DAMPING, RESOLUTION_DECIMALS, out)
 
 
-def in_frame(wrench: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+def in_frame(
+    wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 6) a base-frame wrench expressed in a frame whose axes are ``rotation``'s
     columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K (R^T f and R^T m, as rows
-    f R and m R)."""
-    out = np.empty((len(wrench), 6))
+    f R and m R), into ``out`` where given."""
+    if out is None:
+        out = np.empty((len(wrench), 6))
     return RULES.in_frame(wrench, rotation, RESOLUTION_DECIMALS, out)
 
 
@@ -161,13 +167,22 @@ class ExternalTorqueEstimator:
         self.dq_prev[robots] = dq
         self.tau_ext[robots] = 0.0
 
-    def update(self, mass_times, bias: np.ndarray, tau_J: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    def update(
+        self,
+        mass_times,
+        bias: np.ndarray,
+        tau_J: np.ndarray,
+        dq: np.ndarray,
+        out: np.ndarray | None = None,
+    ) -> np.ndarray:
         """One cycle: ``mass_times(x)`` is M(q) x at the new state, ``bias`` C dq + g,
         ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
-        Returns the filtered estimate (n, 7), at the published resolution."""
+        Returns the filtered estimate (n, 7), at the published resolution (in ``out``
+        where given, e.g. the state's own field)."""
         ddq = (dq - self.dq_prev) / DELTA_T
         self.dq_prev[...] = dq
-        out = np.empty_like(self.tau_ext)
+        if out is None:
+            out = np.empty_like(self.tau_ext)
         m_ddq = mass_times(ddq)
         return RULES.filter_residual(
             self.tau_ext, tau_J, m_ddq, bias, ALPHA, RESOLUTION_DECIMALS, out

@@ -9,12 +9,19 @@ exactly where no value does, and the unrounded ones to 1e-9 of the wrench's size
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from franka_sim_gym.fci import contact
+from franka_sim_gym.fci.collision import THRESHOLD_NAMES
+from franka_sim_gym.fci.limits import joint, safety
 from franka_sim_gym.fci.tables import FR3
+from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE, MoveMotionGeneratorMode
 from franka_sim_gym.sim.arm import ArmPhysics
+from tests.fci_helpers import LoopClient, make_controller
+from tests.sim.test_scene import OVER_THE_TABLE
 
 pytestmark = pytest.mark.skipif(contact.KERNEL is None, reason="fci._contact not built")
 
@@ -94,3 +101,40 @@ def test_the_estimate_runs_the_same_on_both_paths(monkeypatch):
     with_kernel = contact.wrench_from_torque(J, tau)
     monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
     np.testing.assert_allclose(contact.wrench_from_torque(J, tau), with_kernel, atol=1e-4)
+
+
+def _descent_into_the_table() -> list[bytes]:
+    """A Cartesian velocity motion down onto the table and back (5 cm/s, contact flags
+    under 5 N lower thresholds, not enforced): every published state's bytes."""
+    ctrl = make_controller(1)
+    ctrl.reset([0], OVER_THE_TABLE[None])
+    phases = ([5.0] * 7, [100.0] * 7) * 2 + ([5.0] * 6, [20.0] * 6) * 2
+    values = dict(zip(THRESHOLD_NAMES, phases, strict=True))
+    ctrl.set_collision_behavior(0, values)
+    client = LoopClient(ctrl)
+    client.start(MoveMotionGeneratorMode.kCartesianVelocity)
+    seen = []
+    for k in range(4400):
+        v = 0.05 * 0.5 * (1 - math.cos(math.pi * min((k + 1) * 1e-3 / 0.5, 1.0)))
+        client.send(O_dP_EE_c=[0.0, 0.0, v if k > 4100 else -v, 0.0, 0.0, 0.0])
+        seen.append(ctrl.states.tobytes())
+    return seen
+
+
+def test_a_press_on_the_table_publishes_the_same_states_with_and_without_the_kernels(
+    monkeypatch,
+):
+    """The controller's published states, bit for bit, with the fci kernels (the contact
+    rules and the joint rules) and with their numpy rules, through contact, the contact
+    flags and the cartesian_collision flag."""
+    with_kernels = _descent_into_the_table()
+    monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
+    monkeypatch.setattr(joint, "KERNEL", None)
+    monkeypatch.setattr(safety, "KERNEL", None)
+    with_numpy = _descent_into_the_table()
+    last = np.frombuffer(with_numpy[-1], dtype=ROBOT_STATE_DTYPE)[0]
+    pressed = [
+        np.frombuffer(s, dtype=ROBOT_STATE_DTYPE)[0]["cartesian_contact"][2] for s in with_numpy
+    ]
+    assert any(pressed) and last["cartesian_collision"][2] == 1.0  # contact was reached
+    assert with_kernels == with_numpy
