@@ -148,10 +148,10 @@ static PyObject *wrench_from_torque(PyObject *self, PyObject *const *args, Py_ss
         for (int r = 0; r < 6; r++)
             for (int k = 0; k < 7; k++) J[r][k] = AT3(a[JAC], i, r, k);
         for (int r = 0; r < 6; r++) {
-            for (int c = 0; c < 6; c++) {
+            for (int c = r; c < 6; c++) { /* J J^T is symmetric: one triangle */
                 double s = 0.0;
                 for (int k = 0; k < 7; k++) s += J[r][k] * J[c][k];
-                A[r][c] = s;
+                A[r][c] = A[c][r] = s;
             }
             A[r][r] += damping;
             double s = 0.0;

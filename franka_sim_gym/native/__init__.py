@@ -2,10 +2,11 @@
 
 A kernel replaces one whole rule: the same signature as the numpy function it stands
 in for, in that function's layer (``sim/_ik.c``: the IK solve; ``envs/_client_filters.c``:
-the libfranka client's filters), every constant passed in from the tables, never fused
-with the code of another layer. The numpy function stays the rule (the one the docs
-describe); a test holds the kernel to it. The controller's own rules (``fci/limits``)
-have no kernel: they are numpy only (docs/architecture.md, "One implementation per rule", says why).
+the libfranka client's filters; ``fci/limits/_joint.c``: the joint rules' per-joint
+arithmetic; ``fci/_contact.c``: the contact estimate's filter and wrench), every constant
+passed in from the tables, never fused with the code of another layer. The numpy function
+stays the rule (the one the docs describe); a test holds the kernel to it
+(docs/architecture.md, "One implementation per rule", says which rules have one and why).
 This package holds what the kernels share: the switch, the loader and the C headers
 ``_arrays.h`` (checked array arguments), ``_rotation.h`` and ``_ik_core.h``.
 
