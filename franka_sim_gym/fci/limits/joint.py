@@ -127,13 +127,13 @@ def _kernel_position(kernel, q_c, q_prev, dq_prev, ddq_prev, first, q_start, ste
     n = len(q_c)
     rows, dq, ddq = np.empty(n, np.uint8), np.empty((n, 7)), np.empty((n, 7))
     constants, positional = joint_constants(table)
-    starting = bool(first.any())
+    starting = np.count_nonzero(first) > 0
     kernel.position_rows(
         q_c, q_prev, dq_prev, ddq_prev, q_start if starting else None, _h(steps),
         constants, positional, tol, JOINT_VELOCITY_LIMIT_TOLERANCE, rows, dq, ddq,
     )  # fmt: skip
     if not starting:
-        if not rows.any():
+        if not np.count_nonzero(rows):
             return PositionCheck(np.full(n, NO_ERROR, np.int64), dq, ddq)
         return PositionCheck(_POSITION.lut[0, rows], dq, ddq)
     at_rest = first.reshape(-1, 1)
@@ -145,13 +145,13 @@ def _kernel_velocity(kernel, dq_c, q_prev, dq_prev, ddq_prev, first, dq_start, s
     n = len(dq_c)
     rows, ddq = np.empty(n, np.uint8), np.empty((n, 7))
     constants, positional = joint_constants(table)
-    starting = bool(first.any())
+    starting = np.count_nonzero(first) > 0
     kernel.velocity_rows(
         dq_c, q_prev, dq_prev, ddq_prev, dq_start if starting else None, _h(steps),
         constants, positional, tol, JOINT_VELOCITY_LIMIT_TOLERANCE, rows, ddq,
     )  # fmt: skip
     if not starting:
-        if not rows.any():
+        if not np.count_nonzero(rows):
             return VelocityCheck(np.full(n, NO_ERROR, np.int64), ddq)
         return VelocityCheck(_VELOCITY.lut[0, rows], ddq)
     error = _VELOCITY.lut[first.view(np.uint8), rows]
