@@ -138,9 +138,7 @@ def wrench_from_torque(
     return RULES.wrench_from_torque(jacobian, tau, WRENCH_DAMPING, RESOLUTION_DECIMALS, out)
 
 
-def in_frame(
-    wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = None
-) -> np.ndarray:
+def in_frame(wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """(n, 6) a base-frame wrench expressed in a frame whose axes are ``rotation``'s
     columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K (R^T f and R^T m, as rows
     f R and m R), into ``out`` where given."""

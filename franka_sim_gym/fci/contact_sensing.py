@@ -148,10 +148,7 @@ class ContactSensing:
         wrench = f["O_F_ext_hat_K"]
         wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau, wrench)
         in_frame(wrench, O_T_K[:, :3, :3], f["K_F_ext_hat_K"])
-        if (
-            np.abs(tau).max() <= self.lowest_torque
-            and np.abs(wrench).max() <= self.lowest_force
-        ):
+        if np.abs(tau).max() <= self.lowest_torque and np.abs(wrench).max() <= self.lowest_force:
             # At or below every threshold: no comparison (a strict ">") can trip, so
             # the levels are all clear without comparing (a NaN fails this test and
             # takes the comparisons).
