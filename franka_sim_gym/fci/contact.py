@@ -24,6 +24,11 @@ A generalized-momentum observer (De Luca et al. 2006) avoids the differentiated
 velocity a real robot's noisy encoders make unusable; the simulation's velocities
 carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
+
+The three rules (the filter step, the wrench, its copy in K's axes) are written here in
+numpy, each with the signature of its C replacement in ``fci/_contact.c``; :data:`RULES`
+is the C module where the backend switch loaded it (``native.load``), else
+:data:`NUMPY_RULES` (tests/fci/test_contact_parity.py holds the two together).
 """
 
 from __future__ import annotations

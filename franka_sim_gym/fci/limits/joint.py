@@ -22,7 +22,8 @@ The rows' per-joint arithmetic (the differences, the envelope, the comparisons) 
 replacement, ``fci/limits/_joint.c``, chosen by the backend switch (:data:`KERNEL`,
 ``native.load``): it returns which rows trip per robot, and the precedence table below
 picks the error from them as it does on the numpy path, bit for bit the same
-(tests/fci/test_joint_rules_parity.py; docs/architecture.md "Fast paths" says why).
+(tests/fci/test_joint_rules_parity.py; docs/architecture.md "One implementation per
+rule" says why).
 """
 
 from __future__ import annotations
