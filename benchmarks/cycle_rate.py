@@ -18,6 +18,7 @@ import time
 import mujoco
 import numpy as np
 
+from franka_sim_gym.fci.collision import accelerating
 from franka_sim_gym.fci.config import ControllerConfig
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
@@ -144,6 +145,14 @@ def motion_rate(n: int, seconds: float) -> float:
     in_motion = ctrl.modes.in_motion
     sensing = rate(lambda: ctrl.contact.sense(in_motion, None), seconds / 4)
     SENSING_SHARE[n] = cycles / sensing
+    # The detector alone: the thresholds' comparisons, which sense() skips while the
+    # estimate lies below every threshold (free space, as here) and runs in contact.
+    contact, field = ctrl.contact, ctrl.contact.field
+    tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
+    detect = rate(
+        lambda: contact.behavior.levels(tau, wrench, accelerating(ddq_d, in_motion)), seconds / 4
+    )
+    DETECTOR_SHARE[n] = cycles / detect
     return cycles
 
 
@@ -156,6 +165,8 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
 ACCOUNTING_SHARE: dict[int, float] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
+#: per n: the collision detector's comparisons' share, where they run (in contact)
+DETECTOR_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -184,6 +195,8 @@ def main() -> None:
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
     for n, share in SENSING_SHARE.items():
         print(f"contact estimate and collision detection's share, n={n}: {share:.1%}")
+    for n, share in DETECTOR_SHARE.items():
+        print(f"the thresholds' comparisons when they run (in contact), n={n}: {share:.1%}")
     by_name = {name: cycles for name, _, cycles in rows}
     n1 = by_name["controller joint-position motion, n=1"]
     n16 = by_name["controller joint-position motion, n=16"] * 16
