@@ -17,6 +17,7 @@ import pytest
 from franka_sim_gym.fci import contact
 from franka_sim_gym.fci.collision import THRESHOLD_NAMES
 from franka_sim_gym.fci.limits import joint, safety
+from franka_sim_gym.fci.statuses import SetterStatus
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE, MoveMotionGeneratorMode
 from franka_sim_gym.sim.arm import ArmPhysics
@@ -27,6 +28,7 @@ pytestmark = pytest.mark.skipif(contact.KERNEL is None, reason="fci._contact not
 
 C, NP = contact.KERNEL, contact.NUMPY_RULES
 DECIMALS = contact.RESOLUTION_DECIMALS
+OK = SetterStatus.kSuccess
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> None:
@@ -138,3 +140,47 @@ def test_a_press_on_the_table_publishes_the_same_states_with_and_without_the_ker
     ]
     assert any(pressed) and last["cartesian_collision"][2] == 1.0  # contact was reached
     assert with_kernels == with_numpy
+
+
+def _sense_estimates(monkeypatch, thresholds: tuple) -> set:
+    """Robot 1 of 2 configured with ``thresholds`` (then reset to the defaults halfway),
+    estimates of growing size: checks that sense()'s flags are the comparisons' flags;
+    returns which (robot 1 in contact, robot 0 quiet) pairs were seen."""
+    ctrl = make_controller(2)
+    sensing, field = ctrl.contact, ctrl.contact.field
+    values = dict(zip(THRESHOLD_NAMES, thresholds, strict=True))
+    assert ctrl.set_collision_behavior(1, values) == OK
+    rng = np.random.default_rng(5)
+    nowhere = np.zeros(2, dtype=bool)
+    seen = set()
+    for k, scale in enumerate((0.3, 0.6, 1.0, 1.5, 2.5, 4.0, 8.0, 15.0, 30.0) * 2):
+        if k == 9:
+            sensing.reset([1])  # back to the defaults; the lowest bounds stay
+        estimate = np.round(rng.normal(scale=scale, size=(2, 7)), 4)
+
+        def update(mass_times, bias, tau_J, dq, out=None, estimate=estimate):
+            out[...] = estimate
+            return out
+
+        monkeypatch.setattr(sensing.estimator, "update", update)
+        sensing.sense(nowhere, None)
+        want = sensing.behavior.levels(
+            field["tau_ext_hat_filtered"], field["O_F_ext_hat_K"], nowhere
+        )
+        np.testing.assert_array_equal(field["joint_contact"], want.joint_contact)
+        np.testing.assert_array_equal(field["cartesian_contact"], want.cartesian_contact)
+        quiet = not want.joint_contact[0].any() and not want.cartesian_contact[0].any()
+        seen.add((bool(want.joint_contact[1].any() or want.cartesian_contact[1].any()), quiet))
+    return seen
+
+
+def test_skipping_the_comparisons_gives_the_levels_the_comparisons_give(monkeypatch):
+    """ContactSensing.sense skips the threshold comparisons while the estimate lies at
+    or below every threshold any robot has had: the flags must be those the comparisons
+    give, with a robot's torque (then force) thresholds configured below the defaults
+    and later reset to them, estimates on both sides of every threshold."""
+    torque = ([2.0] * 7, [40.0] * 7) * 2 + ([20.0] * 6, [50.0] * 6) * 2
+    force = ([20.0] * 7, [40.0] * 7) * 2 + ([3.0] * 6, [50.0] * 6) * 2
+    for thresholds in (torque, force):
+        # robot 1 in contact below the defaults while robot 0 was not
+        assert (True, True) in _sense_estimates(monkeypatch, thresholds)
