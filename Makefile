@@ -11,7 +11,7 @@ PIP := $(PY) -m pip --disable-pip-version-check -q
 # torch==2.13.0 first: that CPU wheel is on these machines; any other torch pulls
 # gigabytes of CUDA packages (stable-baselines3 in the test and train extras needs it).
 # setup.py and the C kernels too: a changed kernel is rebuilt by the editable install.
-$(VENV)/.installed: pyproject.toml setup.py $(wildcard franka_sim_gym/*/_*.c franka_sim_gym/*/_*.h)
+$(VENV)/.installed: pyproject.toml setup.py $(wildcard franka_sim_gym/*/_*.c franka_sim_gym/*/*/_*.c franka_sim_gym/*/_*.h)
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip
 	$(PIP) install torch==2.13.0

@@ -1,8 +1,9 @@
-"""Build the optional C kernels: every ``franka_sim_gym/<layer>/_<name>.c``.
+"""Build the optional C kernels: every ``franka_sim_gym/**/_<name>.c``.
 
 Everything else is in pyproject.toml. Each kernel sits next to the numpy rule it replaces
-whole (sim/: the IK solve, envs/: the libfranka client's filters) and
-becomes the extension ``franka_sim_gym.<layer>._<name>``; franka_sim_gym/native/ holds
+whole (sim/: the IK solve and the Jacobian at a point, envs/: the libfranka client's
+filters, fci/limits/: the joint rules, fci/: the contact estimate's filter and wrench)
+and becomes the extension ``franka_sim_gym.<package>._<name>``; franka_sim_gym/native/ holds
 the loader and the shared C header. The kernels are optional: a machine without a C
 compiler still installs, and the package runs on its numpy reference paths
 (``franka_sim_gym.native.describe()`` says which are loaded).
@@ -26,7 +27,7 @@ KERNELS = [
         extra_compile_args=FLAGS,
         optional=True,
     )
-    for source in sorted(Path("franka_sim_gym").glob("*/_*.c"))
+    for source in sorted(Path("franka_sim_gym").rglob("_*.c"))
 ]
 
 setup(ext_modules=KERNELS)

@@ -7,7 +7,7 @@ Rows: bare mj_step of the world (n = 1 and n = 16 arms), the controller idle
 velocity motion (one command per arm per cycle, delivered in-process; the
 Cartesian ones solved to joint space by the differential IK every cycle).
 Each row reports cycles/s, arm-cycles/s and the ratio to bare mj_step of the
-same world (the arms on their table, sim/scene.py). One core, nothing else running.
+same world (the arms on their table, sim/scene.py), counted in this process's CPU time.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import time
 import mujoco
 import numpy as np
 
+from franka_sim_gym.fci.collision import accelerating
 from franka_sim_gym.fci.config import ControllerConfig
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
@@ -31,16 +32,22 @@ CARTESIAN_POSITION = MoveMotionGeneratorMode.kCartesianPosition
 CARTESIAN_VELOCITY = MoveMotionGeneratorMode.kCartesianVelocity
 
 
+#: The time the rates are counted in: this process's CPU time, so that the other
+#: processes of a shared host move the figures little (a wall clock counts their
+#: share of the cores too). On an idle core the two agree.
+clock = time.process_time
+
+
 def rate(fn, seconds: float) -> float:
     """Calls of ``fn`` per second over about ``seconds`` (after a short warm-up)."""
     for _ in range(50):
         fn()
-    calls, start = 0, time.perf_counter()
+    calls, start = 0, clock()
     while True:
         for _ in range(100):
             fn()
         calls += 100
-        elapsed = time.perf_counter() - start
+        elapsed = clock() - start
         if elapsed >= seconds:
             return calls / elapsed
 
@@ -138,6 +145,14 @@ def motion_rate(n: int, seconds: float) -> float:
     in_motion = ctrl.modes.in_motion
     sensing = rate(lambda: ctrl.contact.sense(in_motion, None), seconds / 4)
     SENSING_SHARE[n] = cycles / sensing
+    # The detector alone: the thresholds' comparisons, which sense() skips while the
+    # estimate lies below every threshold (free space, as here) and runs in contact.
+    contact, field = ctrl.contact, ctrl.contact.field
+    tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
+    detect = rate(
+        lambda: contact.behavior.levels(tau, wrench, accelerating(ddq_d, in_motion)), seconds / 4
+    )
+    DETECTOR_SHARE[n] = cycles / detect
     return cycles
 
 
@@ -150,6 +165,8 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
 ACCOUNTING_SHARE: dict[int, float] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
+#: per n: the collision detector's comparisons' share, where they run (in contact)
+DETECTOR_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -178,6 +195,8 @@ def main() -> None:
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
     for n, share in SENSING_SHARE.items():
         print(f"contact estimate and collision detection's share, n={n}: {share:.1%}")
+    for n, share in DETECTOR_SHARE.items():
+        print(f"the thresholds' comparisons when they run (in contact), n={n}: {share:.1%}")
     by_name = {name: cycles for name, _, cycles in rows}
     n1 = by_name["controller joint-position motion, n=1"]
     n16 = by_name["controller joint-position motion, n=16"] * 16

@@ -24,15 +24,33 @@ A generalized-momentum observer (De Luca et al. 2006) avoids the differentiated
 velocity a real robot's noisy encoders make unusable; the simulation's velocities
 carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
+
+The three rules (the filter step, the wrench, its copy in K's axes) are written here in
+numpy, each with the signature of its C replacement in ``fci/_contact.c``; :data:`RULES`
+is the C module where the backend switch loaded it (``native.load``), else
+:data:`NUMPY_RULES` (tests/fci/test_contact_parity.py holds the two together).
 """
 
 from __future__ import annotations
 
+from types import ModuleType, SimpleNamespace
+
 import numpy as np
 
+from .. import native
 from .tables import DELTA_T
 
-__all__ = ["ExternalTorqueEstimator", "in_frame", "wrench_from_torque"]
+__all__ = [
+    "KERNEL",
+    "NUMPY_RULES",
+    "RULES",
+    "ExternalTorqueEstimator",
+    "filter_residual_core",
+    "in_frame",
+    "in_frame_core",
+    "wrench_core",
+    "wrench_from_torque",
+]
 
 #: Time constant of the estimate's low-pass filter [s]. Not published for the FR3: a
 #: choice. 10 ms (16 Hz) passes a press on a table within a few cycles and smooths
@@ -51,27 +69,87 @@ RESOLUTION_DECIMALS = 4
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.
 WRENCH_DAMPING = 1e-8
-_DAMPING = WRENCH_DAMPING * np.eye(6)
 
 
-def wrench_from_torque(jacobian: np.ndarray, tau: np.ndarray) -> np.ndarray:
+# -- the rules, numpy (the reference), each with its C replacement's signature ---------------
+
+
+def filter_residual_core(
+    tau_ext: np.ndarray,
+    tau_J: np.ndarray,
+    m_ddq: np.ndarray,
+    bias: np.ndarray,
+    alpha: float,
+    decimals: int,
+    out: np.ndarray,
+) -> np.ndarray:
+    """One step of the estimate's low-pass filter on the model residual, in place on
+    ``tau_ext`` (n, 7): tau_ext += alpha (tau_J - (M ddq + bias) - tau_ext); ``out`` the
+    filtered estimate rounded to ``decimals``."""
+    residual = tau_J - (m_ddq + bias)
+    tau_ext += alpha * (residual - tau_ext)
+    return np.round(tau_ext, decimals, out=out)
+
+
+def wrench_core(
+    jacobian: np.ndarray, tau: np.ndarray, damping: float, decimals: int, out: np.ndarray
+) -> np.ndarray:
+    """(n, 6) into ``out``: the wrench F with (J J^T + damping I) F = J tau, rounded to
+    ``decimals`` (no negative zero: the C replacement's solve may reach a zero from the
+    other side)."""
+    jjt = jacobian @ jacobian.transpose(0, 2, 1)
+    jjt += damping * _EYE6
+    out[...] = np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
+    np.round(out, decimals, out=out)
+    out += 0.0
+    return out
+
+
+def in_frame_core(
+    wrench: np.ndarray, rotation: np.ndarray, decimals: int, out: np.ndarray
+) -> np.ndarray:
+    """(n, 6) into ``out``: ``wrench`` in the axes of ``rotation`` (n, 3, 3), rounded
+    (as :func:`wrench_core`)."""
+    out.reshape(-1, 2, 3)[...] = wrench.reshape(-1, 2, 3) @ rotation
+    np.round(out, decimals, out=out)
+    out += 0.0
+    return out
+
+
+_EYE6 = np.eye(6)
+
+#: The numpy rules, by the names their C replacements (fci/_contact.c) have.
+NUMPY_RULES = SimpleNamespace(
+    filter_residual=filter_residual_core, wrench_from_torque=wrench_core, in_frame=in_frame_core
+)
+#: The C replacements (fci/_contact.c), or None where not built or switched off.
+KERNEL: ModuleType | None = native.load("fci._contact")
+#: The rules the estimate runs: the C replacements where loaded, else :data:`NUMPY_RULES`.
+RULES: ModuleType | SimpleNamespace = NUMPY_RULES if KERNEL is None else KERNEL
+
+
+def wrench_from_torque(
+    jacobian: np.ndarray, tau: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 6) the wrench F at the Jacobian's point with J^T F = tau, least squares.
 
     A 7-joint arm maps a 6-dof wrench one to one (away from singularities); a torque
     no wrench there can cause (a contact on an inner link) gets its least-squares
-    wrench, as a robot estimating at K reports it.
+    wrench, as a robot estimating at K reports it. Damped by :data:`WRENCH_DAMPING`,
+    published at :data:`RESOLUTION_DECIMALS` (into ``out`` where given).
     """
-    jjt = jacobian @ jacobian.transpose(0, 2, 1)
-    jjt += _DAMPING
-    wrench = np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
-    return np.round(wrench, RESOLUTION_DECIMALS, out=wrench)
+    if out is None:
+        out = np.empty((len(jacobian), 6))
+    return RULES.wrench_from_torque(jacobian, tau, WRENCH_DAMPING, RESOLUTION_DECIMALS, out)
 
 
-def in_frame(wrench: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+def in_frame(wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """(n, 6) a base-frame wrench expressed in a frame whose axes are ``rotation``'s
     columns (n, 3, 3): K_F_ext_hat_K from O_F_ext_hat_K (R^T f and R^T m, as rows
-    f R and m R)."""
-    return np.round((wrench.reshape(-1, 2, 3) @ rotation).reshape(-1, 6), RESOLUTION_DECIMALS)
+    f R and m R), into ``out`` where given."""
+    if out is None:
+        out = np.empty((len(wrench), 6))
+    return RULES.in_frame(wrench, rotation, RESOLUTION_DECIMALS, out)
 
 
 class ExternalTorqueEstimator:
@@ -92,12 +170,23 @@ class ExternalTorqueEstimator:
         self.dq_prev[robots] = dq
         self.tau_ext[robots] = 0.0
 
-    def update(self, mass_times, bias: np.ndarray, tau_J: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    def update(
+        self,
+        mass_times,
+        bias: np.ndarray,
+        tau_J: np.ndarray,
+        dq: np.ndarray,
+        out: np.ndarray | None = None,
+    ) -> np.ndarray:
         """One cycle: ``mass_times(x)`` is M(q) x at the new state, ``bias`` C dq + g,
         ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
-        Returns the filtered estimate (n, 7), at the published resolution."""
+        Returns the filtered estimate (n, 7), at the published resolution (in ``out``
+        where given, e.g. the state's own field)."""
         ddq = (dq - self.dq_prev) / DELTA_T
-        residual = tau_J - (mass_times(ddq) + bias)
-        self.tau_ext += ALPHA * (residual - self.tau_ext)
         self.dq_prev[...] = dq
-        return np.round(self.tau_ext, RESOLUTION_DECIMALS)
+        if out is None:
+            out = np.empty_like(self.tau_ext)
+        m_ddq = mass_times(ddq)
+        return RULES.filter_residual(
+            self.tau_ext, tau_J, m_ddq, bias, ALPHA, RESOLUTION_DECIMALS, out
+        )

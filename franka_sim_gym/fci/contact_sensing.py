@@ -23,6 +23,8 @@ import numpy as np
 from ..sim.arm import ArmPhysics
 from ..sim.dynamics import ArmDynamics, weight_torque
 from .collision import (
+    DEFAULT_FORCE_THRESHOLDS,
+    DEFAULT_TORQUE_THRESHOLDS,
     THRESHOLD_NAMES,
     CollisionBehavior,
     Levels,
@@ -67,6 +69,15 @@ class ContactSensing:
         self.enforce = enforce
         self.field = field
         self._gravity = np.asarray(physics.model.opt.gravity, dtype=float).copy()
+        #: No threshold of any robot (lower or upper, either phase) ever lay below these:
+        #: the defaults and every configured one. An estimate at or below both trips no
+        #: comparison, whatever the thresholds are now.
+        self.lowest_torque = min(DEFAULT_TORQUE_THRESHOLDS)
+        self.lowest_force = min(DEFAULT_FORCE_THRESHOLDS)
+        #: The cycle's levels when nothing reaches them (every flag clear; read only).
+        self.quiet = Levels(*(np.zeros((n, k), dtype=bool) for k in (7, 6, 7, 6)))
+        for flags in self.quiet:
+            flags.setflags(write=False)
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -112,6 +123,10 @@ class ContactSensing:
             log.warning("robot %d: SetCollisionBehavior rejected: %s", i, why)
             return SetterStatus.kInvalidArgumentRejected
         self.behavior.configure(i, values)
+        torque = [values[name].min() for name in THRESHOLD_NAMES if "torque" in name]
+        force = [values[name].min() for name in THRESHOLD_NAMES if "force" in name]
+        self.lowest_torque = min(self.lowest_torque, *torque)
+        self.lowest_force = min(self.lowest_force, *force)
         log.info(
             "robot %d: SetCollisionBehavior: upper thresholds %s Nm, %s N/Nm (nominal phase)",
             i,
@@ -127,12 +142,19 @@ class ContactSensing:
         bias = self.dynamics.bias()
         if load_weight is not None:
             bias = bias + load_weight
-        tau = self.estimator.update(self.dynamics.mass_times, bias, physics.tau_J, physics.dq)
+        tau = f["tau_ext_hat_filtered"]
+        self.estimator.update(self.dynamics.mass_times, bias, physics.tau_J, physics.dq, tau)
         O_T_K = from_wire(f["O_T_EE"]) @ from_wire(f["EE_T_K"])
-        wrench = wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau)
-        f["tau_ext_hat_filtered"][...] = tau
-        f["O_F_ext_hat_K"][...] = wrench
-        f["K_F_ext_hat_K"][...] = in_frame(wrench, O_T_K[:, :3, :3])
+        wrench = f["O_F_ext_hat_K"]
+        wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau, wrench)
+        in_frame(wrench, O_T_K[:, :3, :3], f["K_F_ext_hat_K"])
+        if np.abs(tau).max() <= self.lowest_torque and np.abs(wrench).max() <= self.lowest_force:
+            # At or below every threshold: no comparison (a strict ">") can trip, so
+            # the levels are all clear without comparing (a NaN fails this test and
+            # takes the comparisons).
+            f["joint_contact"][...] = 0.0
+            f["cartesian_contact"][...] = 0.0
+            return self.quiet
         phase = accelerating(f["ddq_d"], in_motion)
         levels = self.behavior.levels(tau, wrench, phase)
         f["joint_contact"][...] = levels.joint_contact

@@ -1,11 +1,13 @@
 """The loader of the optional C kernels for the 1 kHz hot path (no rule lives here).
 
 A kernel replaces one whole rule: the same signature as the numpy function it stands
-in for, in that function's layer (``sim/_ik.c``: the IK solve; ``envs/_client_filters.c``:
-the libfranka client's filters), every constant passed in from the tables, never fused
-with the code of another layer. The numpy function stays the rule (the one the docs
-describe); a test holds the kernel to it. The controller's own rules (``fci/limits``)
-have no kernel: they are numpy only (docs/architecture.md, "One implementation per rule", says why).
+in for, in that function's layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the
+Jacobian at a point; ``envs/_client_filters.c``:
+the libfranka client's filters; ``fci/limits/_joint.c``: the joint rules' per-joint
+arithmetic; ``fci/_contact.c``: the contact estimate's filter and wrench), every constant
+passed in from the tables, never fused with the code of another layer. The numpy function
+stays the rule (the one the docs describe); a test holds the kernel to it
+(docs/architecture.md, "One implementation per rule", says which rules have one and why).
 This package holds what the kernels share: the switch, the loader and the C headers
 ``_arrays.h`` (checked array arguments), ``_rotation.h`` and ``_ik_core.h``.
 
@@ -50,7 +52,7 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
-MODULES = ("sim._ik", "envs._client_filters")
+MODULES = ("sim._ik", "sim._dynamics", "envs._client_filters", "fci.limits._joint", "fci._contact")
 
 
 def loaded() -> dict[str, bool]:

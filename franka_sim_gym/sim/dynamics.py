@@ -17,10 +17,16 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from .. import native
 from .rotations import LEVI_CIVITA
 
 if TYPE_CHECKING:
     from .arm import ArmPhysics
+
+
+#: The C replacement of :func:`jacobian_at` (sim/_dynamics.c, the same bits on finite
+#: inputs), or None where not built or the backend switch is off.
+JACOBIAN_KERNEL = native.load("sim._dynamics")
 
 
 def jacobian_at(
@@ -34,6 +40,8 @@ def jacobian_at(
     """
     if out is None:
         out = np.empty((len(point), 6, 7))
+    if JACOBIAN_KERNEL is not None:
+        return JACOBIAN_KERNEL.jacobian_at(axes, anchors, point, out)
     lever = point[:, None, :] - anchors
     np.einsum("iab,nja,njb->nij", LEVI_CIVITA, axes, lever, out=out[:, :3])
     out[:, 3:] = axes.transpose(0, 2, 1)

@@ -17,16 +17,25 @@ dq_c      dq_c inside the envelope at q_d                 13
 Derivatives are backward Euler (libfranka docs/overview.rst, docs/fci-behaviour.md "The
 difference formulas") over ``steps * dt``: dq = (q_c - q_prev) / (steps dt),
 ddq = (dq - dq_prev) / (steps dt), dddq = (ddq - ddq_prev) / (steps dt).
+
+The rows' per-joint arithmetic (the differences, the envelope, the comparisons) has a C
+replacement, ``fci/limits/_joint.c``, chosen by the backend switch (:data:`KERNEL`,
+``native.load``): it returns which rows trip per robot, and the precedence table below
+picks the error from them as it does on the numpy path, bit for bit the same
+(tests/fci/test_joint_rules_parity.py; docs/architecture.md "One implementation per
+rule" says why).
 """
 
 from __future__ import annotations
 
+from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
 
+from ... import native
 from ..errors import Error
-from ..tables import RobotTable
+from ..tables import JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from .precedence import (
     NO_ERROR,
     Precedence,
@@ -77,6 +86,77 @@ _VELOCITY = Precedence(
     first_only=(1,),
     later_only=(2, 3),
 )
+
+
+#: The C replacement of the rows' arithmetic (fci/limits/_joint.c), or None where it was
+#: not built or the backend switch is off: the numpy rules below run.
+KERNEL: ModuleType | None = native.load("fci.limits._joint")
+
+_CONSTANTS: dict[int, tuple[RobotTable, np.ndarray, float]] = {}
+
+
+def joint_constants(table: RobotTable) -> tuple[np.ndarray, float]:
+    """The table's joint limits as the C replacement takes them: (7, 7) rows q_lower,
+    q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max, and 1.0 where the envelope
+    depends on the position (0.0: the constant dq_max of a robot without offsets)."""
+    cached = _CONSTANTS.get(id(table))
+    if cached is None or cached[0] is not table:
+        positional = table.dq_offset is not None
+        zero = np.zeros(7)
+        rows = (
+            table.q_lower,
+            table.q_upper,
+            table.ddq_max,
+            table.dddq_max,
+            2.0 * table.ddq_decel if positional else zero,
+            table.dq_offset if positional else zero,
+            table.dq_max,
+        )
+        cached = (table, np.ascontiguousarray(np.stack(rows), dtype=np.float64), float(positional))
+        cached[1].setflags(write=False)
+        _CONSTANTS[id(table)] = cached
+    return cached[1], cached[2]
+
+
+def _h(steps) -> float | np.ndarray:
+    """The differencing interval as the kernel takes it: one float, or (n,)."""
+    h = interval(steps)
+    return h if isinstance(h, float) else np.ascontiguousarray(h.reshape(-1))
+
+
+def _kernel_position(kernel, q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, table, tol):
+    n = len(q_c)
+    rows, dq, ddq = np.empty(n, np.uint8), np.empty((n, 7)), np.empty((n, 7))
+    constants, positional = joint_constants(table)
+    starting = np.count_nonzero(first) > 0
+    kernel.position_rows(
+        q_c, q_prev, dq_prev, ddq_prev, q_start if starting else None, _h(steps),
+        constants, positional, tol, JOINT_VELOCITY_LIMIT_TOLERANCE, rows, dq, ddq,
+    )  # fmt: skip
+    if not starting:
+        if not np.count_nonzero(rows):
+            return PositionCheck(np.full(n, NO_ERROR, np.int64), dq, ddq)
+        return PositionCheck(_POSITION.lut[0, rows], dq, ddq)
+    at_rest = first.reshape(-1, 1)
+    error = _POSITION.lut[first.view(np.uint8), rows]
+    return PositionCheck(error, np.where(at_rest, 0.0, dq), np.where(at_rest, 0.0, ddq))
+
+
+def _kernel_velocity(kernel, dq_c, q_prev, dq_prev, ddq_prev, first, dq_start, steps, table, tol):
+    n = len(dq_c)
+    rows, ddq = np.empty(n, np.uint8), np.empty((n, 7))
+    constants, positional = joint_constants(table)
+    starting = np.count_nonzero(first) > 0
+    kernel.velocity_rows(
+        dq_c, q_prev, dq_prev, ddq_prev, dq_start if starting else None, _h(steps),
+        constants, positional, tol, JOINT_VELOCITY_LIMIT_TOLERANCE, rows, ddq,
+    )  # fmt: skip
+    if not starting:
+        if not np.count_nonzero(rows):
+            return VelocityCheck(np.full(n, NO_ERROR, np.int64), ddq)
+        return VelocityCheck(_VELOCITY.lut[0, rows], ddq)
+    error = _VELOCITY.lut[first.view(np.uint8), rows]
+    return VelocityCheck(error, np.where(first.reshape(-1, 1), 0.0, ddq))
 
 
 class PositionCheck(NamedTuple):
@@ -155,6 +235,11 @@ def check_joint_position(
         command). They are meaningless (maybe NaN) for a robot whose error is 12.
     """
     first = as_bool(first)
+    if KERNEL is not None and envelope is None:
+        return _kernel_position(
+            KERNEL, q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, table,
+            start_tolerance,
+        )  # fmt: skip
     starting = bool(first.any())
     masks, dq, ddq, _, _, _ = _position_terms(
         q_c,
@@ -267,6 +352,11 @@ def check_joint_velocity(
         acceleration to record (zero where ``first``).
     """
     first = as_bool(first)
+    if KERNEL is not None:
+        return _kernel_velocity(
+            KERNEL, dq_c, q_prev, dq_prev, ddq_prev, first, dq_start, steps, table,
+            start_tolerance,
+        )  # fmt: skip
     starting = bool(first.any())
     masks, ddq, _, _, _ = _velocity_terms(
         dq_c,

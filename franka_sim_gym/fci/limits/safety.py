@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import Error
-from ..tables import RobotTable
+from ..tables import JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from .joint import KERNEL, joint_constants
 from .precedence import NO_ERROR, Row, Violation, describe_row, robot_row
 
 #: docs/fci-behaviour.md "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
@@ -40,6 +41,12 @@ def check_measured_joint_velocity(
         (n,) int64: 3 or -1. A non-finite measured dq is a violation (3): a physics
         state gone NaN is not "the arm is within its limits".
     """
+    if KERNEL is not None:  # the same comparisons in C (fci/limits/_joint.c)
+        outside = np.empty(len(dq), np.uint8)
+        constants, positional = joint_constants(table)
+        shift = JOINT_VELOCITY_LIMIT_TOLERANCE
+        KERNEL.measured_velocity_rows(dq, q, constants, positional, shift, margin, outside)
+        return np.where(outside, _JOINT, NO_ERROR)
     upper, lower = table.velocity_envelope(q)
     inside = (dq <= upper + margin) & (dq >= lower - margin)
     return np.where(inside.all(axis=1), NO_ERROR, _JOINT)

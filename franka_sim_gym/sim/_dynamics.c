@@ -1,0 +1,60 @@
+/* The C replacement of sim/dynamics.py jacobian_at, chosen by the backend switch
+ * (native.load, dynamics.py JACOBIAN_KERNEL):
+ *
+ *   jacobian_at(axes, anchors, point, out)
+ *       (n, 6, 7): column j is [z_j x (p - o_j); z_j], axes / anchors (n, 7, 3), point
+ *       (n, 3)
+ *
+ * The numpy rule contracts with the Levi-Civita symbol; each component of the cross
+ * product is then one product minus another plus zeros, added from a zero, which is
+ * what this computes: the same bits for finite inputs, the sign of a zero result
+ * included (tests/sim/test_dynamics_parity.py). Built without fused multiply-adds
+ * (setup.py). */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "_arrays.h"
+
+static PyObject *jacobian_at(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    enum { AXES, ANCHORS, POINT, OUT, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    PyObject *result = NULL;
+    if (check_nargs(nargs, 4, "jacobian_at") < 0) return NULL;
+    Py_ssize_t n = leading(args[0], "axes");
+    if (n < 0) return NULL;
+    Py_ssize_t s73[3] = {n, 7, 3}, s3[2] = {n, 3}, s67[3] = {n, 6, 7};
+    if (f64_get(args[0], &a[AXES], 3, s73, 0, "axes") < 0 ||
+        f64_get(args[1], &a[ANCHORS], 3, s73, 0, "anchors") < 0 ||
+        f64_get(args[2], &a[POINT], 2, s3, 0, "point") < 0 ||
+        f64_get(args[3], &a[OUT], 3, s67, 1, "out") < 0)
+        goto done;
+    for (Py_ssize_t i = 0; i < n; i++)
+        for (int j = 0; j < 7; j++) {
+            double z[3], l[3];
+            for (int k = 0; k < 3; k++) {
+                z[k] = AT3(a[AXES], i, j, k);
+                l[k] = AT2(a[POINT], i, k) - AT3(a[ANCHORS], i, j, k);
+            }
+            /* eps_iab z_a l_b summed from zero: z_a l_b - z_b l_a, never a negative zero */
+            AT3(a[OUT], i, 0, j) = 0.0 + (z[1] * l[2] - z[2] * l[1]);
+            AT3(a[OUT], i, 1, j) = 0.0 + (z[2] * l[0] - z[0] * l[2]);
+            AT3(a[OUT], i, 2, j) = 0.0 + (z[0] * l[1] - z[1] * l[0]);
+            for (int k = 0; k < 3; k++) AT3(a[OUT], i, 3 + k, j) = z[k];
+        }
+    result = Py_NewRef(a[OUT].view.obj);
+done:
+    f64_release_all(a, COUNT);
+    return result;
+}
+
+#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
+
+static PyMethodDef METHODS[] = {
+    METHOD(jacobian_at, "dynamics.jacobian_at, out given."),
+    {NULL, NULL, 0, NULL},
+};
+
+KERNEL_MODULE(_dynamics, "C replacement of the arms' Jacobian at a point (sim/dynamics.py).")
