@@ -168,6 +168,8 @@ class CartesianChecks:
 def _joint_position_quantities(signal: str, joint, table) -> dict:
     """The log line's candidates of rows 27 and 28: how far the IK solution is beyond its
     joint range, and its velocity against the envelope bound on its side."""
+    if joint.motion is None:
+        return {}
     q, dq = joint.q, joint.dq
     beyond = np.maximum(np.maximum(table.q_lower - q, q - table.q_upper), 0.0)
     upper, lower = table.velocity_envelope(joint.q_prev)
