@@ -211,3 +211,24 @@ def test_after_an_asynchronous_motion_a_joint_motion_loses_cycles_as_usual():
         loop.send(deliver=False)
     assert loop.move_statuses()[-1] == MoveStatus.kReflexAborted
     assert c.ctrl.errors[0, Error.communication_constraints_violation]
+
+
+def test_two_robots_one_asynchronous_one_joint_motion_each_reach_their_own_targets():
+    ctrl = make_controller(n=2, enforce_motion_limits=True, enforce_comm_constraints=True)
+    assert ctrl.move(0, int(IMP), int(JP), True, tuple(CAPS)) == MoveStatus.kMotionStarted
+    loop = LoopClient(ctrl, 1)
+    assert loop.start(JP) == MoveStatus.kMotionStarted
+    command = np.zeros(2, dtype=ROBOT_COMMAND_DTYPE)
+    target = HOME_Q - 0.2
+    q1 = ctrl.states["q_d"][1].astype(float).copy()
+    for k in range(2000):
+        command["message_id"] = ctrl.states["message_id"]
+        command["q_c"][0] = target
+        command["q_c"][1] = q1 + 0.1 * (1 - np.cos(np.pi * min(k / 1000, 1.0))) / 2
+        mask = np.array([k % 20 == 0, True])  # robot 0: a target every 20 cycles
+        ctrl.receive(command, mask)
+        assert not ctrl.step()
+    s = ctrl.states
+    assert np.linalg.norm(s["q_d"][0] - target) < 1e-3 and np.linalg.norm(s["dq_d"][0]) < 0.01
+    np.testing.assert_allclose(s["q_d"][1], q1 + 0.1, atol=1e-6)
+    assert ctrl.errors.sum() == 0 and ctrl.violations.take().sum() == 0
