@@ -111,6 +111,14 @@ class AsyncPositionGenerator:
         self._offset = t.dq_offset if t.dq_offset is not None else np.zeros(7)
         self._v_band = t.dq_max
         self._shift = JOINT_VELOCITY_LIMIT_TOLERANCE + VELOCITY_MARGIN
+        self._two_a_brake = 2.0 * self._a_brake
+        # The band's constants for [upper | -lower] side by side (the lower bound is the
+        # upper one's law on the mirrored range, as fci/tables.py computes the envelope).
+        self._mirror = np.concatenate((np.ones(7), -np.ones(7)))
+        self._bound = np.concatenate((t.q_upper, -t.q_lower))
+        self._two_a_band = np.concatenate([2.0 * self._a_band] * 2)
+        self._offset2 = np.concatenate([self._offset] * 2)
+        self._v_band2 = np.concatenate([self._v_band] * 2)
 
     # -- the motion ---------------------------------------------------------------------------
 
@@ -204,40 +212,63 @@ class AsyncPositionGenerator:
         generators as its q_c (``cycle.q_c``, ``cycle.have``); the cycle is answered
         (``answered``); a braking robot at rest finishes its motion (``cycle.finish``)."""
         rows = self.engine.live(self.active)
-        if not np.count_nonzero(rows):
+        k = np.count_nonzero(rows)
+        if not k:
             return
         ref = self.reference
-        q, v, a = ref.q[rows], ref.dq[rows], ref.ddq[rows]
-        stopping = self.stopping[rows]
-        at_rest = stopping & (np.abs(v) < REST_SPEED).all(axis=1)
-        e = np.where(stopping[:, None], 0.0, self.target[rows] - q)
+        every = k == self.n  # (the socket server's one robot): views, no gathers
+        pick = slice(None) if every else rows
+        q, v, a = ref.q[pick], ref.dq[pick], ref.ddq[pick]
+        e = self.target[pick] - q
+        stopping = self.stopping[pick]
+        braking = np.count_nonzero(stopping)
+        if braking:
+            e[stopping] = 0.0
         distance = np.abs(e)
-        magnitude = np.minimum(
-            np.sqrt(2.0 * self._a_brake * distance), distance / POSITION_TIME_CONSTANT
-        )
-        goal = np.copysign(np.minimum(magnitude, self.vmax[rows]), e)
-        upper, lower = self._band(q)
-        goal = np.clip(goal, lower, upper)
-        accel = np.clip((goal - v) / VELOCITY_TIME_CONSTANT, -self._a_max, self._a_max)
-        accel = np.clip(accel, a - self._j_step, a + self._j_step)
-        v_new = v + accel * DELTA_T
-        q_new = q + v_new * DELTA_T
-        cycle.q_c[rows] = q_new
+        magnitude = np.sqrt(distance * self._two_a_brake)
+        np.minimum(magnitude, distance * (1.0 / POSITION_TIME_CONSTANT), out=magnitude)
+        np.minimum(magnitude, self.vmax[pick], out=magnitude)
+        goal = np.copysign(magnitude, e, out=magnitude)
+        band = self._band(q)  # [upper | -lower]
+        np.minimum(goal, band[:, :7], out=goal)
+        np.negative(band[:, 7:], out=band[:, 7:])
+        np.maximum(goal, band[:, 7:], out=goal)
+        # The velocity follows the goal (time constant T): acceleration and jerk capped.
+        accel = goal - v
+        accel *= 1.0 / VELOCITY_TIME_CONSTANT
+        np.minimum(accel, self._a_max, out=accel)
+        np.maximum(accel, -self._a_max, out=accel)
+        np.minimum(accel, a + self._j_step, out=accel)
+        np.maximum(accel, a - self._j_step, out=accel)
+        q_new = accel * DELTA_T
+        q_new += v
+        q_new *= DELTA_T
+        q_new += q
+        if every:
+            cycle.q_c[...] = q_new
+        else:
+            cycle.q_c[rows] = q_new
         cycle.have |= rows
         answered |= rows
-        if np.count_nonzero(at_rest):
-            done = np.zeros(self.n, dtype=bool)
-            done[np.flatnonzero(rows)[at_rest]] = True
-            cycle.finish |= done
+        if braking:
+            at_rest = stopping & (np.abs(v) < REST_SPEED).all(axis=1)
+            if np.count_nonzero(at_rest):
+                done = np.zeros(self.n, dtype=bool)
+                done[np.flatnonzero(rows)[at_rest]] = True
+                cycle.finish |= done
 
-    def _band(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(upper, lower) velocity caps at q: the envelope's law at half its deceleration,
-        less the tolerance and the margin (inside the robot's envelope, docs/limits.md §4)."""
-        t = self.table
-        shift = self._shift
-        two_a = 2.0 * self._a_band
-        up = np.sqrt(np.maximum(two_a * (t.q_upper - q), 0.0)) - self._offset
-        down = np.sqrt(np.maximum(two_a * (q - t.q_lower), 0.0)) - self._offset
-        upper = np.minimum(np.maximum(up, 0.0), self._v_band) - shift
-        lower = -(np.minimum(np.maximum(down, 0.0), self._v_band) - shift)
-        return upper, lower
+    def _band(self, q: np.ndarray) -> np.ndarray:
+        """(k, 14) [upper | -lower] velocity caps at q: the envelope's law at half its
+        deceleration, less the tolerance and the margin (inside the robot's envelope,
+        docs/limits.md §4)."""
+        r = np.concatenate((q, q), axis=1)
+        r *= self._mirror
+        np.subtract(self._bound, r, out=r)  # the distance to each stop
+        r *= self._two_a_band
+        np.maximum(r, 0.0, out=r)
+        np.sqrt(r, out=r)
+        r -= self._offset2
+        np.maximum(r, 0.0, out=r)
+        np.minimum(r, self._v_band2, out=r)
+        r -= self._shift
+        return r

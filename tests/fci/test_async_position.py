@@ -119,16 +119,19 @@ def test_a_new_target_mid_motion_reverses_inside_the_limits():
     assert c.ctrl.violations.take().sum() == 0 and c.statuses() == []
 
 
-def test_a_target_at_the_joint_stop_is_approached_inside_the_envelope():
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_a_target_at_the_joint_stop_is_approached_inside_the_envelope(side):
     c = AsyncClient()
     c.start((2.6,) * 7)
     target = HOME_Q.copy()
-    target[3] = FR3.q_upper[3]  # joint 4's upper stop, -0.1458 rad
+    # joint 4's stops: -0.1458 rad (2.2 rad away), -3.0481 rad (0.7 rad away)
+    target[3] = FR3.q_upper[3] if side == "upper" else FR3.q_lower[3]
     c.run(5000, target)
     q, dq, _ = (np.array(x) for x in zip(*c.trace, strict=True))
-    upper, _ = FR3.velocity_envelope(q)
-    assert np.all(dq[1:] <= upper[:-1])  # the envelope at the previous q_d
-    assert q[:, 3].max() < FR3.q_upper[3]
+    upper, lower = FR3.velocity_envelope(q)
+    assert np.all(dq[1:] <= upper[:-1]) and np.all(dq[1:] >= lower[:-1])  # at the previous q_d
+    assert FR3.q_lower[3] < q[:, 3].min() and q[:, 3].max() < FR3.q_upper[3]
+    assert abs(q[-1, 3] - target[3]) < 0.05  # it got close
     assert c.ctrl.violations.take().sum() == 0 and c.statuses() == []
 
 
