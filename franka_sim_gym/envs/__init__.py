@@ -36,6 +36,7 @@ INTERFACE_IDS = {
     "cartesian_pose": "CartesianPose",
     "cartesian_velocity": "CartesianVelocity",
     "torque": "Torque",
+    "joint_position_async": "JointPositionAsync",
 }
 
 

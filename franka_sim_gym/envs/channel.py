@@ -150,6 +150,9 @@ class Links:
         self.channels = per_arm_channels(spec, n)
         self.perfect = all(type(c) is Channel for c in self.channels)
         self.n = n
+        #: per arm: the robot answers every cycle itself (the asynchronous generator,
+        #: docs/motion-limits.md): a datagram the link drops is a target late, no lost cycle
+        self.robot_answers = np.zeros(n, dtype=bool)
         #: per arm: the current and the longest run of consecutive lost cycles
         self.lost_run = np.zeros(n, dtype=np.int64)
         self.longest_lost = np.zeros(n, dtype=np.int64)
@@ -184,7 +187,9 @@ class Links:
                 mask[i] = True
                 answered[i] |= bool(delivered["message_id"][0] == open_ids[i])
             receive(batch, mask)
-        # A cycle is lost when no command answering it reached the robot in time.
+        # A cycle is lost when no command answering it reached the robot in time (and the
+        # robot does not answer it itself).
+        answered |= self.robot_answers
         missed = sending & ~answered
         lost += missed
         self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)

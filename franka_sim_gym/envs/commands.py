@@ -15,6 +15,11 @@ the robot. Filters (``action_filter``):
   (Robot::control with ``limit_rate = true``), which keeps every command inside
   the robot's velocity, acceleration and jerk limits.
 
+``"joint_position_async"`` is libfranka's asynchronous joint-position control
+(pylibfranka's ``AsyncPositionControlHandler``): the action's target is sent as is,
+every cycle, and the robot's own generator moves toward it within the Move's maximum
+velocities (docs/motion-limits.md "The asynchronous generator"), so no filter applies.
+
 All filters read the robot's own references from the state (q_d, dq_d, ddq_d,
 tau_J_d; O_T_EE_c, O_dP_EE_c, O_ddP_EE_c for the Cartesian interfaces), exactly as
 libfranka's ControlLoop::convertMotion does.
@@ -41,7 +46,14 @@ from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
 from . import client_kernel
 
-INTERFACES = ("joint_position", "joint_velocity", "cartesian_pose", "cartesian_velocity", "torque")
+INTERFACES = (
+    "joint_position",
+    "joint_velocity",
+    "cartesian_pose",
+    "cartesian_velocity",
+    "torque",
+    "joint_position_async",
+)
 CARTESIAN = ("cartesian_pose", "cartesian_velocity")
 
 #: The rate limiter's targets sit this far inside the robot's thresholds. The
@@ -96,6 +108,19 @@ class ActionScale:
     linear_velocity: float = 0.3
     #: Cartesian velocity: target angular velocity [rad/s]
     angular_velocity: float = 0.5
+    #: asynchronous joint position: the Move's maximum joint velocities [rad/s] (None: the
+    #: robot's nameplate velocities, libfranka's documented default)
+    async_max_velocity: tuple[float, ...] | None = None
+
+
+def move_options(interface: str, table: RobotTable, scale: ActionScale | None = None) -> dict:
+    """The Move's extra arguments for ``interface`` (``FciController.move`` keywords): the
+    asynchronous flag and maximum velocities for ``"joint_position_async"``, else none."""
+    if interface != "joint_position_async":
+        return {}
+    caps = (scale or ActionScale()).async_max_velocity
+    caps = tuple(table.dq_max) if caps is None else tuple(float(v) for v in caps)
+    return {"use_async_motion_generator": True, "maximum_velocity": caps}
 
 
 class CommandGenerator:
@@ -190,7 +215,7 @@ class CommandGenerator:
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         if self.interface in CARTESIAN:
             self._begin_cartesian(a, state)
-        elif self.interface == "joint_position":
+        elif self.interface in ("joint_position", "joint_position_async"):
             self._start = state["q_d"].astype(np.float64)
             self._target = self._start + a * self.scale.position
         elif self.interface == "joint_velocity":
@@ -217,7 +242,7 @@ class CommandGenerator:
         """
         if self.interface == "cartesian_pose":
             out = self._pose_wire(state, k)
-        elif self.action_filter == "none":
+        elif self.action_filter == "none" or self.interface == "joint_position_async":
             out = self._target
         elif self.action_filter == "interpolate":  # (its ends checked in begin_step)
             out = cf.interpolate_core(self._start, self._target, (k + 1) / self.cycles_per_step)

@@ -33,7 +33,7 @@ from ..sim.arm import ArmPhysics
 from ..sim.gripper import MAX_WIDTH, FrankaHand
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
-from .commands import CommandGenerator
+from .commands import CommandGenerator, move_options
 from .fci_reset import reset_through_fci
 from .infos import info_row, step_info
 from .observation import build_observation, observation_space
@@ -53,6 +53,7 @@ MOVE = {
     "cartesian_pose": (IMPEDANCE, GENERATOR.kCartesianPosition),
     "cartesian_velocity": (IMPEDANCE, GENERATOR.kCartesianVelocity),
     "torque": (MoveControllerMode.kExternalController, GENERATOR.kNone),
+    "joint_position_async": (IMPEDANCE, GENERATOR.kJointPosition),  # + move_options
 }
 _FIELD = {
     "joint_position": "q_c",
@@ -60,6 +61,7 @@ _FIELD = {
     "cartesian_pose": "O_T_EE_c",
     "cartesian_velocity": "O_dP_EE_c",
     "torque": "tau_J_d",
+    "joint_position_async": "q_c",
 }
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
@@ -165,6 +167,7 @@ class FciBatch:
         physics = ArmPhysics(n_arms=n, hand=self.gripper, scene=scene)
         self.controller = FciController(physics, self.config)
         self.links = Links(channel, n)
+        self.links.robot_answers[...] = action_interface == "joint_position_async"
         #: each arm's channel model
         self.channels = self.links.channels
         self.commands = CommandGenerator(
@@ -221,11 +224,12 @@ class FciBatch:
             ctrl.states["message_id"] = ids
         controller, generator = MOVE[self.action_interface]
         controller = self.robot_settings.move_controller(controller)
+        options = move_options(self.action_interface, ctrl.table, self.commands.scale)
         for i in arms.tolist():
             self.robot_settings.apply(ctrl, i)
             if self.gripper and self.reset_mode == "teleport":
                 self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
-            ctrl.move(i, int(controller), int(generator))
+            ctrl.move(i, int(controller), int(generator), **options)
         self.goals[arms] = self.task.reset(arms, rngs, ctrl.physics)
         self.commands.reset(arms)
         self.steps[arms] = 0

@@ -53,6 +53,7 @@ class CartesianChecks:
             return
 
         def twist_quantities() -> dict:  # built only for a log line
+            ik = _joint_position_quantities("IK(O_dP_EE_c)", step.joint, table)
             twist, dtwist, ddtwist = (step.twist_stack[:, k] for k in range(3))
             joint, elbow = step.joint, step.elbow
             return {
@@ -72,6 +73,7 @@ class CartesianChecks:
                     ("IK(O_dP_EE_c)", joint.ddq, table.ik_ddq_max * scale, "rad/s^2"),
                     ("IK(O_dP_EE_c)", joint.dddq, table.ik_dddq_max * scale, "rad/s^3"),
                 ],
+                **ik,
                 "elbow sign": ("elbow_c[1]", elbow.command[:, 1], elbow.prev_flag, ""),
                 "elbow": _elbow_quantities(elbow.command, elbow.derivatives, table),
             }
@@ -101,7 +103,9 @@ class CartesianChecks:
             return
 
         def pose_quantities() -> dict:  # built only for a log line
+            ik = _joint_position_quantities("IK(O_T_EE_c)", joint, table)
             return {
+                **ik,
                 "start pose": (
                     "O_T_EE_c - O_T_EE (translation)",
                     _norm3(T_cand[:, :3, 3] - w.O_T_EE[:, 12:15]),
@@ -151,7 +155,7 @@ class CartesianChecks:
 
         extra = None
         if ik_row is not None:
-            both = check.tripped[:, ik_row] & check.tripped[:, ik_row + 1]
+            both = check.tripped[:, ik_row] & check.tripped[:, rules.POSE_IK_JERK_ROW]
             both &= error == rules.POSE_CODES[ik_row]
             if np.count_nonzero(both):
                 extra = {
@@ -159,6 +163,21 @@ class CartesianChecks:
                     for i in np.flatnonzero(both).tolist()
                 }
         self.engine.judge(error, rows, describe, extra)
+
+
+def _joint_position_quantities(signal: str, joint, table) -> dict:
+    """The log line's candidates of rows 27 and 28: how far the IK solution is beyond its
+    joint range, and its velocity against the envelope bound on its side."""
+    if joint.motion is None:
+        return {}
+    q, dq = joint.q, joint.dq
+    beyond = np.maximum(np.maximum(table.q_lower - q, q - table.q_upper), 0.0)
+    upper, lower = table.velocity_envelope(joint.q_prev)
+    bound = np.where(dq >= 0.0, upper, lower)
+    return {
+        "IK joint position": (f"{signal} beyond the joint range", beyond, 0.0, "rad"),
+        "IK joint velocity": (f"{signal} velocity", dq, bound, "rad/s"),
+    }
 
 
 def _norm3(x: np.ndarray) -> np.ndarray:

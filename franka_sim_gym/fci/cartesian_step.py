@@ -103,6 +103,7 @@ class CartesianStepper:
         self._joint = S = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
         # its views: q; [dq, ddq, dddq]; [ddq, dddq] (judged); [q, dq, ddq] (recorded); dq
         self._joint_views = (S[:, 0], S[:, 1:], S[:, 2:], S[:, :3], S[:, 1])
+        self._motion = S[:, :2]  # [q, dq]: the range (27) and the envelope (28)
         # The elbow's derivatives while no elbow is streamed (read, never written).
         zeros = np.zeros(n)
         zeros.setflags(write=False)
@@ -161,7 +162,8 @@ class CartesianStepper:
         F_T_EE = self.writer.F_T_EE if self.writer.any_custom_ee else None
         ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
         rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
-        joint = rules.JointSide(judged, self._joint_checked(h, ik, first, active))
+        checked = self._joint_checked(h, ik, first, active)
+        joint = rules.JointSide(judged, checked, self._motion, h.q_ik, active & ik.converged)
         return Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded)
 
     def _twist_target(self, T: np.ndarray, twist: np.ndarray) -> np.ndarray:
@@ -190,7 +192,7 @@ class CartesianStepper:
     def _joint_checked(
         self, h: CartesianHistory, ik: IkResult, first: np.ndarray, active: np.ndarray
     ) -> np.ndarray:
-        """(n,) where the joint side's acceleration is judged (29 / 30); the jerk
+        """(n,) where the joint side's velocity and acceleration are judged (28 / 29 / 30); the jerk
         (``self._joint[:, 3]``) is zeroed where its history is not warm yet."""
         warm = ik.converged & ~first
         failed = active & ~ik.converged

@@ -31,6 +31,7 @@ from ..sim.hand_load import hand_load
 from ..sim.kinematics import ArmKinematics
 from . import arrival, frames, setters
 from .accounting import CycleAccounting
+from .async_position import AsyncPositionGenerator, refusal
 from .cartesian import CartesianGenerators
 from .config import ControllerConfig
 from .contact_sensing import ContactSensing
@@ -108,6 +109,8 @@ class FciController:
             self.engine,
             self.late,
         )
+        #: the robot's asynchronous joint-position generator (fci/async_position.py)
+        self.asynchronous = AsyncPositionGenerator(n, self.table, self.reference, self.engine)
         self.cartesian = CartesianGenerators(
             physics, w, self.modes, self.accounting, self.config, self.engine, self.late
         )
@@ -158,10 +161,21 @@ class FciController:
         n = self.n
         if m.n_motion < n:
             mask = mask & m.in_motion
+        cycle = self.cycle_input
+        if self.asynchronous.count:
+            targets = mask & self.asynchronous.active
+            if np.count_nonzero(targets):
+                # Targets for the robot's own generator, not commands of the open cycle.
+                first_id = self.accounting.motion_first_id
+                published = self.writer.message_id
+                self.asynchronous.receive(
+                    commands, targets, published, first_id, cycle, self.warnings
+                )
+                self._apply_verdicts()
+                mask = mask & ~targets
         k = np.count_nonzero(mask)
         if k == 0:
             return
-        cycle = self.cycle_input
         ids = commands["message_id"]
         fresh, late, accepted = arrival.classify(
             commands,
@@ -207,6 +221,8 @@ class FciController:
             if np.count_nonzero(cycle.refused):
                 self.engine.judge_non_finite(cycle)
             started = self.accounting.started
+            if self.asynchronous.count:
+                self.asynchronous.generate(cycle, self.accounting.answered)
             self.joint.advance(cycle, started)
             if m.n_cartesian and np.count_nonzero(started):
                 self.cartesian.advance(cycle, started)
@@ -332,12 +348,15 @@ class FciController:
         controller_mode: int,
         motion_generator_mode: int,
         use_async_motion_generator: bool = False,
+        maximum_velocity=None,
     ) -> MoveStatus:
         """Move (command 1): kMotionStarted, or the rejection that is the only reply.
 
         A Move during a Move preempts the running one (answered kPreempted) and
         the new motion starts from the idle hold's standstill (docs/fci-behaviour.md "One Move
-        at a time").
+        at a time"). With ``use_async_motion_generator`` the robot's own generator moves
+        toward the targets the client sends, within ``maximum_velocity`` (7 values, rad/s;
+        fci/async_position.py): joint positions under an internal controller only.
         """
         i = robot
         mode = RobotMode(int(self.modes.robot_mode[i]))
@@ -359,8 +378,14 @@ class FciController:
             log.warning("robot %d: Move rejected: no motion generator, no external controller", i)
             return MoveStatus.kInvalidArgumentRejected
         if use_async_motion_generator:
-            log.warning("robot %d: Move rejected: the asynchronous generator is not implemented", i)
-            return MoveStatus.kCommandNotPossibleRejected
+            problem = refusal(maximum_velocity)
+            if gen != MoveMotionGeneratorMode.kJointPosition:
+                problem = f"the asynchronous generator runs joint positions, not {gen.name}"
+            elif ctrl == MoveControllerMode.kExternalController:
+                problem = "the asynchronous generator needs an internal controller"
+            if problem is not None:
+                log.warning("robot %d: asynchronous Move rejected: %s", i, problem)
+                return MoveStatus.kInvalidArgumentRejected
         if self.modes.in_motion[i]:
             log.info("robot %d: Move during a Move: the running motion is preempted", i)
             self._end_motion(i, MoveStatus.kPreempted, hold_reference=False)
@@ -377,6 +402,11 @@ class FciController:
         self.violations.begin_motion(i)
         if self.modes.cartesian[i]:
             self.cartesian.start(i)
+        if use_async_motion_generator:
+            # The robot's generator answers from the first cycle on: no client start pose.
+            self.asynchronous.start(i, q, maximum_velocity)
+            self.accounting.started[i] = True
+            self.cycle_input.first[i] = False
         self._write_modes(i)
         return MoveStatus.kMotionStarted
 
@@ -478,6 +508,7 @@ class FciController:
         self.physics.reset_arms(robots, q)
         for k, i in enumerate(robots.tolist()):
             self.modes.end(i)
+            self.asynchronous.end(i)
             self.q_hold[i] = q[k]
             self._clear_commanded(i)
             self.errors[i] = False
@@ -511,6 +542,8 @@ class FciController:
             self.q_hold[i] = self.physics.q[i]
         if self.modes.cartesian[i]:
             self.cartesian.end(i)
+        if self.asynchronous.active[i]:
+            self.asynchronous.end(i)
         if robot_mode is None:
             mode = int(self.modes.robot_mode[i])
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)

@@ -23,6 +23,7 @@ from .check import wait_until_ready
 from .gripper_server import GRIPPER_PORT, GripperServer
 from .lockstep import DEFAULT_TIMEOUT_S
 from .robot_server import RobotServer, ServerOptions
+from .run_client import run_client
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,6 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--timeout", type=float, default=30.0, metavar="S", help="give up after S s (default 30)"
     )
     check.add_argument("--port", type=int, default=COMMAND_PORT, help="TCP port (default 1337)")
+    run = sub.add_parser(
+        "run-client",
+        help="run an unchanged libfranka program (RealtimeConfig kEnforce) where "
+        "/sys/kernel/realtime reads 1 (a private mount namespace; see run_client.py)",
+    )
+    run.add_argument("client", nargs=argparse.REMAINDER, help="-- CMD [ARG ...]")
     return parser
 
 
@@ -313,6 +320,9 @@ def main(argv: list[str] | None = None) -> int:
         return serve(args)
     if args.command == "check":
         return check(args)
+    if args.command == "run-client":
+        command = args.client[1:] if args.client[:1] == ["--"] else args.client
+        return run_client(command)
     return 2  # pragma: no cover
 
 

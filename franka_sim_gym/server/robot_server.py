@@ -232,6 +232,7 @@ class RobotServer:
                 request.controller_mode,
                 request.motion_generator_mode,
                 request.use_async_motion_generator,
+                request.maximum_velocity,
             )
             # The preemption event of a running Move (if any) goes out first.
             self._deliver_events(ctrl.take_events())

@@ -11,7 +11,9 @@ elbow_c             the branch flag elbow_c[1] never flips            21
 O_T_EE_c            ||a|| <= 9 m/s^2, ||alpha|| <= 17 rad/s^2         19
 O_T_EE_c            ||v|| <= 3 m/s, ||omega|| <= 2.5 rad/s            18
 O_T_EE_c            ||jerk|| <= 4500 m/s^3, 8500 rad/s^3              20
+IK of O_T_EE_c      inside the joint range                            27
 IK of O_T_EE_c      per-joint change of velocity / dt                 29
+IK of O_T_EE_c      velocity inside the envelope at the last solution 28
 IK of O_T_EE_c      per-joint change of acceleration / dt             30
 elbow_c             joint-3 range, velocity, acceleration, jerk       17
 ==================  ===============================================  =====
@@ -20,7 +22,9 @@ elbow_c             joint-3 range, velocity, acceleration, jerk       17
 O_dP_EE_c           ||a|| <= 9 m/s^2, ||alpha|| <= 17 rad/s^2         20
 O_dP_EE_c           ||jerk|| <= 4500 m/s^3, 8500 rad/s^3              20
 O_dP_EE_c           ||v|| <= 3 m/s, ||omega|| <= 2.5 rad/s            18
+IK of O_dP_EE_c     inside the joint range                            27
 IK of O_dP_EE_c     per-joint acceleration and jerk                   30
+IK of O_dP_EE_c     velocity inside the envelope at the last solution 28
 elbow_c             the branch flag never flips                       21
 elbow_c             joint-3 range, velocity, acceleration, jerk       17
 ==================  ===============================================  =====
@@ -70,7 +74,9 @@ POSE_CODES = np.array(
         _E.cartesian_motion_generator_velocity_discontinuity,  # 19 acceleration
         _E.cartesian_motion_generator_velocity_limits_violation,  # 18 velocity
         _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 jerk
+        _E.cartesian_motion_generator_joint_position_limits_violation,  # 27 IK range
         _E.cartesian_motion_generator_joint_velocity_discontinuity,  # 29 IK acceleration
+        _E.cartesian_motion_generator_joint_velocity_limits_violation,  # 28 IK envelope
         _E.cartesian_motion_generator_joint_acceleration_discontinuity,  # 30 IK jerk
         _E.cartesian_motion_generator_elbow_limit_violation,  # 17
     ],
@@ -83,7 +89,9 @@ POSE_ROWS = (
     "acceleration",
     "velocity",
     "jerk",
+    "IK joint position",
     "IK joint acceleration",
+    "IK joint velocity",
     "IK joint jerk",
     "elbow",
 )
@@ -95,18 +103,30 @@ TWIST_CODES = np.array(
         _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 acceleration
         _E.cartesian_motion_generator_acceleration_discontinuity,  # 20 jerk
         _E.cartesian_motion_generator_velocity_limits_violation,  # 18 velocity
+        _E.cartesian_motion_generator_joint_position_limits_violation,  # 27 IK range
         _E.cartesian_motion_generator_joint_acceleration_discontinuity,  # 30 IK acc. and jerk
+        _E.cartesian_motion_generator_joint_velocity_limits_violation,  # 28 IK envelope
         _E.cartesian_motion_generator_elbow_sign_inconsistent,  # 21
         _E.cartesian_motion_generator_elbow_limit_violation,  # 17
     ],
     dtype=np.int64,
 )
-TWIST_ROWS = ("acceleration", "jerk", "velocity", "IK joint acceleration", "elbow sign", "elbow")
+TWIST_ROWS = (
+    "acceleration",
+    "jerk",
+    "velocity",
+    "IK joint position",
+    "IK joint acceleration",
+    "IK joint velocity",
+    "elbow sign",
+    "elbow",
+)
 
-#: Column of the IK-acceleration row (29) in POSE_CODES; 30 follows it. A command
-#: that breaks both latches both bits (docs/fci-behaviour.md "The joint side of a Cartesian
-#: command").
-POSE_IK_ROW = 6
+#: Columns of the IK-acceleration row (29) and the IK-jerk row (30) in POSE_CODES. A
+#: command that breaks both latches both bits (docs/fci-behaviour.md "The joint side of a
+#: Cartesian command").
+POSE_IK_ROW = 7
+POSE_IK_JERK_ROW = 9
 
 
 class CartesianCheck(NamedTuple):
@@ -147,21 +167,40 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
 
 
 def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
-    """The IK solution's acceleration over kMaxJointAcceleration, its jerk over
-    kMaxJointJerk (the robot's per-joint tables times the discontinuity scale): the two
-    (n,) rows, or None when neither tripped anywhere (the common case)."""
+    """The joint side's four (n,) rows in precedence order (docs/motion-limits.md): the IK
+    solution outside the joint range (27, where ``solved``), its acceleration over
+    kMaxJointAcceleration (29), its velocity outside the envelope at the previous
+    solution (28), its jerk over kMaxJointJerk (30) (the robot's per-joint tables times
+    the discontinuity scale; 28 to 30 where ``checked``); None when no row tripped
+    anywhere (the common case)."""
     checked = joint.checked
-    if not np.count_nonzero(checked):
+    solved = checked if joint.solved is None else joint.solved
+    if not (np.count_nonzero(checked) or np.count_nonzero(solved)):
         return None
     over = np.abs(joint.stacked) > _ik_limits(table, scale)  # NaN is not over
-    if not np.count_nonzero(over):  # nothing over: the common case
+    r29, r30 = checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
+    r27 = r28 = np.zeros(len(checked), dtype=bool)
+    if joint.motion is not None:
+        q = joint.q
+        # Written as "not inside", so a NaN solution trips (as q_c's 12 does).
+        r27 = solved & ~((q >= table.q_lower) & (q <= table.q_upper)).all(axis=1)
+        r28 = checked & ~_in_envelope(joint, table)
+    if not _any(r27, r29, r28, r30):
         return None
-    return checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
+    return r27, r29, r28, r30
 
 
-def _no_rows(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two (n,) rows that did not trip."""
-    return np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+def _in_envelope(joint: JointSide, table: RobotTable) -> np.ndarray:
+    """(n,) the IK velocity inside the joint velocity envelope at the previous solution
+    (docs/limits.md §4: at the reference, as 13 for q_c), with libfranka's tolerance."""
+    halves = table.velocity_envelope_halves(joint.q_prev)  # [upper | -lower]
+    dq = joint.dq
+    return (np.concatenate((dq, -dq), axis=1) <= halves).all(axis=1)
+
+
+def _no_rows(n: int) -> tuple[np.ndarray, ...]:
+    """Four (n,) rows that did not trip."""
+    return tuple(np.zeros(n, dtype=bool) for _ in range(4))
 
 
 def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -190,14 +229,25 @@ def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: floa
     value of any robot (judged or not) is over its own: then neither kind of row trips.
 
     One comparison of the squared norms (as :func:`_inside` forms them) and the joint
-    side's magnitudes side by side; a NaN fails it (the exact rows then decide).
+    side's magnitudes side by side; a NaN fails it (the exact rows then decide). Then the
+    solution's range and envelope (27, 28), where the joint side judges them.
     """
     n = len(stacked)
     values = np.empty((n, 20))
     x = stacked.reshape(n, 6, 3)
     np.einsum("nkj,nkj->nk", x, x, out=values[:, :6])
     np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
-    return np.count_nonzero(values <= _quiet_limits(table, scale)) == 20 * n
+    if np.count_nonzero(values <= _quiet_limits(table, scale)) != 20 * n:
+        return False
+    if joint.motion is None:
+        return True
+    rows = joint.checked if joint.solved is None else joint.solved
+    if not np.count_nonzero(rows):
+        return True
+    q = joint.q
+    if np.count_nonzero(rows & ~((q >= table.q_lower) & (q <= table.q_upper)).all(axis=1)):
+        return False
+    return not np.count_nonzero(joint.checked & ~_in_envelope(joint, table))
 
 
 def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -286,14 +336,14 @@ def check_cartesian_pose(
         start_pose = start_elbow = first
     over = ~inside
     over &= later[:, None]
-    ik29, ik30 = _no_rows(n) if joint_rows is None else joint_rows
+    ik27, ik29, ik28, ik30 = _no_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, later, table)
-    if not (starting or _any(elbow.has, over, ik29, ik30)):
+    if not (starting or _any(elbow.has, over, ik27, ik29, ik28, ik30)):
         return _no_error(n)
     vel = over[:, 0] | over[:, 1]
     acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
-    rows = [start_pose, start_elbow, sign, acc, vel, jerk, ik29, ik30, elbow_limit]
+    rows = [start_pose, start_elbow, sign, acc, vel, jerk, ik27, ik29, ik28, ik30, elbow_limit]
     tripped = np.stack(rows, axis=1)
     return CartesianCheck(select(tripped, POSE_CODES), tripped)
 
@@ -319,14 +369,15 @@ def check_cartesian_velocity(
     inside = _inside(stacked, table)
     joint_rows = _joint_side_rows(joint, table, scale)
     over = ~inside
-    ik_acc, ik_jerk = _no_rows(n) if joint_rows is None else joint_rows
+    ik_range, ik_acc, ik_envelope, ik_jerk = _no_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
-    if not _any(over, ik_acc, ik_jerk, sign, elbow_limit):
+    if not _any(over, ik_range, ik_acc, ik_envelope, ik_jerk, sign, elbow_limit):
         return _no_error(n)
     vel = over[:, 0] | over[:, 1]
     acc = over[:, 2] | over[:, 3]
     jerk = over[:, 4] | over[:, 5]
-    tripped = np.stack([acc, jerk, vel, ik_acc | ik_jerk, sign, elbow_limit], axis=1)
+    rows = [acc, jerk, vel, ik_range, ik_acc | ik_jerk, ik_envelope, sign, elbow_limit]
+    tripped = np.stack(rows, axis=1)
     return CartesianCheck(select(tripped, TWIST_CODES), tripped)
 
 
@@ -379,6 +430,7 @@ def describe_cartesian(i: int, error: int, row: str, quantities: dict) -> Violat
 
 __all__ = [
     "POSE_CODES",
+    "POSE_IK_JERK_ROW",
     "POSE_IK_ROW",
     "POSE_ROWS",
     "TWIST_CODES",

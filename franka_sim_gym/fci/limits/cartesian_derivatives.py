@@ -67,14 +67,30 @@ class ElbowStream(NamedTuple):
 
 
 class JointSide(NamedTuple):
-    """The IK solution's acceleration and jerk, judged where ``checked`` (n,)."""
+    """The IK solution and its differences, as the joint side judges them: its position
+    (27) where ``solved``, its velocity (28), acceleration (29) and jerk (30) where
+    ``checked`` (n,) each."""
 
     #: (n, 2, 7): rows ddq, dddq (the properties are its views)
     stacked: np.ndarray
     checked: np.ndarray
+    #: (n, 2, 7): rows q, dq of the solution (None: the range and envelope rows are off)
+    motion: np.ndarray | None = None
+    #: (n, 7) the previous solution, where the velocity envelope is evaluated
+    q_prev: np.ndarray | None = None
+    #: (n,) a converged solution: its joint range is judged (the opening command too)
+    solved: np.ndarray | None = None
 
     ddq = _block(0)
     dddq = _block(1)
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.motion[:, 0]
+
+    @property
+    def dq(self) -> np.ndarray:
+        return self.motion[:, 1]
 
 
 def pose_derivatives(
