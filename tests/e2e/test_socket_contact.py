@@ -86,3 +86,32 @@ def test_a_configured_load_that_is_not_there_lifts_the_arm_under_zero_torque(
         assert r["rise"] > 5e-3
     else:
         assert abs(r["rise"]) < 2e-3
+
+
+def test_pylibfranka_cartesian_velocity_examples_motion_in_free_space_senses_nothing(serve, client):
+    """pylibfranka's cartesian_velocity_example.py's calls and motion (its joint moves in
+    free space) under the example's 20 N thresholds: it completes, no flag rises, the
+    estimate stays far below the default lower thresholds (12 to 20 Nm, 20 to 25 N)."""
+    server = serve("--enforce-motion-limits", "--enforce-comm-constraints")
+    r = client("example_motion", "free", server.host, timeout=120)
+    assert "exception" not in r, r
+    assert r["error"] is None, r
+    assert r["robot_mode"] == "Idle"
+    assert r["flags"] == 0.0
+    assert max(r["tau_peak"]) < 0.1, r["tau_peak"]
+    assert max(r["force_peak"]) < 0.5, r["force_peak"]
+
+
+def test_pylibfranka_cartesian_velocity_examples_own_goal_meets_the_table(serve, client):
+    """The example's own q_goal (joint 2 at +pi/4, where libfranka's C++ examples have
+    -pi/4) puts the flange 2.6 cm above the table plane: the joint move collides with the
+    table and ends in cartesian_reflex at the table; every state before the impact read
+    no external force."""
+    server = serve("--enforce-motion-limits", "--enforce-comm-constraints")
+    r = client("example_motion", "example_goal", server.host, timeout=120)
+    assert "exception" not in r, r
+    assert r["stage"] == "joint", r
+    assert r["error"] is not None and "cartesian_reflex" in r["error"], r
+    assert r["z"] < 0.07, r  # the flange stopped 7 cm above the table plane at most
+    assert max(r["force_peak"]) < 0.5, r["force_peak"]  # free space until the impact
+    assert r["robot_mode"] == "Reflex"
