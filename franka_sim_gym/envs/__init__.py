@@ -27,7 +27,8 @@ from .tasks import TASKS
 
 ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
 VECTOR_ENTRY = "franka_sim_gym.envs.vector_env:FrankaFCIVectorEnv"
-#: The episode length in every id's spec, and of an env made without one.
+#: Reach's episode length (its ids' specs, and an env made without one); every task
+#: names its own (``Task.max_episode_steps``).
 EPISODE_STEPS = 50
 #: Each action interface's part of an id.
 INTERFACE_IDS = {
@@ -44,12 +45,14 @@ def task_ids() -> dict[str, dict]:
     ids = {}
     for name, task in TASKS.items():
         prefix = f"FrankaFCI{task.id_name}"
-        ids[f"{prefix}-v0"] = {"task": name, "action_interface": task.default_interface}
+
+        def arguments(interface: str, name=name, task=task) -> dict:
+            extra = task.cartesian_kwargs if interface.startswith("cartesian") else {}
+            return {"task": name, "action_interface": interface, **extra}
+
+        ids[f"{prefix}-v0"] = arguments(task.default_interface)
         for interface in task.interfaces or tuple(INTERFACE_IDS):
-            ids[f"{prefix}{INTERFACE_IDS[interface]}-v0"] = {
-                "task": name,
-                "action_interface": interface,
-            }
+            ids[f"{prefix}{INTERFACE_IDS[interface]}-v0"] = arguments(interface)
     return ids
 
 
@@ -65,7 +68,7 @@ def register_envs() -> None:
                 id=env_id,
                 entry_point=ENTRY,
                 vector_entry_point=VECTOR_ENTRY,
-                max_episode_steps=EPISODE_STEPS,
+                max_episode_steps=TASKS[kwargs["task"]].max_episode_steps,
                 kwargs=kwargs,
             )
 

@@ -22,15 +22,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
 import numpy as np
 from gymnasium import spaces
 
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
+from ..fci.statuses import SetterStatus
 from ..fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.arm import ArmPhysics
-from ..sim.gripper import MAX_WIDTH, FrankaHand
+from ..sim.finger_drive import FingerServos
+from ..sim.gripper import MAX_WIDTH
+from ..sim.hand_load import HeldObjects
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
 from .commands import CommandGenerator
@@ -63,6 +67,8 @@ _FIELD = {
 }
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
+#: The hands a task may need (Task.hand): None leaves it to the ``gripper`` argument.
+HANDS = (None, "grasp", "closed", "held")
 
 __all__ = ["FciBatch", "draw_episode", "info_row", "start_pose"]  # info_row: envs/infos.py
 
@@ -71,12 +77,15 @@ def draw_episode(rng: np.random.Generator, noise: float, task: Task) -> tuple[np
     """An episode's start pose (``start_pose``) and its goal (``task.sample_goal``), drawn
     from ``rng`` in that order: what a reset draws, and what examples/deploy_pylibfranka.py
     draws for the same reaches."""
-    return start_pose(rng, noise), task.sample_goal(rng)
+    return start_pose(rng, noise, task.home), task.sample_goal(rng)
 
 
-def start_pose(rng: np.random.Generator, noise: float) -> np.ndarray:
-    """The home pose plus uniform noise of +-``noise`` rad per joint, drawn from ``rng``."""
-    return HOME_Q + rng.uniform(-noise, noise, size=7)
+def start_pose(
+    rng: np.random.Generator, noise: float, home: np.ndarray | None = None
+) -> np.ndarray:
+    """``home`` (default: the robot's home pose) plus uniform noise of +-``noise`` rad per
+    joint, drawn from ``rng``."""
+    return (HOME_Q if home is None else home) + rng.uniform(-noise, noise, size=7)
 
 
 class FciBatch:
@@ -96,15 +105,17 @@ class FciBatch:
         action_interface: str = "joint_position",
         action_filter: str = "limit_rate",
         policy_hz: float = 25.0,
-        max_episode_steps: int = 50,
+        max_episode_steps: int | None = None,
         task: str | Task = "reach",
         enforce_motion_limits: bool = True,
         enforce_comm_constraints: bool = True,
         channel: Channel | str | None | list = None,
         reset_noise: float = 0.05,
         robot: str = "fr3",
-        gripper: bool = False,
+        gripper: bool | None = None,
         gripper_speed: float = 0.1,
+        grasp_force: float = 20.0,
+        configure_load: bool = True,
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
         reset_mode: str = "teleport",
@@ -137,11 +148,13 @@ class FciBatch:
         self.n = n = int(n)
         self.action_interface = action_interface
         self.cycles_per_step = int(round(cycles))
+        self.task = make_task(task, **task_kwargs)
+        if max_episode_steps is None:
+            max_episode_steps = self.task.max_episode_steps
         if int(max_episode_steps) < 1:
             raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
         self.max_episode_steps = int(max_episode_steps)
         self.reset_noise = float(reset_noise)
-        self.task = make_task(task, **task_kwargs)
         if self.task.scene is not None and scene is not None:
             name = type(self.task).__name__
             raise ValueError(f"{name} has its own scene ({self.task.scene}): scene must be None")
@@ -159,10 +172,31 @@ class FciBatch:
             enforce_motion_limits=enforce_motion_limits,
             enforce_comm_constraints=enforce_comm_constraints,
         )
-        self.gripper = bool(gripper)
+        hand = self.task.hand
+        if hand not in HANDS:
+            raise ValueError(f"{type(self.task).__name__}.hand {hand!r}: expected one of {HANDS}")
+        if hand in ("closed", "held") and gripper:
+            name = type(self.task).__name__
+            raise ValueError(f"gripper: {name} holds the fingers itself (no width action)")
+        #: the last action is the hand's width command
+        self.gripper = hand == "grasp" if gripper is None else bool(gripper)
         self.gripper_speed = float(gripper_speed)
-        self.hands = [FrankaHand() for _ in range(n)] if self.gripper else None
-        physics = ArmPhysics(n_arms=n, hand=self.gripper, scene=scene)
+        if not (np.isfinite(grasp_force) and 0.0 < grasp_force <= 100.0):
+            raise ValueError(f"grasp_force must be in (0, 100] N, got {grasp_force!r}")
+        self.grasp_force = float(grasp_force)
+        self.configure_load = bool(configure_load)
+        mounted = self.gripper or hand is not None
+        physics = ArmPhysics(n_arms=n, hand=mounted, scene=scene)
+        #: every arm's fingers on the force-limited servo (None without a hand)
+        self.hands = FingerServos(physics) if mounted else None
+        self._hand_targets = np.full(n, np.nan)
+        held = self.task.held_object
+        #: the object each hand may hold, whose load ``configure_load`` configures
+        self.held = None
+        if held is not None and mounted:
+            self.held = HeldObjects(physics.model, physics.layout, physics.layout.scene_body[held])
+        #: (n,) the held object's load is configured on the robot
+        self.load_configured = np.zeros(n, dtype=bool)
         self.controller = FciController(physics, self.config)
         self.links = Links(channel, n)
         #: each arm's channel model
@@ -202,7 +236,8 @@ class FciBatch:
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         ctrl = self.controller
         noise = self.reset_noise
-        q = np.stack([start_pose(rngs[i], noise) for i in arms.tolist()])
+        home = self.task.home
+        q = np.stack([start_pose(rngs[i], noise, home) for i in arms.tolist()])
         if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
             reset_through_fci(ctrl, q[0])
         else:
@@ -223,10 +258,22 @@ class FciBatch:
         controller = self.robot_settings.move_controller(controller)
         for i in arms.tolist():
             self.robot_settings.apply(ctrl, i)
-            if self.gripper and self.reset_mode == "teleport":
-                self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller), int(generator))
-        self.goals[arms] = self.task.reset(arms, rngs, ctrl.physics)
+        hands, hand = self.hands, self.task.hand
+        physics = ctrl.physics
+        if hand == "closed":  # shut on nothing, squeezed
+            physics.data.qpos[physics.layout.finger_qpos_adr[arms]] = 0.0
+            physics.data.qvel[physics.layout.finger_dof_adr[arms]] = 0.0
+        elif self.gripper and self.reset_mode == "teleport":  # open, as the reset put them
+            hands.command(arms, MAX_WIDTH, self.gripper_speed)
+            self._hand_targets[arms] = MAX_WIDTH
+        self.goals[arms] = self.task.reset(arms, rngs, physics)
+        if hand in ("closed", "held"):
+            hands.hold(arms, self.grasp_force)
+        if hands is not None or self.task.scene is not None:
+            mujoco.mj_forward(physics.model, physics.data)  # the placed objects' frames
+        self.load_configured[arms] = False  # the reset cleared SetLoad
+        self._configure_loads(arms)
         self.commands.reset(arms)
         self.steps[arms] = 0
         self.cycles[arms] = 0
@@ -273,6 +320,7 @@ class FciBatch:
         if self.gripper:
             self._command_hands(a[:, self._dim], active)
             a = a[:, : self._dim]
+        self._configure_loads(np.flatnonzero(active))
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)
@@ -367,7 +415,7 @@ class FciBatch:
         m = {
             "states": ctrl.states,
             "ee": ee,
-            "width": ctrl.physics.finger_width() if self.gripper else None,
+            "width": self.hands.width() if self.gripper else None,
             "achieved": achieved,
             "extra": extra,
         }
@@ -397,13 +445,37 @@ class FciBatch:
         )
 
     def _command_hands(self, width_actions: np.ndarray, active: np.ndarray) -> None:
+        """A new width target is a new command of the finger servo: closing is a grasp
+        (force-limited at ``grasp_force``; a stall squeezes), opening a move."""
         targets = (np.clip(width_actions, -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH
-        for i in np.flatnonzero(active).tolist():
-            if abs(targets[i] - self.hands[i].width) > 1e-6:
-                self.hands[i].move(targets[i], self.gripper_speed)
+        new = active & ~(np.abs(targets - self._hand_targets) <= 1e-6)
+        arms = np.flatnonzero(new)
+        if not len(arms):
+            return
+        self._hand_targets[arms] = targets[arms]
+        hands = self.hands
+        closing = targets[arms] < hands.width()[arms]
+        for rows, force in ((closing, self.grasp_force), (~closing, None)):
+            squeeze = closing[rows]
+            hands.command(arms[rows], targets[arms[rows]], self.gripper_speed, force, squeeze)
 
     def _step_hands(self, moving: np.ndarray) -> None:
-        arms = np.flatnonzero(moving)
-        for i in arms.tolist():
-            self.hands[i].step(1e-3)
-        self.controller.physics.set_finger_width(arms, [self.hands[i].width for i in arms])
+        self.hands.tick(np.flatnonzero(moving))
+
+    def _configure_loads(self, arms: np.ndarray) -> None:
+        """``configure_load``: SetLoad with the held object's mass while a hand holds it,
+        SetLoad(0) when it lets go (what a careful script does after a grasp)."""
+        if self.held is None or not self.configure_load or not len(arms):
+            return
+        ctrl = self.controller
+        data = ctrl.physics.data
+        held = self.held.held(data)
+        changed = arms[held[arms] != self.load_configured[arms]]
+        for i in changed.tolist():
+            if held[i]:
+                status = ctrl.set_load(i, *self.held.load(data, i))
+            else:
+                status = ctrl.set_load(i, 0.0, np.zeros(3), np.zeros(9))
+            if status != SetterStatus.kSuccess:  # pragma: no cover - the model's values
+                raise RuntimeError(f"robot {i} refused SetLoad: {status}")
+            self.load_configured[i] = held[i]

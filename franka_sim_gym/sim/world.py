@@ -158,6 +158,12 @@ def build_world(
     # 1 ms = one FCI cycle; implicitfast as in fr3.xml (attach does not copy <option>).
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    # Always the sparse constraint Jacobian: MuJoCo's "auto" picks dense below 60 dofs
+    # and sparse above, and the two sum in different orders, so an arm pushing a block
+    # would differ (~1e-14) between a world of one arm and one of n. Sparse, with the
+    # constraint islands MuJoCo solves one by one, makes arm i of n arms bit for bit the
+    # arm of a one-arm world (docs/env.md, "Native vector env").
+    spec.option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     world = spec.worldbody
     add_table(spec)
     world.add_light(

@@ -8,11 +8,13 @@ A new task is one file here (a ``Task`` subclass) and one line in ``TASKS``;
 from __future__ import annotations
 
 from .base import Task
+from .push import Push
 from .reach import Reach
 
 #: Every task by name (the env's ``task`` argument). One line per task.
 TASKS: dict[str, type[Task]] = {
     "reach": Reach,
+    "push": Push,
 }
 
 
@@ -27,4 +29,4 @@ def make_task(task: str | Task, **kwargs) -> Task:
     return TASKS[task](**kwargs)
 
 
-__all__ = ["TASKS", "Reach", "Task", "make_task"]
+__all__ = ["TASKS", "Push", "Reach", "Task", "make_task"]
