@@ -132,7 +132,153 @@ class PushSolver:
         return np.clip(v / SPEED_SCALE, -1.0, 1.0).astype(np.float32)
 
 
-SOLVERS = {"Push": PushSolver}
+class PickAndPlaceSolver:
+    """Open above the block, down around it, close (the hand squeezes it with the env's
+    grasp force), up, across at a safe height, down to the goal; start over if it drops."""
+
+    HIGH = 0.08  # TCP height for travelling [m]
+    #: TCP height at which a held block (its centre on the TCP) clears the table
+    CARRY = 0.07
+
+    def __init__(self, n: int, limits: Limits, object_at: int) -> None:
+        self.limits = limits
+        self.object_at = object_at
+        self.phase = np.zeros(n, dtype=np.int64)  # 0 over, 1 down, 2 close, 3 carry
+        self.closing = np.zeros(n, dtype=np.int64)
+
+    def reset(self, arms) -> None:
+        self.phase[arms] = 0
+        self.closing[arms] = 0
+
+    def act(self, obs: dict) -> np.ndarray:
+        lim = self.limits
+        o = obs["observation"].astype(np.float64)
+        ee, width = o[:, EE], o[:, self.object_at - 1]
+        block = o[:, self.object_at : self.object_at + 3]
+        goal = obs["desired_goal"].astype(np.float64)
+        grasp_z = max(HALF, lim.floor) if not lim.naive else lim.floor
+        over = np.linalg.norm(ee[:, :2] - block[:, :2], axis=1) < 0.004
+        twist = np.linalg.norm(o[:, 17:20], axis=1)
+        p = self.phase
+        p[(p == 0) & over & (ee[:, 2] > self.HIGH - 0.01) & (width > 0.075)] = 1
+        p[(p == 1) & (np.abs(ee[:, 2] - grasp_z) < 0.003) & (twist < 0.02)] = 2
+        self.closing[p == 2] += 1
+        p[(p == 2) & (self.closing > 12)] = 3  # the fingers have met the block
+        dropped = (p == 3) & (np.linalg.norm(block - ee, axis=1) > 0.03)
+        p[dropped], self.closing[dropped] = 0, 0
+        target = ee.copy()
+        speed = np.full(len(ee), lim.travel)
+        hand = np.ones(len(ee))  # open
+        rows = p == 0
+        high = ee[:, 2] > self.HIGH - 0.01
+        target[rows, :2] = np.where(high[rows, None], block[rows, :2], ee[rows, :2])
+        target[rows, 2] = self.HIGH
+        rows = p == 1
+        target[rows, :2], target[rows, 2] = block[rows, :2], grasp_z
+        speed[rows] = lim.descend
+        rows = p == 2
+        hand[rows] = -1.0
+        rows = p == 3
+        hand[rows] = -1.0
+        far = np.linalg.norm(goal[:, :2] - ee[:, :2], axis=1) > 0.01
+        lifted = ee[:, 2] > self.CARRY - 0.01
+        up = rows & far & ~lifted
+        target[up, 2] = self.CARRY
+        across = rows & far & lifted
+        target[across, :2] = goal[across, :2]
+        target[across, 2] = np.maximum(goal[across, 2], self.CARRY)
+        there = rows & ~far
+        target[there] = goal[there]
+        speed[rows] = lim.contact if not lim.naive else lim.travel
+        v = velocity_towards(ee, target, speed, lim.gain)
+        return np.concatenate([np.clip(v / SPEED_SCALE, -1, 1), hand[:, None]], 1).astype(
+            np.float32
+        )
+
+
+def rotation_of(quat: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotation matrices of (n, 4) unit quaternions w, x, y, z."""
+    w, x, y, z = quat.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """(n, 3) the rotation vectors (axis times angle) of (n, 3, 3) small rotations."""
+    angle = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    axis = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], 1)
+    scale = np.where(angle > 1e-9, angle / np.maximum(2 * np.sin(angle), 1e-12), 0.5)
+    return axis * scale[:, None]
+
+
+class PegInsertionSolver:
+    """Turn the peg upright and square to the hole, bring its tip over the hole, then
+    lower it slowly, steering its tip onto the hole's axis, until it reaches the bottom."""
+
+    HALF_LENGTH = 0.04  # the peg's [m]
+    ABOVE = 0.04  # tip height over the hole before inserting (fixture top: 0.03) [m]
+    #: insertion speed [m/s]
+    INSERT = 0.02
+    #: angular speed cap [rad/s] and the angular velocity of an action of 1.0
+    TURN, TURN_SCALE = 0.3, 0.5
+
+    def __init__(self, n: int, limits: Limits, object_at: int) -> None:
+        self.limits = limits
+        self.object_at = object_at
+        self.phase = np.zeros(n, dtype=np.int64)  # 0 align, 1 insert
+
+    def reset(self, arms) -> None:
+        self.phase[arms] = 0
+
+    def act(self, obs: dict) -> np.ndarray:
+        lim = self.limits
+        o = obs["observation"].astype(np.float64)
+        at = self.object_at
+        R = rotation_of(o[:, at + 3 : at + 7])
+        tip = o[:, at : at + 3] - self.HALF_LENGTH * R[:, :, 2]
+        hole = obs["desired_goal"].astype(np.float64)
+        # The square peg is square to the hole at any quarter turn: aim for the nearest.
+        yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+        yaw = np.round(yaw / (np.pi / 2)) * (np.pi / 2)
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        target_R = np.zeros_like(R)
+        target_R[:, 0, 0], target_R[:, 0, 1], target_R[:, 1, 0], target_R[:, 1, 1] = c, -s_, s_, c
+        target_R[:, 2, 2] = 1.0
+        error = rotation_vector(target_R @ np.transpose(R, (0, 2, 1)))
+        omega = 3.0 * error
+        norm = np.linalg.norm(omega, axis=1, keepdims=True)
+        omega *= np.minimum(1.0, self.TURN / np.maximum(norm, 1e-9))
+        xy_error = np.linalg.norm(hole[:, :2] - tip[:, :2], axis=1)
+        above = hole.copy()
+        above[:, 2] = self.ABOVE
+        twist = np.linalg.norm(o[:, 17:20], axis=1)
+        ready = (xy_error < 0.0005) & (np.abs(tip[:, 2] - self.ABOVE) < 0.003)
+        ready &= (np.linalg.norm(error, axis=1) < 0.01) & (twist < 0.01)
+        self.phase[(self.phase == 0) & ready] = 1
+        v = velocity_towards(tip, above, np.full(len(tip), lim.contact), lim.gain)
+        inserting = self.phase == 1
+        if lim.naive:  # straight down at full speed
+            v[inserting] = [0.0, 0.0, -SPEED_SCALE]
+        else:
+            down = np.minimum(self.INSERT, lim.gain * np.maximum(tip[:, 2] - 0.0005, 0.0))
+            steer = lim.gain * (hole[:, :2] - tip[:, :2])
+            v[inserting, :2] = steer[inserting]
+            v[inserting, 2] = -down[inserting]
+        action = np.concatenate([v / SPEED_SCALE, omega / self.TURN_SCALE], axis=1)
+        return np.clip(action, -1, 1).astype(np.float32)
+
+
+SOLVERS = {
+    "Push": PushSolver,
+    "PickAndPlace": PickAndPlaceSolver,
+    "PegInsertion": PegInsertionSolver,
+}
 
 
 def solver_for(env_id: str, n: int, naive: bool, object_at: int):

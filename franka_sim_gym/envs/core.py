@@ -213,7 +213,7 @@ class FciBatch:
         self._dim = self.commands.action_dim
         #: the spaces of one arm
         self.action_space = spaces.Box(
-            -1.0, 1.0, shape=(self._dim + 1 if gripper else self._dim,), dtype=np.float32
+            -1.0, 1.0, shape=(self._dim + 1 if self.gripper else self._dim,), dtype=np.float32
         )
         self.observation_space = observation_space(
             self.config.table, self.gripper, self.task.extra_space(), self.task.goal_dim
