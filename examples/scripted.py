@@ -33,6 +33,10 @@ EE = slice(14, 17)
 SPEED_SCALE = 0.3
 #: The block's half size [m].
 HALF = 0.02
+#: Closer to the base than this (x, m) at table height the FR3's elbow nears its stop
+#: (joint 4 beyond -2.9 rad): a fast motion there trips the robot's
+#: joint_velocity_violation, so the solvers go slowly.
+NEAR_BASE = 0.36
 
 
 class Limits:
@@ -44,12 +48,14 @@ class Limits:
         self.travel = SPEED_SCALE if naive else 0.25
         #: descent speed onto the work height [m/s]
         self.descend = SPEED_SCALE if naive else 0.15
-        #: speed while in contact (pushing, placing, inserting) [m/s]
-        self.contact = SPEED_SCALE if naive else 0.12
+        #: speed while in contact (pushing; placing and inserting go slower) [m/s]
+        self.contact = SPEED_SCALE if naive else 0.22
         #: the lowest TCP height commanded [m]: the closed fingertips reach 9 mm below it
         self.floor = -0.05 if naive else 0.016
         #: position gain [1/s]
-        self.gain = 30.0 if naive else 5.0
+        self.gain = 30.0 if naive else 8.0
+        #: speed carrying a held block [m/s]
+        self.carry = SPEED_SCALE if naive else 0.2
 
 
 def velocity_towards(ee, target, speed, gain):
@@ -104,10 +110,14 @@ class PushSolver:
         target = np.empty_like(ee)
         speed = np.full(len(ee), lim.travel)
         over = self.phase == 0
-        # Over: up first, then across (never sweep through the block).
+        # Over: up first, then across (never sweep through the block); already low and
+        # behind the block on the new line: straight there.
         high_enough = ee[:, 2] > self.HIGH - 0.01
         target[over, :2] = np.where(high_enough[over, None], behind[over], ee[over, :2])
         target[over, 2] = self.HIGH
+        stay_low = over & ~high_enough & (along < -(HALF + 0.025))
+        target[stay_low, :2] = behind[stay_low]
+        target[stay_low, 2] = low
         down = self.phase == 1
         target[down, :2] = behind[down]
         target[down, 2] = low
@@ -116,6 +126,9 @@ class PushSolver:
         target[push] = ee[push]  # (the velocity is set below)
         done = far < 0.01
         target[done] = ee[done]
+        if not lim.naive:  # slowly near the base, where the elbow folds to its stop
+            near = (ee[:, 0] < NEAR_BASE) | (target[:, 0] < NEAR_BASE)
+            speed[near] = np.minimum(speed[near], 0.15)
         v = velocity_towards(ee, target, speed, lim.gain)
         # Pushing: along the line at the contact speed (slowing into the goal), steered
         # back onto the line behind the block, the height held.
@@ -157,13 +170,14 @@ class PickAndPlaceSolver:
         block = o[:, self.object_at : self.object_at + 3]
         goal = obs["desired_goal"].astype(np.float64)
         grasp_z = max(HALF, lim.floor) if not lim.naive else lim.floor
-        over = np.linalg.norm(ee[:, :2] - block[:, :2], axis=1) < 0.004
+        over = np.linalg.norm(ee[:, :2] - block[:, :2], axis=1) < 0.005
         twist = np.linalg.norm(o[:, 17:20], axis=1)
         p = self.phase
         p[(p == 0) & over & (ee[:, 2] > self.HIGH - 0.01) & (width > 0.075)] = 1
         p[(p == 1) & (np.abs(ee[:, 2] - grasp_z) < 0.003) & (twist < 0.02)] = 2
         self.closing[p == 2] += 1
-        p[(p == 2) & (self.closing > 12)] = 3  # the fingers have met the block
+        met = (self.closing > 3) & (width < 2 * HALF + 0.0015)
+        p[(p == 2) & met] = 3  # the fingers have met the block
         dropped = (p == 3) & (np.linalg.norm(block - ee, axis=1) > 0.03)
         p[dropped], self.closing[dropped] = 0, 0
         target = ee.copy()
@@ -189,7 +203,7 @@ class PickAndPlaceSolver:
         target[across, 2] = np.maximum(goal[across, 2], self.CARRY)
         there = rows & ~far
         target[there] = goal[there]
-        speed[rows] = lim.contact if not lim.naive else lim.travel
+        speed[rows] = lim.carry
         v = velocity_towards(ee, target, speed, lim.gain)
         return np.concatenate([np.clip(v / SPEED_SCALE, -1, 1), hand[:, None]], 1).astype(
             np.float32
@@ -223,8 +237,8 @@ class PegInsertionSolver:
 
     HALF_LENGTH = 0.04  # the peg's [m]
     ABOVE = 0.04  # tip height over the hole before inserting (fixture top: 0.03) [m]
-    #: insertion speed [m/s]
-    INSERT = 0.02
+    #: speed of the approach over the hole, and of the insertion [m/s]
+    APPROACH, INSERT = 0.12, 0.02
     #: angular speed cap [rad/s] and the angular velocity of an action of 1.0
     TURN, TURN_SCALE = 0.3, 0.5
 
@@ -261,7 +275,8 @@ class PegInsertionSolver:
         ready = (xy_error < 0.0005) & (np.abs(tip[:, 2] - self.ABOVE) < 0.003)
         ready &= (np.linalg.norm(error, axis=1) < 0.01) & (twist < 0.01)
         self.phase[(self.phase == 0) & ready] = 1
-        v = velocity_towards(tip, above, np.full(len(tip), lim.contact), lim.gain)
+        approach = SPEED_SCALE if lim.naive else self.APPROACH
+        v = velocity_towards(tip, above, np.full(len(tip), approach), lim.gain)
         inserting = self.phase == 1
         if lim.naive:  # straight down at full speed
             v[inserting] = [0.0, 0.0, -SPEED_SCALE]
