@@ -37,6 +37,8 @@ HALF = 0.02
 #: (joint 4 beyond -2.9 rad): a fast motion there trips the robot's
 #: joint_velocity_violation, so the solvers go slowly.
 NEAR_BASE = 0.36
+#: ... and no target closer than this (joint 4 reaches -3.0 rad there).
+CLOSEST = 0.30
 
 
 class Limits:
@@ -94,6 +96,8 @@ class PushSolver:
         far = np.linalg.norm(line, axis=1)
         d = line / np.maximum(far, 1e-9)[:, None]
         behind = block[:, :2] - d * self.STANDOFF
+        if not lim.naive:  # no closer to the base than the elbow allows at speed
+            behind[:, 0] = np.maximum(behind[:, 0], CLOSEST)
         low = max(self.LOW, lim.floor) if not lim.naive else lim.floor
         # Where the TCP is relative to the push line: along it and off it.
         rel = ee[:, :2] - block[:, :2]
@@ -129,6 +133,7 @@ class PushSolver:
         if not lim.naive:  # slowly near the base, where the elbow folds to its stop
             near = (ee[:, 0] < NEAR_BASE) | (target[:, 0] < NEAR_BASE)
             speed[near] = np.minimum(speed[near], 0.15)
+            speed[near & down] = np.minimum(speed[near & down], 0.06)  # the descent
         v = velocity_towards(ee, target, speed, lim.gain)
         # Pushing: along the line at the contact speed (slowing into the goal), steered
         # back onto the line behind the block, the height held.

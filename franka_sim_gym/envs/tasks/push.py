@@ -16,7 +16,7 @@ from .objects import distance, object_space, object_state, place_object
 #: The block's half size [m] (scenes/block.xml): its centre rests this high.
 HALF = 0.02
 #: The centre of the block and goal ranges on the table, in the base frame [m].
-CENTRE = np.array([0.50, 0.0])
+CENTRE = np.array([0.52, 0.0])
 #: Half-width of the block's and the goal's ranges in x and y [m]: panda-gym's 0.3 m
 #: squares (obj_xy_range, goal_xy_range).
 RANGE = 0.15
