@@ -18,7 +18,7 @@ from franka_sim_gym.envs.fci_env import FrankaFCIEnv
 from franka_sim_gym.envs.vector_env import FrankaFCIVectorEnv
 from tests.envs.test_vector_env import assert_same
 
-TASK_IDS = ["FrankaFCIPush-v0"]
+TASK_IDS = ["FrankaFCIPush-v0", "FrankaFCIPickAndPlace-v0", "FrankaFCIPegInsertion-v0"]
 
 
 def downward_actions(env_id: str, n: int, steps: int, seed: int = 0) -> np.ndarray:
