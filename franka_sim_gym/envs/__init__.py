@@ -8,11 +8,12 @@ interface plus its default:
   ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``,
   ``FrankaFCICartesianPose-v0``, ``FrankaFCICartesianVelocity-v0``,
   ``FrankaFCITorque-v0``;
-* a task whose ``id_name`` is ``Push`` would get ``FrankaFCIPush-v0`` (its
-  ``default_interface``) and ``FrankaFCIPushJointPosition-v0``, ...
+* Push, PickAndPlace, PegInsertion: ``FrankaFCIPush-v0`` (their ``default_interface``,
+  Cartesian velocity) and ``FrankaFCIPushCartesianPose-v0``,
+  ``FrankaFCIPushJointPosition-v0``, ... (their ``interfaces``).
 
 Every constructor argument of ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed
-to ``gym.make``; each id's spec carries ``max_episode_steps`` (50), which
+to ``gym.make``; each id's spec carries its task's ``max_episode_steps``, which
 ``gym.make(id, max_episode_steps=N)`` overrides. Every id also has a native batched
 vector env (N arms in one MuJoCo world):
 ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``

@@ -99,3 +99,13 @@ def test_the_native_vector_env_equals_single_envs(env_id):
         ended += int(np.sum(a[2] | a[3]))
     assert ended >= n  # autoresets happened on the way
     assert IDS[env_id]["task"] != "reach"
+
+
+def test_rendering_shows_the_objects():
+    env = gym.make("FrankaFCIPush-v0", render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    frame = env.render().astype(int)
+    r, g, b = frame[..., 0], frame[..., 1], frame[..., 2]
+    orange = (r > 150) & (g > 50) & (g < 130) & (b < 80)  # the block (scenes/block.xml)
+    assert orange.sum() > 5
+    env.close()
