@@ -29,16 +29,13 @@ from gymnasium import spaces
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
-from ..fci.statuses import SetterStatus
 from ..fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.arm import ArmPhysics
-from ..sim.finger_drive import FingerServos
-from ..sim.gripper import MAX_WIDTH
-from ..sim.hand_load import HeldObjects
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
 from .commands import CommandGenerator
 from .fci_reset import reset_through_fci
+from .hands import EnvHands, hand_choice
 from .infos import info_row, step_info
 from .observation import build_observation, observation_space
 from .robot_settings import RobotSettings
@@ -67,8 +64,6 @@ _FIELD = {
 }
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
-#: The hands a task may need (Task.hand): None leaves it to the ``gripper`` argument.
-HANDS = (None, "grasp", "closed", "held")
 
 __all__ = ["FciBatch", "draw_episode", "info_row", "start_pose"]  # info_row: envs/infos.py
 
@@ -172,31 +167,15 @@ class FciBatch:
             enforce_motion_limits=enforce_motion_limits,
             enforce_comm_constraints=enforce_comm_constraints,
         )
-        hand = self.task.hand
-        if hand not in HANDS:
-            raise ValueError(f"{type(self.task).__name__}.hand {hand!r}: expected one of {HANDS}")
-        if hand in ("closed", "held") and gripper:
-            name = type(self.task).__name__
-            raise ValueError(f"gripper: {name} holds the fingers itself (no width action)")
+        task = self.task
         #: the last action is the hand's width command
-        self.gripper = hand == "grasp" if gripper is None else bool(gripper)
-        self.gripper_speed = float(gripper_speed)
-        if not (np.isfinite(grasp_force) and 0.0 < grasp_force <= 100.0):
-            raise ValueError(f"grasp_force must be in (0, 100] N, got {grasp_force!r}")
-        self.grasp_force = float(grasp_force)
-        self.configure_load = bool(configure_load)
-        mounted = self.gripper or hand is not None
+        self.gripper, mounted = hand_choice(type(task).__name__, task.hand, gripper)
         physics = ArmPhysics(n_arms=n, hand=mounted, scene=scene)
-        #: every arm's fingers on the force-limited servo (None without a hand)
-        self.hands = FingerServos(physics) if mounted else None
-        self._hand_targets = np.full(n, np.nan)
-        held = self.task.held_object
-        #: the object each hand may hold, whose load ``configure_load`` configures
-        self.held = None
-        if held is not None and mounted:
-            self.held = HeldObjects(physics.model, physics.layout, physics.layout.scene_body[held])
-        #: (n,) the held object's load is configured on the robot
-        self.load_configured = np.zeros(n, dtype=bool)
+        #: the hands (None without one): envs/hands.py
+        self.hands = None
+        if mounted:
+            self.hands = EnvHands(physics, task.hand, task.held_object, gripper_speed,
+                                  grasp_force, configure_load)  # fmt: skip
         self.controller = FciController(physics, self.config)
         self.links = Links(channel, n)
         #: each arm's channel model
@@ -259,21 +238,16 @@ class FciBatch:
         for i in arms.tolist():
             self.robot_settings.apply(ctrl, i)
             ctrl.move(i, int(controller), int(generator))
-        hands, hand = self.hands, self.task.hand
-        physics = ctrl.physics
-        if hand == "closed":  # shut on nothing, squeezed
-            physics.data.qpos[physics.layout.finger_qpos_adr[arms]] = 0.0
-            physics.data.qvel[physics.layout.finger_dof_adr[arms]] = 0.0
-        elif self.gripper and self.reset_mode == "teleport":  # open, as the reset put them
-            hands.command(arms, MAX_WIDTH, self.gripper_speed)
-            self._hand_targets[arms] = MAX_WIDTH
+        hands, physics = self.hands, ctrl.physics
+        if hands is not None:
+            hands.before_task_reset(arms, self.gripper, self.reset_mode == "teleport")
         self.goals[arms] = self.task.reset(arms, rngs, physics)
-        if hand in ("closed", "held"):
-            hands.hold(arms, self.grasp_force)
+        if hands is not None:
+            hands.after_task_reset(arms)
         if hands is not None or self.task.scene is not None:
             mujoco.mj_forward(physics.model, physics.data)  # the placed objects' frames
-        self.load_configured[arms] = False  # the reset cleared SetLoad
-        self._configure_loads(arms)
+        if hands is not None:
+            hands.configure_loads(ctrl, arms)
         self.commands.reset(arms)
         self.steps[arms] = 0
         self.cycles[arms] = 0
@@ -318,9 +292,10 @@ class FciBatch:
             for i in np.flatnonzero(~active & ctrl.in_motion).tolist():
                 ctrl.stop_move(i)
         if self.gripper:
-            self._command_hands(a[:, self._dim], active)
+            self.hands.command(a[:, self._dim], active)
             a = a[:, : self._dim]
-        self._configure_loads(np.flatnonzero(active))
+        if self.hands is not None:
+            self.hands.configure_loads(ctrl, np.flatnonzero(active))
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)
@@ -351,7 +326,7 @@ class FciBatch:
             else:
                 self.links.transmit(command, sending, lost, ctrl.receive)
             if self.gripper:
-                self._step_hands(active & ~frozen)
+                self.hands.tick(active & ~frozen)
             events = ctrl.step()
             if events:
                 ended = [
@@ -443,39 +418,3 @@ class FciBatch:
         return step_info(
             m["states"], lost, self.links.longest_lost, violations, self.cycles, is_success, penalty
         )
-
-    def _command_hands(self, width_actions: np.ndarray, active: np.ndarray) -> None:
-        """A new width target is a new command of the finger servo: closing is a grasp
-        (force-limited at ``grasp_force``; a stall squeezes), opening a move."""
-        targets = (np.clip(width_actions, -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH
-        new = active & ~(np.abs(targets - self._hand_targets) <= 1e-6)
-        arms = np.flatnonzero(new)
-        if not len(arms):
-            return
-        self._hand_targets[arms] = targets[arms]
-        hands = self.hands
-        closing = targets[arms] < hands.width()[arms]
-        for rows, force in ((closing, self.grasp_force), (~closing, None)):
-            squeeze = closing[rows]
-            hands.command(arms[rows], targets[arms[rows]], self.gripper_speed, force, squeeze)
-
-    def _step_hands(self, moving: np.ndarray) -> None:
-        self.hands.tick(np.flatnonzero(moving))
-
-    def _configure_loads(self, arms: np.ndarray) -> None:
-        """``configure_load``: SetLoad with the held object's mass while a hand holds it,
-        SetLoad(0) when it lets go (what a careful script does after a grasp)."""
-        if self.held is None or not self.configure_load or not len(arms):
-            return
-        ctrl = self.controller
-        data = ctrl.physics.data
-        held = self.held.held(data)
-        changed = arms[held[arms] != self.load_configured[arms]]
-        for i in changed.tolist():
-            if held[i]:
-                status = ctrl.set_load(i, *self.held.load(data, i))
-            else:
-                status = ctrl.set_load(i, 0.0, np.zeros(3), np.zeros(9))
-            if status != SetterStatus.kSuccess:  # pragma: no cover - the model's values
-                raise RuntimeError(f"robot {i} refused SetLoad: {status}")
-            self.load_configured[i] = held[i]

@@ -29,7 +29,7 @@ def test_the_peg_is_held_in_the_hand_at_reset_and_stays_there():
     tip = obs["achieved_goal"]
     ee = obs["observation"][EE]
     assert np.linalg.norm(tip - ee) == pytest.approx(0.06, abs=1e-3)  # 60 mm below the TCP
-    assert env.unwrapped.core.load_configured[0]
+    assert env.unwrapped.core.hands.load_configured[0]
     for _ in range(10):
         obs, _, terminated, _, _ = env.step(np.zeros(6, np.float32))
         assert not terminated
