@@ -6,8 +6,8 @@ Per task id (its default interface, Cartesian velocity; random actions at 25 Hz,
 checks on, the objects in the scene and the hand mounted): env steps/s of a single env
 and of the native batched env at N arms, arm-cycles/s (40 cycles per step), and the
 ratio to bare ``mj_step`` of the same world (the same scene and hands, one arm and N
-arms) timed in the same run. Episodes that end (reflex or time limit) are reset, and
-resets are counted in the time.
+arms) timed in the same run, just before and just after the env (their mean).
+Episodes that end (reflex or time limit) are reset, and resets are counted in the time.
 """
 
 from __future__ import annotations
@@ -76,13 +76,15 @@ def main() -> None:
     print(f"{'row':<40}{'env steps/s':>12}{'arm-cycles/s':>14}{'vs mj_step':>12}")
     for env_id in TASK_IDS:
         for n in (1, args.n):
-            bare = bare_rate(env_id, n, args.seconds)
+            # bare mj_step before and after the env, averaged: a shared host's load drifts
+            before = bare_rate(env_id, n, args.seconds / 2)
             if n == 1:
                 rate = single_rate(env_id, args.seconds)
                 name = f"{env_id}, single"
             else:
                 rate = batched_rate(env_id, n, args.seconds)
                 name = f"{env_id}, batched N={n}"
+            bare = (before + bare_rate(env_id, n, args.seconds / 2)) / 2
             cycles = rate * CYCLES
             print(f"{name:<40}{rate:>12,.0f}{cycles:>14,.0f}{cycles / bare:>12.3f}")
             print(f"{f'  bare mj_step, N={n}':<40}{'':>12}{bare:>14,.0f}{1.0:>12.3f}")
