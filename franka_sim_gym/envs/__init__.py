@@ -7,12 +7,13 @@ interface plus its default:
 * Reach: ``FrankaFCI-v0`` (joint positions through libfranka's rate limiter),
   ``FrankaFCIJointPosition-v0``, ``FrankaFCIJointVelocity-v0``,
   ``FrankaFCICartesianPose-v0``, ``FrankaFCICartesianVelocity-v0``,
-  ``FrankaFCITorque-v0``;
-* a task whose ``id_name`` is ``Push`` would get ``FrankaFCIPush-v0`` (its
-  ``default_interface``) and ``FrankaFCIPushJointPosition-v0``, ...
+  ``FrankaFCITorque-v0``, ``FrankaFCIJointPositionAsync-v0``;
+* Push, PickAndPlace, PegInsertion: ``FrankaFCIPush-v0`` (their ``default_interface``,
+  Cartesian velocity) and ``FrankaFCIPushCartesianPose-v0``,
+  ``FrankaFCIPushJointPosition-v0``, ... (their ``interfaces``).
 
 Every constructor argument of ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed
-to ``gym.make``; each id's spec carries ``max_episode_steps`` (50), which
+to ``gym.make``; each id's spec carries its task's ``max_episode_steps``, which
 ``gym.make(id, max_episode_steps=N)`` overrides. Every id also has a native batched
 vector env (N arms in one MuJoCo world):
 ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
@@ -27,7 +28,8 @@ from .tasks import TASKS
 
 ENTRY = "franka_sim_gym.envs.fci_env:FrankaFCIEnv"
 VECTOR_ENTRY = "franka_sim_gym.envs.vector_env:FrankaFCIVectorEnv"
-#: The episode length in every id's spec, and of an env made without one.
+#: Reach's episode length (its ids' specs, and an env made without one); every task
+#: names its own (``Task.max_episode_steps``).
 EPISODE_STEPS = 50
 #: Each action interface's part of an id.
 INTERFACE_IDS = {
@@ -45,12 +47,14 @@ def task_ids() -> dict[str, dict]:
     ids = {}
     for name, task in TASKS.items():
         prefix = f"FrankaFCI{task.id_name}"
-        ids[f"{prefix}-v0"] = {"task": name, "action_interface": task.default_interface}
+
+        def arguments(interface: str, name=name, task=task) -> dict:
+            extra = task.cartesian_kwargs if interface.startswith("cartesian") else {}
+            return {"task": name, "action_interface": interface, **extra}
+
+        ids[f"{prefix}-v0"] = arguments(task.default_interface)
         for interface in task.interfaces or tuple(INTERFACE_IDS):
-            ids[f"{prefix}{INTERFACE_IDS[interface]}-v0"] = {
-                "task": name,
-                "action_interface": interface,
-            }
+            ids[f"{prefix}{INTERFACE_IDS[interface]}-v0"] = arguments(interface)
     return ids
 
 
@@ -66,7 +70,7 @@ def register_envs() -> None:
                 id=env_id,
                 entry_point=ENTRY,
                 vector_entry_point=VECTOR_ENTRY,
-                max_episode_steps=EPISODE_STEPS,
+                max_episode_steps=TASKS[kwargs["task"]].max_episode_steps,
                 kwargs=kwargs,
             )
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
 import numpy as np
 from gymnasium import spaces
 
@@ -30,11 +31,11 @@ from ..fci.controller import FciController
 from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.arm import ArmPhysics
-from ..sim.gripper import MAX_WIDTH, FrankaHand
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
 from .commands import CommandGenerator, move_options
 from .fci_reset import reset_through_fci
+from .hands import EnvHands, hand_choice
 from .infos import info_row, step_info
 from .observation import build_observation, observation_space
 from .robot_settings import RobotSettings
@@ -73,12 +74,15 @@ def draw_episode(rng: np.random.Generator, noise: float, task: Task) -> tuple[np
     """An episode's start pose (``start_pose``) and its goal (``task.sample_goal``), drawn
     from ``rng`` in that order: what a reset draws, and what examples/deploy_pylibfranka.py
     draws for the same reaches."""
-    return start_pose(rng, noise), task.sample_goal(rng)
+    return start_pose(rng, noise, task.home), task.sample_goal(rng)
 
 
-def start_pose(rng: np.random.Generator, noise: float) -> np.ndarray:
-    """The home pose plus uniform noise of +-``noise`` rad per joint, drawn from ``rng``."""
-    return HOME_Q + rng.uniform(-noise, noise, size=7)
+def start_pose(
+    rng: np.random.Generator, noise: float, home: np.ndarray | None = None
+) -> np.ndarray:
+    """``home`` (default: the robot's home pose) plus uniform noise of +-``noise`` rad per
+    joint, drawn from ``rng``."""
+    return (HOME_Q if home is None else home) + rng.uniform(-noise, noise, size=7)
 
 
 class FciBatch:
@@ -98,15 +102,17 @@ class FciBatch:
         action_interface: str = "joint_position",
         action_filter: str = "limit_rate",
         policy_hz: float = 25.0,
-        max_episode_steps: int = 50,
+        max_episode_steps: int | None = None,
         task: str | Task = "reach",
         enforce_motion_limits: bool = True,
         enforce_comm_constraints: bool = True,
         channel: Channel | str | None | list = None,
         reset_noise: float = 0.05,
         robot: str = "fr3",
-        gripper: bool = False,
+        gripper: bool | None = None,
         gripper_speed: float = 0.1,
+        grasp_force: float = 20.0,
+        configure_load: bool = True,
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
         reset_mode: str = "teleport",
@@ -139,11 +145,13 @@ class FciBatch:
         self.n = n = int(n)
         self.action_interface = action_interface
         self.cycles_per_step = int(round(cycles))
+        self.task = make_task(task, **task_kwargs)
+        if max_episode_steps is None:
+            max_episode_steps = self.task.max_episode_steps
         if int(max_episode_steps) < 1:
             raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
         self.max_episode_steps = int(max_episode_steps)
         self.reset_noise = float(reset_noise)
-        self.task = make_task(task, **task_kwargs)
         if self.task.scene is not None and scene is not None:
             name = type(self.task).__name__
             raise ValueError(f"{name} has its own scene ({self.task.scene}): scene must be None")
@@ -161,10 +169,15 @@ class FciBatch:
             enforce_motion_limits=enforce_motion_limits,
             enforce_comm_constraints=enforce_comm_constraints,
         )
-        self.gripper = bool(gripper)
-        self.gripper_speed = float(gripper_speed)
-        self.hands = [FrankaHand() for _ in range(n)] if self.gripper else None
-        physics = ArmPhysics(n_arms=n, hand=self.gripper, scene=scene)
+        task = self.task
+        #: the last action is the hand's width command
+        self.gripper, mounted = hand_choice(type(task).__name__, task.hand, gripper)
+        physics = ArmPhysics(n_arms=n, hand=mounted, scene=scene)
+        #: the hands (None without one): envs/hands.py
+        self.hands = None
+        if mounted:
+            self.hands = EnvHands(physics, task.hand, task.held_object, gripper_speed,
+                                  grasp_force, configure_load)  # fmt: skip
         self.controller = FciController(physics, self.config)
         self.links = Links(channel, n)
         self.links.robot_answers[...] = action_interface == "joint_position_async"
@@ -182,7 +195,7 @@ class FciBatch:
         self._dim = self.commands.action_dim
         #: the spaces of one arm
         self.action_space = spaces.Box(
-            -1.0, 1.0, shape=(self._dim + 1 if gripper else self._dim,), dtype=np.float32
+            -1.0, 1.0, shape=(self._dim + 1 if self.gripper else self._dim,), dtype=np.float32
         )
         self.observation_space = observation_space(
             self.config.table, self.gripper, self.task.extra_space(), self.task.goal_dim
@@ -205,7 +218,8 @@ class FciBatch:
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         ctrl = self.controller
         noise = self.reset_noise
-        q = np.stack([start_pose(rngs[i], noise) for i in arms.tolist()])
+        home = self.task.home
+        q = np.stack([start_pose(rngs[i], noise, home) for i in arms.tolist()])
         if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
             reset_through_fci(ctrl, q[0])
         else:
@@ -227,10 +241,17 @@ class FciBatch:
         options = move_options(self.action_interface, ctrl.table, self.commands.scale)
         for i in arms.tolist():
             self.robot_settings.apply(ctrl, i)
-            if self.gripper and self.reset_mode == "teleport":
-                self.hands[i] = FrankaHand()  # open (the physics fingers were reset open too)
             ctrl.move(i, int(controller), int(generator), **options)
-        self.goals[arms] = self.task.reset(arms, rngs, ctrl.physics)
+        hands, physics = self.hands, ctrl.physics
+        if hands is not None:
+            hands.before_task_reset(arms, self.gripper, self.reset_mode == "teleport")
+        self.goals[arms] = self.task.reset(arms, rngs, physics)
+        if hands is not None:
+            hands.after_task_reset(arms)
+        if hands is not None or self.task.scene is not None:
+            mujoco.mj_forward(physics.model, physics.data)  # the placed objects' frames
+        if hands is not None:
+            hands.configure_loads(ctrl, arms)
         self.commands.reset(arms)
         self.steps[arms] = 0
         self.cycles[arms] = 0
@@ -275,8 +296,10 @@ class FciBatch:
             for i in np.flatnonzero(~active & ctrl.in_motion).tolist():
                 ctrl.stop_move(i)
         if self.gripper:
-            self._command_hands(a[:, self._dim], active)
+            self.hands.command(a[:, self._dim], active)
             a = a[:, : self._dim]
+        if self.hands is not None:
+            self.hands.configure_loads(ctrl, np.flatnonzero(active))
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)
@@ -307,7 +330,7 @@ class FciBatch:
             else:
                 self.links.transmit(command, sending, lost, ctrl.receive)
             if self.gripper:
-                self._step_hands(active & ~frozen)
+                self.hands.tick(active & ~frozen)
             events = ctrl.step()
             if events:
                 ended = [
@@ -371,7 +394,7 @@ class FciBatch:
         m = {
             "states": ctrl.states,
             "ee": ee,
-            "width": ctrl.physics.finger_width() if self.gripper else None,
+            "width": self.hands.width() if self.gripper else None,
             "achieved": achieved,
             "extra": extra,
         }
@@ -399,15 +422,3 @@ class FciBatch:
         return step_info(
             m["states"], lost, self.links.longest_lost, violations, self.cycles, is_success, penalty
         )
-
-    def _command_hands(self, width_actions: np.ndarray, active: np.ndarray) -> None:
-        targets = (np.clip(width_actions, -1.0, 1.0) + 1.0) / 2.0 * MAX_WIDTH
-        for i in np.flatnonzero(active).tolist():
-            if abs(targets[i] - self.hands[i].width) > 1e-6:
-                self.hands[i].move(targets[i], self.gripper_speed)
-
-    def _step_hands(self, moving: np.ndarray) -> None:
-        arms = np.flatnonzero(moving)
-        for i in arms.tolist():
-            self.hands[i].step(1e-3)
-        self.controller.physics.set_finger_width(arms, [self.hands[i].width for i in arms])

@@ -29,7 +29,6 @@ import numpy as np
 from gymnasium.envs.registration import EnvSpec
 
 from ..sim.render import OffscreenRenderer
-from . import EPISODE_STEPS
 from .core import FciBatch
 from .infos import info_row
 
@@ -54,7 +53,7 @@ class FrankaFCIEnv(gym.Env):
             40 cycles).
         max_episode_steps: steps before truncation, and the length the reflex charge
             counts (default: ``gym.make``'s ``max_episode_steps``, i.e. the TimeLimit
-            wrapper's, else the registered 50, i.e. 2 s at 25 Hz).
+            wrapper's, else the task's: Reach 50 steps, i.e. 2 s at 25 Hz).
         reward_type: "sparse" (default) or "dense".
         distance_threshold: success radius [m] (default 0.05).
         enforce_motion_limits, enforce_comm_constraints: the robot's switches
@@ -68,12 +67,22 @@ class FrankaFCIEnv(gym.Env):
             otherwise) or "human" (MuJoCo's viewer; needs a display: without one a
             RuntimeError says so when the env is made).
         width, height: the rgb_array frame size [px].
-        gripper: mount the Franka Hand (its mass is then in the arm's dynamics, and the
-            EE frame, O_T_EE and the achieved goal are its TCP, as F_T_NE reports) and add
-            an eighth action, the commanded opening width (-1 closed … 1 open, 0.08 m),
-            applied through the same hand model as the gripper server (the fingers move
-            at ``gripper_speed``); the observation gains the measured width.
+        gripper: mount the Franka Hand (default: the task's choice; Reach: off; its mass
+            is then in the arm's dynamics, and the EE frame, O_T_EE and the achieved goal
+            are its TCP, as F_T_NE reports) and add an eighth action, the commanded
+            opening width (-1 closed … 1 open, 0.08 m), on the same force-limited
+            finger servo as the gripper server's physics hand (the fingers move at
+            ``gripper_speed``); the observation gains the measured width.
         gripper_speed: finger speed of the width command [m/s] (default 0.1).
+        grasp_force: the fingers' force limit when they close [N] (default 20): a
+            closing width command is a grasp, and fingers stopped by an object squeeze
+            it with this force (the gripper server's grasp rule, sim/finger_drive.py);
+            also the squeeze of tasks that hold the fingers shut (Push, PegInsertion).
+        configure_load: while the hand holds the task's object (both fingertips on it),
+            configure its mass as the robot's load (SetLoad), so the external-force
+            estimate does not read its weight (default True); False leaves the load
+            unconfigured: the weight then reads as an external force, as on a robot
+            nobody told.
         cartesian_dof: the Cartesian interfaces' action length: 6 (default: translation,
             then a base-frame rotation vector) or 3 (translation only; the orientation
             is held where the motion started).
@@ -130,7 +139,6 @@ class FrankaFCIEnv(gym.Env):
         self._arguments = copy.deepcopy(
             {"render_mode": render_mode, "width": width, "height": height, **kwargs}
         )
-        self._arguments["max_episode_steps"] = int(max_episode_steps)
         #: the episodes a copy replays: [random state at reset, reset_noise, actions]
         self._history: list[list] = []
         #: the batched core with one arm: the vector env runs the same code with n arms
@@ -138,6 +146,7 @@ class FrankaFCIEnv(gym.Env):
         # the single and the vector env; an unknown one is a TypeError naming it.
         self.core = FciBatch(1, max_episode_steps=max_episode_steps, **kwargs)
         core = self.core
+        self._arguments["max_episode_steps"] = core.max_episode_steps
         self.controller = core.controller
         self.config = core.config
         self.task = core.task
@@ -286,10 +295,10 @@ def replayed(arguments: dict, history: list, random_state, spec: EnvSpec | None)
     return env
 
 
-def length_from_make() -> int:
+def length_from_make() -> int | None:
     """The episode length in force for an env being made by ``gym.make``: its
-    ``max_episode_steps`` argument, else the registered spec's; EPISODE_STEPS for
-    an env made otherwise.
+    ``max_episode_steps`` argument, else the registered spec's; None (the task's
+    length) for an env made otherwise.
 
     Gymnasium hands that length to the TimeLimit wrapper alone (the env it creates gets
     a spec without it), but the env needs it: a reflex is charged the worst reward for
@@ -300,14 +309,14 @@ def length_from_make() -> int:
     while frame is not None and frame.f_code is not gym.make.__code__:
         frame = frame.f_back
     if frame is None:
-        return EPISODE_STEPS
+        return None
     arguments = inspect.getargvalues(frame).locals
     length = arguments.get("max_episode_steps")
     if length is None or length == -1:  # -1: no TimeLimit; the registered length stays
         spec = arguments.get("id")
         spec = spec if isinstance(spec, EnvSpec) else gym.spec(spec)
         length = spec.max_episode_steps
-    return EPISODE_STEPS if length is None else int(length)
+    return None if length is None else int(length)
 
 
 def check_display() -> None:

@@ -164,9 +164,13 @@ class ArmPhysics:
         self.data.qvel[lay.dof_adr[arms]] = 0.0
         self.data.qacc_warmstart[lay.dof_adr[arms]] = 0.0
         self.data.ctrl[lay.actuator_ids[arms]] = 0.0
+        # Every dof of the arm's subtree restarts with no warm start, so an episode does
+        # not depend on how long the world ran on after the arm's last one ended (the
+        # vector env steps a stopped arm to the end of the step; a single env stops).
         if lay.finger_qpos_adr is not None:
             self.data.qpos[lay.finger_qpos_adr[arms]] = FINGER_OPEN
             self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
+            self.data.qacc_warmstart[lay.finger_dof_adr[arms]] = 0.0
             self.data.ctrl[lay.finger_actuator[arms]] = FINGER_OPEN
         # The arms' scene objects back where their fragment put them, at rest (a task
         # then places them for its episode).
@@ -175,6 +179,7 @@ class ArmPhysics:
             self.data.qpos[rows] = self.model.qpos0[rows]
             dofs = (lay.scene_dof_adr[joint][arms][:, None] + np.arange(6)).ravel()
             self.data.qvel[dofs] = 0.0
+            self.data.qacc_warmstart[dofs] = 0.0
         mujoco.mj_forward(self.model, self.data)
         self._refresh()
 

@@ -27,6 +27,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from .arm import ArmPhysics
 
 #: The fingers count as blocked when the ramp leads them by this much [m of
@@ -149,21 +151,14 @@ class FingerDrive:
             self._target = width if cmd.target is None else cmd.target
             self._squeezing = False
             self._model.actuator_forcerange[self._act] = (-cmd.force, cmd.force)
-        gap = self._target - self._ref
-        delta = cmd.speed * self._dt
-        if abs(gap) <= delta:
-            self._ref, ref_velocity = self._target, 0.0
-        else:
-            self._ref += math.copysign(delta, gap)
-            ref_velocity = math.copysign(cmd.speed, gap)
-        stalled = abs(self._ref - width) > STALL_LEAD
+        ref, ref_velocity, stalled = ramp(self._ref, self._target, width, cmd.speed, self._dt)
+        self._ref, stalled = float(ref), bool(stalled)
         if cmd.squeeze and stalled:
             self._squeezing = True
-        if self._squeezing:
-            ctrl = -(cmd.force / self._kp + _SQUEEZE_MARGIN)
-        else:
-            ctrl = (self._ref + self._feed_forward * ref_velocity) / 2.0  # per finger
-        self._data.ctrl[self._act] = ctrl
+        ctrl = finger_ctrl(
+            self._squeezing, cmd.force, self._kp, self._ref, self._feed_forward, ref_velocity
+        )
+        self._data.ctrl[self._act] = float(ctrl)
         self.sample = FingerSample(
             float(self._data.time),
             width,
@@ -178,3 +173,121 @@ class FingerDrive:
         a, b = self._qpos
         c, d = self._dof
         return float(q[a] + q[b]), float(dq[c] + dq[d])
+
+
+# -- the rules, for one hand or many ----------------------------------------------------------
+
+
+def ramp(ref, target, width, speed, dt):
+    """One tick of the reference ramp: (new reference, its velocity, stalled) for a hand
+    or an array of them. The reference moves ``speed * dt`` towards ``target`` (and lands
+    on it when closer); the fingers are stalled when it leads them by > ``STALL_LEAD``."""
+    gap = np.subtract(target, ref)
+    delta = np.multiply(speed, dt)
+    arrived = np.abs(gap) <= delta
+    ref = np.where(arrived, target, np.add(ref, np.copysign(delta, gap)))
+    velocity = np.where(arrived, 0.0, np.copysign(speed, gap))
+    return ref, velocity, np.abs(ref - width) > STALL_LEAD
+
+
+def finger_ctrl(squeezing, force, kp, ref, feed_forward, ref_velocity):
+    """The position servo's control (per finger): the ramp with its velocity fed forward,
+    or, squeezing, a reference so far past the fingers that the force limit holds them."""
+    follow = (np.asarray(ref) + feed_forward * np.asarray(ref_velocity)) / 2.0
+    return np.where(squeezing, -(np.asarray(force) / kp + _SQUEEZE_MARGIN), follow)
+
+
+class FingerServos:
+    """The hands of every arm of a world on the same force-limited servo as
+    :class:`FingerDrive` (the same ramp, stall and squeeze rules), batched: one call per
+    tick for all hands, for the Gymnasium env (envs/core.py).
+
+    A command per arm names a target width, a speed, a force limit and whether a stall
+    squeezes (a grasp: the fingers then hold what stopped them with the force limit).
+
+    Args:
+        physics: the world, built with ``hand=True``.
+        force: the force limit [N] of a motion that gives none (default: the model's
+            actuator force range, the URDF's 100 N effort).
+    """
+
+    def __init__(self, physics: ArmPhysics, force: float | None = None) -> None:
+        layout = physics.layout
+        if layout.finger_actuator is None:
+            raise ValueError("finger servos need a hand: ArmPhysics(hand=True)")
+        self.physics = physics
+        model = physics.model
+        self._act = np.asarray(layout.finger_actuator)
+        self._qpos = np.asarray(layout.finger_qpos_adr)
+        self._dof = np.asarray(layout.finger_dof_adr)
+        act0 = int(self._act[0])
+        self._kp = float(model.actuator_gainprm[act0, 0])
+        self._feed_forward = -float(model.actuator_biasprm[act0, 2]) / self._kp
+        self._dt = float(model.opt.timestep)
+        limit = model.actuator_forcerange[act0, 1] if force is None else force
+        #: the force limit of motions that give none [N]
+        self.default_force = float(limit)
+        model.actuator_ctrlrange[self._act] = (-math.inf, math.inf)
+        n = physics.n
+        self.ref = np.zeros(n)
+        self.target = np.zeros(n)
+        self.speed = np.zeros(n)
+        self.force = np.full(n, self.default_force)
+        self.squeeze = np.zeros(n, dtype=bool)
+        self.squeezing = np.zeros(n, dtype=bool)
+        #: (n,) the fingers are blocked (or squeezing) as of the last tick
+        self.stalled = np.zeros(n, dtype=bool)
+
+    def width(self) -> np.ndarray:
+        """(n,) measured opening [m]: the two finger joints summed."""
+        return self.physics.data.qpos[self._qpos].sum(axis=1)
+
+    def command(self, arms, target, speed, force=None, squeeze=False) -> None:
+        """New commands for ``arms``: the ramp starts from where the fingers are.
+
+        A squeezing hand given another squeezing command with a target below its width
+        keeps squeezing (its hold does not lapse while a policy repeats "close")."""
+        arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
+        if not len(arms):
+            return
+        force = self.default_force if force is None else force
+        width = self.width()[arms]
+        target = np.broadcast_to(np.asarray(target, dtype=float), arms.shape)
+        squeeze = np.broadcast_to(np.asarray(squeeze, dtype=bool), arms.shape)
+        self.squeezing[arms] = self.squeezing[arms] & squeeze & (target < width)
+        self.ref[arms] = width
+        self.target[arms] = target
+        self.speed[arms] = speed
+        self.force[arms] = force
+        self.squeeze[arms] = squeeze
+        force = self.force[arms]
+        self.physics.model.actuator_forcerange[self._act[arms]] = np.stack([-force, force], 1)
+
+    def hold(self, arms, force: float) -> None:
+        """Squeeze the hands of ``arms`` closed (on what is between the fingers) with
+        ``force`` from now on: a grasp whose fingers already stalled."""
+        arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
+        self.command(arms, -GRASP_OVERTRAVEL, 0.0, force, True)
+        self.ref[arms] = self.target[arms]
+        self.squeezing[arms] = True
+        self.stalled[arms] = True
+        ctrl = finger_ctrl(True, self.force[arms], self._kp, 0.0, 0.0, 0.0)
+        self.physics.data.ctrl[self._act[arms]] = ctrl
+
+    def tick(self, arms) -> None:
+        """Advance the ramps of ``arms`` by one step and set their servos' controls."""
+        arms = np.asarray(arms, dtype=np.intp)
+        if not len(arms):
+            return
+        q = self.physics.data.qpos
+        width = q[self._qpos[arms, 0]] + q[self._qpos[arms, 1]]
+        ref, velocity, stalled = ramp(
+            self.ref[arms], self.target[arms], width, self.speed[arms], self._dt
+        )
+        self.ref[arms] = ref
+        squeezing = self.squeezing[arms] | (self.squeeze[arms] & stalled)
+        self.squeezing[arms] = squeezing
+        self.stalled[arms] = stalled | squeezing
+        self.physics.data.ctrl[self._act[arms]] = finger_ctrl(
+            squeezing, self.force[arms], self._kp, ref, self._feed_forward, velocity
+        )

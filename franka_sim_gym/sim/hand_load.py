@@ -98,3 +98,57 @@ def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
             return True
         body = int(model.body_parentid[body])
     return False
+
+
+class HeldObjects:
+    """Which hands hold their arm's object (both fingertips touching it), and that
+    object's load in libfranka's SetLoad terms, for the env's ``configure_load``.
+
+    Args:
+        model, layout: the world (with hands) and its layout.
+        body: (n,) each arm's object body (``layout.scene_body[name]``).
+    """
+
+    def __init__(self, model: mujoco.MjModel, layout: ArmLayout, body: np.ndarray) -> None:
+        if layout.hand_body is None:
+            raise ValueError("no hand is mounted")
+        n = layout.n
+        self.body = np.asarray(body, dtype=np.intp)
+        self._flange = np.asarray(layout.flange_site, dtype=np.intp)
+        # Every geom's role in the test: 1 an object, 2 a left tip, 3 a right tip.
+        self._role = np.zeros(model.ngeom, dtype=np.int64)
+        self._arm = np.full(model.ngeom, -1, dtype=np.int64)
+        for i in range(n):
+            for role, name in ((2, f"arm{i}/left_tip"), (3, f"arm{i}/right_tip")):
+                g = model.geom(name).id
+                self._role[g], self._arm[g] = role, i
+        for i, b in enumerate(self.body.tolist()):
+            geoms = np.flatnonzero(model.geom_bodyid == b)
+            self._role[geoms], self._arm[geoms] = 1, i
+        self.mass = model.body_mass[self.body].copy()
+        self._inertia = model.body_inertia[self.body].copy()
+        self.n = n
+
+    def held(self, data: mujoco.MjData) -> np.ndarray:
+        """(n,) True where both fingertips of arm i's hand touch arm i's object."""
+        touching = np.zeros((self.n, 4), dtype=bool)
+        ncon = data.ncon
+        if ncon:
+            geoms = data.contact.geom[:ncon]
+            roles = self._role[geoms]
+            arms = self._arm[geoms]
+            for a, b in ((0, 1), (1, 0)):
+                rows = (roles[:, a] == 1) & (roles[:, b] >= 2) & (arms[:, a] == arms[:, b])
+                touching[arms[rows, a], roles[rows, b]] = True
+        return touching[:, 2] & touching[:, 3]
+
+    def load(self, data: mujoco.MjData, i: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """Arm i's object as SetLoad's (m_load, F_x_Cload, I_load): its mass, its centre
+        of mass in the flange frame, and its inertia about that centre in flange axes
+        (9 values, column-major: symmetric)."""
+        b, site = int(self.body[i]), int(self._flange[i])
+        F_R_O = data.site_xmat[site].reshape(3, 3).T
+        com = F_R_O @ (data.xipos[b] - data.site_xpos[site])
+        R = F_R_O @ data.ximat[b].reshape(3, 3)
+        inertia = R @ np.diag(self._inertia[i]) @ R.T
+        return float(self.mass[i]), com, inertia.reshape(-1, order="F")

@@ -51,6 +51,9 @@ _OBJECT_HALF_XZ = (0.01, 0.009)
 #: (MuJoCo's default solref 0.02 would let 20 N push the fingers ~1 cm in).
 _OBJECT_SOLREF = (0.002, 1.0)
 _OBJECT_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
+#: The finger coupling's: the same stiffest safe time constant and near-1 impedance.
+_COUPLING_SOLREF = (0.002, 1.0)
+_COUPLING_SOLIMP = (0.99, 0.999, 0.0001)
 
 _ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
 _ARM_LINKS = tuple(f"link{k}" for k in range(8))
@@ -158,6 +161,12 @@ def build_world(
     # 1 ms = one FCI cycle; implicitfast as in fr3.xml (attach does not copy <option>).
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    # Always the sparse constraint Jacobian: MuJoCo's "auto" picks dense below 60 dofs
+    # and sparse above, and the two sum in different orders, so an arm pushing a block
+    # would differ (~1e-14) between a world of one arm and one of n. Sparse, with the
+    # constraint islands MuJoCo solves one by one, makes arm i of n arms bit for bit the
+    # arm of a one-arm world (docs/env.md, "Native vector env").
+    spec.option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     world = spec.worldbody
     add_table(spec)
     world.add_light(
@@ -182,6 +191,13 @@ def build_world(
             _add_payload(spec, prefix, payload)
     spec.add_key(name="home")
     model = spec.compile()
+    if hand:
+        # The fingers are geared to one another on the real hand: a rigid coupling, not
+        # MuJoCo's soft default (solref 0.02), which lets a 20 N grasp of an object off
+        # the hand's centre line slide both fingers ~7 mm sideways, the object with them.
+        couplings = [model.equality(f"arm{i}/finger_coupling").id for i in range(n_arms)]
+        model.eq_solref[couplings] = _COUPLING_SOLREF
+        model.eq_solimp[couplings, :3] = _COUPLING_SOLIMP
     layout = _layout(model, n_arms, hand, fragment, payload is not None)
     _set_home(model, layout)
     return model, layout

@@ -19,16 +19,20 @@ from gymnasium.utils.passive_env_checker import env_render_passive_checker
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs import EPISODE_STEPS, IDS
 from franka_sim_gym.envs.fci_env import FrankaFCIEnv
+from franka_sim_gym.envs.tasks import TASKS
 from franka_sim_gym.sim.render import BACKGROUND
 from tests.envs.test_env import same
 
 
 @pytest.mark.parametrize("env_id", list(IDS))
 def test_every_id_carries_its_episode_length_in_its_spec(env_id):
-    assert gym.spec(env_id).max_episode_steps == EPISODE_STEPS
+    length = TASKS[IDS[env_id]["task"]].max_episode_steps  # Reach's: EPISODE_STEPS
+    assert gym.spec(env_id).max_episode_steps == length
     env = gym.make(env_id)
-    assert env.spec.max_episode_steps == EPISODE_STEPS
-    assert env.unwrapped.max_episode_steps == EPISODE_STEPS
+    assert env.spec.max_episode_steps == length
+    assert env.unwrapped.max_episode_steps == length
+    assert FrankaFCIEnv(**IDS[env_id]).max_episode_steps == length
+    assert TASKS["reach"].max_episode_steps == EPISODE_STEPS
 
 
 def run_until_done(env, action, limit=200):

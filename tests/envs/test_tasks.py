@@ -105,8 +105,8 @@ def test_every_task_of_TASKS_is_registered_per_interface():
 def test_task_arguments_and_errors():
     env = gym.make("FrankaFCI-v0", reward_type="dense", distance_threshold=0.1)
     assert isinstance(env.unwrapped.task, Reach) and env.unwrapped.task.reward_type == "dense"
-    with pytest.raises(ValueError, match="unknown task 'push'"):
-        make_task("push")
+    with pytest.raises(ValueError, match="unknown task 'stack'"):
+        make_task("stack")
     with pytest.raises(ValueError, match="reward_type"):
         make_task("reach", reward_type="shaped")
     with pytest.raises(TypeError, match="colour"):

@@ -8,6 +8,7 @@ import pytest
 
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.scene import SCENES, TABLE
+from franka_sim_gym.sim.world import HOME_Q
 
 #: A pose whose flange points down 18 cm above the table (joint 2 forward, elbow bent).
 OVER_THE_TABLE = np.array([0.0, 0.6, 0.0, -1.9, 0.0, 2.5, np.pi / 4])
@@ -121,3 +122,18 @@ def test_an_unknown_scene_or_a_broken_file_is_a_value_error_naming_it(tmp_path):
     broken.write_text("<mujoco><worldbody><body></mujoco>")
     with pytest.raises(ValueError, match="broken.xml"):
         ArmPhysics(1, scene=broken)
+
+
+def test_a_reset_restarts_the_arms_objects_and_fingers_without_warm_start():
+    # An arm of the vector env runs on to the end of the step after its episode ended,
+    # a single env stops: what the solver remembers of that (MuJoCo's qacc_warmstart)
+    # must not reach the next episode.
+    physics = ArmPhysics(2, hand=True, scene="block")
+    lay = physics.layout
+    block = lay.scene_dof_adr["block"][:, None] + np.arange(6)
+    physics.data.qacc_warmstart[:] = 1.0
+    physics.reset_arms(np.array([1]), HOME_Q[None])
+    warm = physics.data.qacc_warmstart
+    assert np.all(warm[block[1]] == 0) and np.all(warm[lay.finger_dof_adr[1]] == 0)
+    assert np.all(warm[lay.dof_adr[1]] == 0)
+    assert np.all(warm[block[0]] == 1) and np.all(warm[lay.dof_adr[0]] == 1)  # arm 0 untouched

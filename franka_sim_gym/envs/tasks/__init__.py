@@ -8,11 +8,17 @@ A new task is one file here (a ``Task`` subclass) and one line in ``TASKS``;
 from __future__ import annotations
 
 from .base import Task
+from .peg_insertion import PegInsertion
+from .pick_and_place import PickAndPlace
+from .push import Push
 from .reach import Reach
 
 #: Every task by name (the env's ``task`` argument). One line per task.
 TASKS: dict[str, type[Task]] = {
     "reach": Reach,
+    "push": Push,
+    "pick_and_place": PickAndPlace,
+    "peg_insertion": PegInsertion,
 }
 
 
@@ -27,4 +33,4 @@ def make_task(task: str | Task, **kwargs) -> Task:
     return TASKS[task](**kwargs)
 
 
-__all__ = ["TASKS", "Reach", "Task", "make_task"]
+__all__ = ["TASKS", "PegInsertion", "PickAndPlace", "Push", "Reach", "Task", "make_task"]

@@ -47,6 +47,21 @@ class Task(ABC):
     scene: ClassVar[str | None] = None
     #: the length of the achieved and desired goals
     goal_dim: ClassVar[int] = 3
+    #: The Franka Hand the task needs: None (the env's ``gripper`` argument decides),
+    #: "grasp" (mounted, its width the last action, on the force-limited finger servo),
+    #: "closed" (mounted, fingers squeezed shut, no width action) or "held" (mounted,
+    #: squeezing what the task's ``reset`` put between the fingers, no width action).
+    hand: ClassVar[str | None] = None
+    #: The joint positions episodes start around (None: the robot's home pose).
+    home: ClassVar[np.ndarray | None] = None
+    #: The episode length of the task's ids (2 s at 25 Hz for Reach).
+    max_episode_steps: ClassVar[int] = 50
+    #: Arguments the task's Cartesian ids carry (e.g. ``{"cartesian_dof": 3}``).
+    cartesian_kwargs: ClassVar[dict] = {}
+    #: The free joint of the object the hand may hold (a name in the task's scene): while
+    #: both fingertips touch it, its mass is the robot's configured load
+    #: (``configure_load``). None: nothing to hold.
+    held_object: ClassVar[str | None] = None
 
     # -- episodes ------------------------------------------------------------------------------
 

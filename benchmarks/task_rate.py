@@ -1,0 +1,94 @@
+"""Task throughput: steps/s of each manipulation task, single and batched (N = 64).
+
+    python benchmarks/task_rate.py [--seconds S] [--n 64]
+
+Per task id (its default interface, Cartesian velocity; random actions at 25 Hz, all
+checks on, the objects in the scene and the hand mounted): env steps/s of a single env
+and of the native batched env at N arms, arm-cycles/s (40 cycles per step), and the
+ratio to bare ``mj_step`` of the same world (the same scene and hands, one arm and N
+arms) timed in the same run, just before and just after the env (their mean).
+Episodes that end (reflex or time limit) are reset, and resets are counted in the time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.envs.tasks import TASKS
+from franka_sim_gym.native import describe
+from franka_sim_gym.sim.arm import ArmPhysics
+
+TASK_IDS = ["FrankaFCIPush-v0", "FrankaFCIPickAndPlace-v0", "FrankaFCIPegInsertion-v0"]
+CYCLES = 40
+
+
+def single_rate(env_id: str, seconds: float) -> float:
+    env = gym.make(env_id)
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        action = rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32)
+        _, _, terminated, truncated, _ = env.step(action)
+        steps += 1
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - start)
+
+
+def batched_rate(env_id: str, n: int, seconds: float) -> float:
+    """Arm-steps/s of n arms in the native batched env (autoresets included)."""
+    env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    shape = env.action_space.shape
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        env.step(rng.uniform(-1, 1, size=shape).astype(np.float32))
+        calls += 1
+    return calls * n / (time.perf_counter() - start)
+
+
+def bare_rate(env_id: str, n: int, seconds: float) -> float:
+    """Arm-cycles/s of bare mj_step on the task's world of n arms (scene and hands)."""
+    task = TASKS[gym.spec(env_id).kwargs["task"]]
+    physics = ArmPhysics(n_arms=n, hand=True, scene=task.scene)
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for _ in range(20):
+            mujoco.mj_step(physics.model, physics.data)
+        calls += 20
+    return calls * n / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--n", type=int, default=64, help="arms of the batched env")
+    args = parser.parse_args()
+    print(describe())
+    print(f"{'row':<40}{'env steps/s':>12}{'arm-cycles/s':>14}{'vs mj_step':>12}")
+    for env_id in TASK_IDS:
+        for n in (1, args.n):
+            # bare mj_step before and after the env, averaged: a shared host's load drifts
+            before = bare_rate(env_id, n, args.seconds / 2)
+            if n == 1:
+                rate = single_rate(env_id, args.seconds)
+                name = f"{env_id}, single"
+            else:
+                rate = batched_rate(env_id, n, args.seconds)
+                name = f"{env_id}, batched N={n}"
+            bare = (before + bare_rate(env_id, n, args.seconds / 2)) / 2
+            cycles = rate * CYCLES
+            print(f"{name:<40}{rate:>12,.0f}{cycles:>14,.0f}{cycles / bare:>12.3f}")
+            print(f"{f'  bare mj_step, N={n}':<40}{'':>12}{bare:>14,.0f}{1.0:>12.3f}")
+
+
+if __name__ == "__main__":
+    main()

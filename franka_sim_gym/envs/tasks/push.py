@@ -1,0 +1,109 @@
+"""Push: a 4 cm block on the table pushed to a goal on the table, the fingers closed.
+
+panda-gym's Push and Gymnasium-Robotics' FetchPush, on an FR3 whose collision reflexes
+are live: a push hard enough to trip ``cartesian_reflex`` ends the episode and is
+charged (docs/env.md, "Push").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from .base import Task, charged
+from .objects import distance, object_space, object_state, place_object
+
+#: The block's half size [m] (scenes/block.xml): its centre rests this high.
+HALF = 0.02
+#: The centre of the block and goal ranges on the table, in the base frame [m].
+CENTRE = np.array([0.52, 0.0])
+#: Half-width of the block's and the goal's ranges in x and y [m]: panda-gym's 0.3 m
+#: squares (obj_xy_range, goal_xy_range).
+RANGE = 0.15
+#: Where episodes start: the TCP (the hand's, between the closed fingertips) 0.15 m
+#: above the table at (0.50, 0, 0.15), the hand pointing down as at the home pose
+#: (joint positions solved numerically; tests/envs/tasks/test_push.py checks the TCP),
+#: so an episode is spent on the block, not on the 0.34 m descent from the home pose.
+TABLE_HOME = np.array([0.0, 0.1513, 0.0, -2.398, 0.0, 2.5494, 0.7854])
+TABLE_HOME.flags.writeable = False
+
+
+class Push(Task):
+    """Push the block's centre within ``distance_threshold`` of a goal on the table.
+
+    Args:
+        reward_type: "sparse" (-1 per step until the block is within the threshold,
+            else 0) or "dense" (minus the block's distance to the goal).
+        distance_threshold: success radius [m] (default 5 cm, panda-gym's and Fetch's).
+    """
+
+    id_name = "Push"
+    default_interface = "cartesian_velocity"
+    interfaces = ("cartesian_velocity", "cartesian_pose", "joint_position", "joint_velocity")
+    scene = "block"
+    hand = "closed"
+    home = TABLE_HOME
+    max_episode_steps = 100
+    cartesian_kwargs = {"cartesian_dof": 3}
+    #: the block's free joint in scenes/block.xml
+    object_joint = "block"
+
+    def __init__(self, reward_type: str = "sparse", distance_threshold: float = 0.05) -> None:
+        if reward_type not in ("sparse", "dense"):
+            raise ValueError(f"reward_type must be 'sparse' or 'dense', got {reward_type!r}")
+        if not distance_threshold > 0:
+            raise ValueError(f"distance_threshold must be > 0, got {distance_threshold!r}")
+        self.reward_type = reward_type
+        self.distance_threshold = float(distance_threshold)
+
+    def __repr__(self) -> str:
+        name, threshold = type(self).__name__, self.distance_threshold
+        return f"{name}(reward_type={self.reward_type!r}, distance_threshold={threshold})"
+
+    # -- episodes ------------------------------------------------------------------------------
+
+    def sample_object(self, rng: np.random.Generator) -> np.ndarray:
+        """The block's start on the table (its centre), drawn from ``rng``."""
+        return np.append(rng.uniform(CENTRE - RANGE, CENTRE + RANGE), HALF)
+
+    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+        return np.append(rng.uniform(CENTRE - RANGE, CENTRE + RANGE), HALF)
+
+    def reset(self, arms, rngs, physics) -> np.ndarray:
+        """The block at rest at a seeded spot, upright; then the goal (in that order)."""
+        goals = []
+        for i in arms.tolist():
+            place_object(physics, self.object_joint, i, self.sample_object(rngs[i]))
+            goals.append(self.sample_goal(rngs[i]))
+        return np.stack(goals)
+
+    # -- observations --------------------------------------------------------------------------
+
+    def extra_space(self) -> spaces.Box:
+        return object_space()
+
+    def observe(self, physics, ee):
+        state = object_state(physics, self.object_joint)
+        return state[:, :3], state
+
+    # -- rewards -------------------------------------------------------------------------------
+
+    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Vectorised over a leading batch axis (HER); adds the info's reflex charge."""
+        d = distance(achieved_goal, desired_goal)
+        if self.reward_type == "sparse":
+            reward = -(d > self.distance_threshold).astype(np.float32)
+        else:
+            reward = -d.astype(np.float32)
+        return charged(reward, info)
+
+    def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
+        return distance(achieved_goal, desired_goal) <= self.distance_threshold
+
+    @property
+    def worst_step_reward(self) -> float:
+        """-1 (sparse), or minus the farthest the block can be from a goal (dense): the
+        observation bounds a position to 2 m per axis."""
+        if self.reward_type == "sparse":
+            return -1.0
+        return -float(np.sqrt(3) * 4.0)
