@@ -1,5 +1,6 @@
 """What the env's infos cost SB3's HER replay buffer when it copies them (rl-zoo3's file).
 
+    pip install rl_zoo3        # (its PyYAML reads the shipped file)
     python benchmarks/her_info_copy.py [--samples N] [--draws D] [--repeats R]
 
 The shipped rl-zoo3 file (franka_sim_gym/training/hyperparams/sac.yml) trains with SB3's

@@ -9,7 +9,6 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
-import yaml
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.training import hyperparams_file
@@ -20,7 +19,7 @@ from stable_baselines3 import SAC  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize  # noqa: E402
 
 from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, with_normalization  # noqa: E402
-from tests.conftest import ROOT  # noqa: E402
+from tests.conftest import load_example  # noqa: E402
 
 KWARGS = {"policy_hz": 10, "max_episode_steps": 4}
 
@@ -54,10 +53,7 @@ def test_a_normalized_run_is_evaluated_on_normalized_observations(tmp_path):
     raw, _ = model.predict(obs, deterministic=True)
     assert not np.allclose(raw, expected), "the statistics must change the action"
     # examples/evaluate.py applies it too
-    sys.path.insert(0, str(ROOT / "examples"))
-    import evaluate
-
-    loaded, config = evaluate.load_model(path, "sac", "FrankaFCI-v0", KWARGS)
+    loaded, _ = load_example("evaluate").load_model(path, "sac", "FrankaFCI-v0", KWARGS)
     assert isinstance(loaded, NormalizedPolicy)
     assert np.array_equal(loaded.predict(obs, deterministic=True)[0], expected)
 
@@ -76,10 +72,11 @@ def test_the_shipped_file_is_found_and_names_its_ids():
         check=True,
     ).stdout.strip()
     assert printed == str(path)
+    with pytest.raises(ValueError, match="no shipped rl-zoo3 file for 'ppo'"):
+        hyperparams_file("ppo")
+    yaml = pytest.importorskip("yaml")  # rl-zoo3's dependency, not the test extra's
     entries = yaml.safe_load(path.read_text())
     assert {"FrankaFCI-v0", "FrankaFCICartesianVelocity-v0"} <= set(entries)
     for settings in entries.values():
         assert settings["replay_buffer_class"] == "HerReplayBuffer"
         assert "copy_info_dict=True" in settings["replay_buffer_kwargs"]
-    with pytest.raises(ValueError, match="no shipped rl-zoo3 file for 'ppo'"):
-        hyperparams_file("ppo")
