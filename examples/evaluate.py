@@ -8,7 +8,8 @@ arm i seeded ``seed + i``: the same episodes as N single envs;
 ``franka_sim_gym.training.evaluation.evaluate``), with the algorithm, env id and
 arguments the model was trained with (``train_config.json`` next to the model, written
 by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g. by
-rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``). Reports the success rate,
+rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``; its observation
+normalisation, when rl-zoo3 saved one beside the model, is applied). Reports the success rate,
 the reflex terminations by the robot's error name, and the link's
 control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
@@ -64,6 +65,8 @@ def load_model(
     import torch
     from stable_baselines3 import PPO, SAC, TD3
 
+    from franka_sim_gym.training.sb3_zoo import with_normalization
+
     torch.set_num_threads(1)  # small networks: a thread pool costs more than it gives
     config = train_config(path)
     algo = algo or config.get("algo", DEFAULT_ALGO)
@@ -72,6 +75,8 @@ def load_model(
     # HER's replay buffer needs an env (for its spaces) to load the model.
     env = gym.make(env_id, **env_kwargs)
     model = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo].load(path, env=env, device="cpu")
+    # an rl-zoo3 run trained behind VecNormalize: its saved statistics, if any
+    model = with_normalization(model, path, env)
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -40,6 +41,10 @@ DEFAULT_ENV_ID = "FrankaFCICartesianVelocity-v0"
 DEFAULT_ENV_KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
 
 
+#: ``--algo``: RLlib algorithms the recipe configures
+ALGOS = ("ppo", "sac")
+
+
 def build_config(
     env_id: str,
     env_kwargs: dict,
@@ -47,28 +52,58 @@ def build_config(
     envs_per_runner: int,
     seed: int,
     batch_size: int,
+    algo: str = "ppo",
 ):
-    """RLlib's PPO configuration for ``env_id`` with ``runners`` env runners, each
-    stepping ``envs_per_runner`` arms of one native batched env."""
-    from ray.rllib.algorithms.ppo import PPOConfig
+    """RLlib's PPO (or SAC) configuration for ``env_id`` with ``runners`` env runners,
+    each stepping ``envs_per_runner`` arms of one native batched env.
+
+    PPO: ``batch_size`` env steps per iteration, 4 epochs of minibatches of 128, gamma
+    0.95, lr 3e-4. SAC: batches of 256 drawn from RLlib's episode replay buffer, one
+    gradient step per env step sampled (``training_intensity`` 256), the learning rates
+    of the default SB3 run (1e-3), tau 0.05, gamma 0.95, the entropy weight from 0.02,
+    learning after 512 env steps, ``batch_size`` env steps an iteration. RLlib has no
+    HER, so SAC learns from the reward the env gives (dense:
+    ``--env-kwargs '{"reward_type": "dense"}'``; docs/scaling.md)."""
     from ray.rllib.connectors.env_to_module import FlattenObservations
 
+    if algo == "ppo":
+        from ray.rllib.algorithms.ppo import PPOConfig
+
+        config = PPOConfig().training(
+            train_batch_size_per_learner=batch_size,
+            minibatch_size=min(128, batch_size),
+            num_epochs=4,
+            gamma=0.95,
+            lr=3e-4,
+        )
+    elif algo == "sac":
+        from ray.rllib.algorithms.sac import SACConfig
+
+        config = SACConfig().training(
+            train_batch_size_per_learner=256,
+            training_intensity=256,  # one gradient step of 256 per env step sampled
+            num_steps_sampled_before_learning_starts=512,
+            gamma=0.95,
+            tau=0.05,
+            actor_lr=1e-3,
+            critic_lr=1e-3,
+            alpha_lr=1e-3,
+            initial_alpha=0.02,
+            model={"fcnet_hiddens": [128, 128]},
+        ).reporting(min_time_s_per_iteration=0, min_sample_timesteps_per_iteration=batch_size)
+    else:
+        raise ValueError(f"unknown algo {algo!r}: expected one of {ALGOS}")
     return (
-        PPOConfig()
-        .environment(f"franka_sim_gym:{env_id}", env_config=env_kwargs)
+        config.environment(f"franka_sim_gym:{env_id}", env_config=env_kwargs)
         .env_runners(
             num_env_runners=runners,
             num_envs_per_env_runner=envs_per_runner,
             gym_env_vectorize_mode="vector_entry_point",
             env_to_module_connector=lambda env, spaces=None, device=None: FlattenObservations(),
             num_cpus_per_env_runner=1,
-        )
-        .training(
-            train_batch_size_per_learner=batch_size,
-            minibatch_size=min(128, batch_size),
-            num_epochs=4,
-            gamma=0.95,
-            lr=3e-4,
+            # RLlib's default (60 s) gives up on a runner that samples slowly, as on a
+            # busy machine, and the iteration then reports no episodes: wait for it.
+            sample_timeout_s=None,
         )
         .debugging(seed=seed)
     )
@@ -115,13 +150,35 @@ def load_policy(checkpoint: Path) -> RLlibPolicy:
     return RLlibPolicy(RLModule.from_checkpoint(path.resolve()))
 
 
+def start_local_ray(address: str | None = None) -> None:
+    """``ray.init``: a local Ray (``address`` None) or a running cluster's.
+
+    A local Ray starts its workers, the env runners among them, at the niceness of this
+    process: Ray's default lowers their priority by 15 (``RAY_worker_niceness``), which on
+    a machine shared with other work leaves the runners, which do the sampling, only what
+    every other process leaves over (docs/scaling.md). ``RAY_worker_niceness`` set in the
+    environment wins; a cluster's nodes take it from ``ray start``'s environment.
+    """
+    import ray
+
+    if address is None:
+        os.environ.setdefault("RAY_worker_niceness", "0")
+    ray.init(address=address, include_dashboard=False, log_to_driver=False)
+
+
 def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
     """Train; returns (checkpoint, env steps per second of training, last episode return)."""
     import ray
 
-    ray.init(address=args.address, include_dashboard=False, log_to_driver=False)
+    start_local_ray(args.address)
     config = build_config(
-        args.env_id, env_kwargs, args.runners, args.envs_per_runner, args.seed, args.batch_size
+        args.env_id,
+        env_kwargs,
+        args.runners,
+        args.envs_per_runner,
+        args.seed,
+        args.batch_size,
+        args.algo,
     )
     algo = config.build_algo()
     nodes = algo.env_runner_group.foreach_env_runner(
@@ -134,8 +191,8 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
         start = time.perf_counter()
         result = algo.train()
         elapsed = time.perf_counter() - start
-        runners = result["env_runners"]
-        sampled = float(runners["num_env_steps_sampled"])
+        runners = result.get("env_runners", {})
+        sampled = float(runners.get("num_env_steps_sampled", 0))
         episode_return = float(runners.get("episode_return_mean", float("nan")))
         if iteration > 0 or args.iterations == 1:
             steps += sampled
@@ -153,6 +210,7 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--algo", default="ppo", choices=ALGOS)
     parser.add_argument("--env-id", default=None, help=f"default: {DEFAULT_ENV_ID}")
     parser.add_argument(
         "--env-kwargs",
@@ -186,7 +244,9 @@ def main() -> None:
     if args.evaluate is None:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "train_config.json").write_text(
-            json.dumps({"algo": "rllib_ppo", "env_id": args.env_id, "env_kwargs": env_kwargs})
+            json.dumps(
+                {"algo": f"rllib_{args.algo}", "env_id": args.env_id, "env_kwargs": env_kwargs}
+            )
         )
         checkpoint, rate, episode_return = train(args, env_kwargs)
     else:

@@ -16,3 +16,20 @@ The modules are imported one by one (this file imports none of them), so that th
 evaluation works without stable-baselines3. Nothing in ``fci``, ``sim``, ``envs`` or
 ``server`` imports this package.
 """
+
+from __future__ import annotations
+
+from pathlib import Path
+
+#: The rl-zoo3 hyperparameter files shipped with the package, one per algorithm.
+HYPERPARAMS = Path(__file__).resolve().parent / "hyperparams"
+
+
+def hyperparams_file(algo: str = "sac") -> Path:
+    """The shipped rl-zoo3 file of ``algo`` (rl-zoo3's ``-conf``; docs/training.md):
+    ``python -m franka_sim_gym.training sac`` prints its path."""
+    path = HYPERPARAMS / f"{algo}.yml"
+    if not path.is_file():
+        shipped = sorted(p.stem for p in HYPERPARAMS.glob("*.yml"))
+        raise ValueError(f"no shipped rl-zoo3 file for {algo!r}: there is one for {shipped}")
+    return path

@@ -1,0 +1,82 @@
+"""An rl-zoo3 run's model evaluated behind the normalisation rl-zoo3 saved beside it
+(training/sb3_zoo.py, examples/evaluate.py), and the shipped file's path."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.training import hyperparams_file
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3 import SAC  # noqa: E402
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize  # noqa: E402
+
+from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, with_normalization  # noqa: E402
+from tests.conftest import load_example  # noqa: E402
+
+KWARGS = {"policy_hz": 10, "max_episode_steps": 4}
+
+
+def zoo_run(directory, normalize: bool):
+    """A model saved as rl-zoo3 saves one: <run>/<id>.zip and <run>/<id>/vecnormalize.pkl
+    (statistics gathered over a few random steps, far from zero mean and unit variance)."""
+    venv = DummyVecEnv([lambda: gym.make("FrankaFCI-v0", **KWARGS)])
+    if normalize:
+        venv = VecNormalize(venv, norm_reward=False)
+    model = SAC("MultiInputPolicy", venv, policy_kwargs=dict(net_arch=[16]), seed=0)
+    model.learn(8)
+    path = directory / "FrankaFCI-v0.zip"
+    model.save(path)
+    if normalize:
+        (directory / "FrankaFCI-v0").mkdir()
+        venv.save(str(directory / "FrankaFCI-v0" / "vecnormalize.pkl"))
+    return model, venv, path
+
+
+def test_a_normalized_run_is_evaluated_on_normalized_observations(tmp_path):
+    model, venv, path = zoo_run(tmp_path, normalize=True)
+    env = gym.make("FrankaFCI-v0", **KWARGS)
+    policy = with_normalization(model, path, env)
+    assert isinstance(policy, NormalizedPolicy)
+    obs, _ = env.reset(seed=1)
+    venv.training = False
+    expected, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+    action, _ = policy.predict(obs, deterministic=True)
+    assert np.array_equal(action, expected)
+    raw, _ = model.predict(obs, deterministic=True)
+    assert not np.allclose(raw, expected), "the statistics must change the action"
+    # examples/evaluate.py applies it too
+    loaded, _ = load_example("evaluate").load_model(path, "sac", "FrankaFCI-v0", KWARGS)
+    assert isinstance(loaded, NormalizedPolicy)
+    assert np.array_equal(loaded.predict(obs, deterministic=True)[0], expected)
+
+
+def test_a_run_without_normalization_is_the_model_itself(tmp_path):
+    model, _, path = zoo_run(tmp_path, normalize=False)
+    assert with_normalization(model, path, gym.make("FrankaFCI-v0", **KWARGS)) is model
+
+
+def test_the_shipped_file_is_found_and_names_its_ids():
+    path = hyperparams_file("sac")
+    printed = subprocess.run(
+        [sys.executable, "-m", "franka_sim_gym.training", "sac"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    assert printed == str(path)
+    with pytest.raises(ValueError, match="no shipped rl-zoo3 file for 'ppo'"):
+        hyperparams_file("ppo")
+    yaml = pytest.importorskip("yaml")  # rl-zoo3's dependency, not the test extra's
+    entries = yaml.safe_load(path.read_text())
+    assert {"FrankaFCI-v0", "FrankaFCICartesianVelocity-v0"} <= set(entries)
+    for settings in entries.values():
+        assert settings["replay_buffer_class"] == "HerReplayBuffer"
+        assert "copy_info_dict=True" in settings["replay_buffer_kwargs"]
