@@ -336,8 +336,7 @@ class CommandGenerator:
         # reference), the client's margin inside libfranka's tolerance: [upper | -lower],
         # computed in place from [q_d | q_d] (float32 widened exactly).
         q_d, doubled = fields["q_d"], self._doubled
-        np.copyto(doubled[:, :7], q_d)
-        np.copyto(doubled[:, 7:], q_d)
+        np.copyto(doubled.reshape(-1, 2, 7), q_d[:, None])
         band = self.table.velocity_envelope_halves(doubled, self._band_shift)
         upper, lower = band[:, :7], np.negative(band[:, 7:], out=self._lower)
         a_max, j_max = self._ddq_max, self._dddq_max
