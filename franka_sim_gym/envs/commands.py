@@ -187,6 +187,10 @@ class CommandGenerator:
         self._band_shift = JOINT_VELOCITY_LIMIT_TOLERANCE + m["dq"]
         self._lowpassed = np.zeros((n, 6 if interface == "cartesian_velocity" else 7))
         self._out = np.zeros_like(self._lowpassed)
+        self._doubled = np.zeros((n, 14))  # [q_d | q_d], then the velocity band in place
+        self._lower = np.zeros((n, 7))
+        self._fields_of = None
+        self._field_views: dict[str, np.ndarray] = {}
         self._ref_pose = np.zeros((n, 4, 4))
         self._pose_lowpassed = np.zeros((n, 4, 4))
         self._pose_out = np.zeros((n, 4, 4))
@@ -301,11 +305,21 @@ class CommandGenerator:
             self._pose_out,
         )
 
+    def _fields(self, state: np.ndarray) -> dict[str, np.ndarray]:
+        """The state's fields the filters read, as views made once per state array (the
+        controller publishes into the same array every cycle)."""
+        if state is not self._fields_of:
+            names = ("q_d", "dq_d", "ddq_d", "tau_J_d", "O_dP_EE_c", "O_ddP_EE_c")
+            self._field_views = {name: state[name] for name in names}
+            self._fields_of = state
+        return self._field_views
+
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         """Cycle k's joint, torque or twist command: libfranka's low-pass filter against
         the state's reference, then (``"limit_rate"``) its rate limiter."""
         target, interface, rules = self._target, self.interface, self._rules
-        ref = state[_REFERENCE[interface]]
+        fields = self._fields(state)
+        ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).
             ref = np.where(self._first[:, None], target, ref)
@@ -314,19 +328,21 @@ class CommandGenerator:
             return x
         out = self._out
         if interface == "cartesian_velocity":
-            limits = self.cartesian_limits
-            return rules.limit_twist_core(x, state["O_dP_EE_c"], state["O_ddP_EE_c"], *limits, out)
+            twist = (fields["O_dP_EE_c"], fields["O_ddP_EE_c"])
+            return rules.limit_twist_core(x, *twist, *self.cartesian_limits, out)
         if interface == "torque":
-            return rules.limit_torques_core(x, state["tau_J_d"], self._dtau_max, out)
+            return rules.limit_torques_core(x, fields["tau_J_d"], self._dtau_max, out)
         # The velocity band at the last commanded position (libfranka evaluates it at the
-        # reference), the client's margin inside libfranka's tolerance: [upper | -lower].
-        q_d = np.asarray(state["q_d"], dtype=np.float64)
-        band = self.table.velocity_envelope_halves(q_d, self._band_shift)
-        upper, lower = band[:, :7], np.negative(band[:, 7:])
+        # reference), the client's margin inside libfranka's tolerance: [upper | -lower],
+        # computed in place from [q_d | q_d] (float32 widened exactly).
+        q_d, doubled = fields["q_d"], self._doubled
+        np.copyto(doubled.reshape(-1, 2, 7), q_d[:, None])
+        band = self.table.velocity_envelope_halves(doubled, self._band_shift)
+        upper, lower = band[:, :7], np.negative(band[:, 7:], out=self._lower)
         a_max, j_max = self._ddq_max, self._dddq_max
-        history = (state["dq_d"], state["ddq_d"], upper, lower, a_max, j_max, out)
+        history = (fields["dq_d"], fields["ddq_d"], upper, lower, a_max, j_max, out)
         if interface == "joint_position":
-            return rules.limit_positions_core(x, state["q_d"], *history)
+            return rules.limit_positions_core(x, q_d, *history)
         return rules.limit_velocities_core(x, *history)
 
 

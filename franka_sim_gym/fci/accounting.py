@@ -82,7 +82,15 @@ class CycleAccounting:
             return
         answered = self.answered
         column = self._ring[:, self._pos]  # the oldest entry, about to be replaced
-        if n_started == self.n:  # every robot counts: no masks
+        if n_started == self.n and np.count_nonzero(answered) == self.n:
+            # every robot counts and answered: nothing lost, no run goes on (the longest
+            # stays the longest)
+            self._answered_sum += 1
+            self._answered_sum -= column
+            column[...] = True
+            self._counted += 1
+            self.lost_run[...] = 0
+        elif n_started == self.n:  # every robot counts: no masks
             self._answered_sum += answered
             self._answered_sum -= column
             column[...] = answered
@@ -91,6 +99,7 @@ class CycleAccounting:
             self.lost_total += lost
             self.lost_run += 1
             self.lost_run *= lost
+            np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
         else:
             counting = self.started
             lost = counting & ~answered
@@ -101,7 +110,7 @@ class CycleAccounting:
             self._counted += counting
             self.lost_total += lost
             self.lost_run = np.where(lost, self.lost_run + 1, np.where(counting, 0, self.lost_run))
-        np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
+            np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
         answered[...] = False
         self._pos = (self._pos + 1) % self.window
         # While the window fills the divisor is what it holds (never 0 here: an

@@ -87,6 +87,17 @@ class JointGenerators:
         if echo is None:
             echo = self.published
         tracking = self.engine.live(m.tracking)
+        n = m.n
+        if (
+            extrapolate_lost
+            and (m.n_joint_position == n or m.n_joint_velocity == n)
+            and np.count_nonzero(have) == n
+            and np.count_nonzero(tracking) == n
+        ):
+            # Every robot runs the same joint generator and sent a command: nothing is
+            # lost, extrapolated or held, so the masks below are all set or all clear.
+            self._advance_everyone(cycle, q_c, dq_c, echo)
+            return
         lost = started & ~have & tracking
         if not extrapolate_lost:
             lost = np.zeros_like(lost)
@@ -120,6 +131,29 @@ class JointGenerators:
         held = self.engine.live(lost & ~extrapolate)
         ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held, echo)
         cycle.first &= ~have
+
+    def _advance_everyone(
+        self, cycle: CycleInput, q_c: np.ndarray, dq_c: np.ndarray, echo: np.ndarray
+    ) -> None:
+        """:meth:`_advance_joints` when every robot has a command of one joint generator:
+        the same judgement and record without the masks (where the judge aborts some
+        robot, the general record with the masks it would have had)."""
+        m, ref = self.modes, self.reference
+        everyone = m.tracking
+        first = cycle.first.copy()
+        if m.n_joint_position == m.n:
+            check = self._judge_positions(q_c, everyone, first)
+            q, dq = q_c, check.dq
+        else:
+            check = self._judge_velocities(dq_c, everyone, first)
+            q, dq = ref.q + dq_c * DELTA_T, dq_c
+        apply = self.engine.live(everyone)
+        if np.count_nonzero(apply) == m.n:
+            ref.record_applied(q, dq, check.ddq, echo)
+        else:
+            nobody = np.zeros_like(apply)
+            ref.record_masked(apply, apply, q, dq, check.ddq, nobody, echo)
+        cycle.first[...] = False
 
     def late_datagrams(
         self, cycle: CycleInput, commands: np.ndarray, late: np.ndarray, ids: np.ndarray

@@ -60,15 +60,19 @@ class SafetyController:
         # position over the 1 ms cycle (equal to J(q) dq to first order).
         v_ee = self.O_T_EE[:, 12:15] - self.ee_prev
         v_ee *= 1.0 / DELTA_T
-        error = limits.safety_error(
-            limits.check_measured_joint_velocity(dq, q, table, margin),
-            limits.check_measured_cartesian_speed(v_ee, table),
-        )
+        joint = limits.check_measured_joint_velocity(dq, q, table, margin)
+        cartesian = limits.check_measured_cartesian_speed(v_ee, table)
         distance = self.config.self_collision_distance
         close = close_link_pairs(physics.model, physics.data, physics.layout, distance)
-        bad = self.modes.in_motion & ((error >= 0) | close)
+        # A robot is bad where either rule or the distance trips; which error it latches
+        # (4 outranks 3) is decided for those alone.
+        bad = np.maximum(joint, cartesian) >= 0
+        bad |= close
+        if self.modes.n_motion < self.modes.n:
+            bad &= self.modes.in_motion
         if not np.count_nonzero(bad):
             return
+        error = limits.safety_error(joint, cartesian)
         enforce = self.config.enforce_motion_limits
         for i in np.flatnonzero(bad).tolist():
             bits = []

@@ -108,15 +108,20 @@ class RobotTable:
             return np.broadcast_to(vmax, (*np.shape(q)[:-1], 14)) - shift
         two_a, bound, offset, vmax = self._envelope_constants
         r = q if doubled else np.concatenate((q, q), axis=-1)
-        r *= _MIRROR
-        np.subtract(bound, r, out=r)  # distance to the stop, both sides
-        r *= two_a
-        np.maximum(r, 0.0, out=r)
-        np.sqrt(r, out=r)
-        np.maximum(r, offset, out=r)  # max(0, s - v_off), as max(s, v_off) - v_off
-        r -= offset
-        np.minimum(r, vmax, out=r)
-        r -= shift
+        # One robot's (1, 14) as (14,), the constants' own shape (a view: the leading
+        # axes are 1): the same elementwise arithmetic without broadcasting, in about
+        # half the time.
+        one = r.size == 14 and isinstance(shift, float)
+        x = r.reshape(14) if one else r
+        x *= _MIRROR
+        np.subtract(bound, x, out=x)  # distance to the stop, both sides
+        x *= two_a
+        np.maximum(x, 0.0, out=x)
+        np.sqrt(x, out=x)
+        np.maximum(x, offset, out=x)  # max(0, s - v_off), as max(s, v_off) - v_off
+        x -= offset
+        np.minimum(x, vmax, out=x)
+        x -= shift
         return r
 
 
