@@ -131,3 +131,60 @@ def charged(reward: np.ndarray, info) -> np.ndarray:
     if penalty is None:
         return reward
     return (reward + np.reshape(penalty, np.shape(reward))).astype(np.float32)
+
+
+def goal_distance(achieved_goal, desired_goal) -> np.ndarray:
+    """Euclidean distances over the last axis (vectorised over leading batch axes)."""
+    return np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+
+
+class GoalDistanceTask(Task):
+    """A task scored by the distance from the achieved to the desired goal: the reward
+    rule of Reach, Push, PickAndPlace and PegInsertion (panda-gym's and Fetch's).
+
+    Args:
+        reward_type: "sparse" (-1 per step until within the threshold, else 0) or
+            "dense" (minus the distance to the goal).
+        distance_threshold: success radius [m].
+    """
+
+    #: The farthest an achieved goal can be from a desired one [m]: minus it is the
+    #: dense reward's worst step.
+    farthest_distance: ClassVar[float]
+
+    def __init__(self, reward_type: str = "sparse", distance_threshold: float = 0.05) -> None:
+        if reward_type not in ("sparse", "dense"):
+            raise ValueError(f"reward_type must be 'sparse' or 'dense', got {reward_type!r}")
+        if not distance_threshold > 0:
+            raise ValueError(f"distance_threshold must be > 0, got {distance_threshold!r}")
+        self.reward_type = reward_type
+        self.distance_threshold = float(distance_threshold)
+
+    def __repr__(self) -> str:
+        name, threshold = type(self).__name__, self.distance_threshold
+        return f"{name}(reward_type={self.reward_type!r}, distance_threshold={threshold})"
+
+    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Vectorised over a leading batch axis, as SB3's HER calls it.
+
+        ``info`` is one step's info dict, a sequence of them (HER passes the stored
+        ones), or a numeric array of their ``reflex_penalty`` values (what the training
+        package's HER buffer stores). The charge is added, so a step's own transition
+        gives the step's reward and a relabelled reflex step stays charged.
+        """
+        d = goal_distance(achieved_goal, desired_goal)
+        if self.reward_type == "sparse":
+            reward = -(d > self.distance_threshold).astype(np.float32)
+        else:
+            reward = -d.astype(np.float32)
+        return charged(reward, info)
+
+    def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
+        return goal_distance(achieved_goal, desired_goal) <= self.distance_threshold
+
+    @property
+    def worst_step_reward(self) -> float:
+        """-1 (sparse), or minus ``farthest_distance`` (dense)."""
+        if self.reward_type == "sparse":
+            return -1.0
+        return -self.farthest_distance

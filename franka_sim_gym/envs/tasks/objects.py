@@ -52,7 +52,3 @@ def place_object(physics: Any, joint: str, arm: int, position, quat=(1.0, 0.0, 0
     physics.data.qvel[dof : dof + 6] = 0.0
     physics.data.qacc_warmstart[dof : dof + 6] = 0.0
 
-
-def distance(achieved_goal, desired_goal) -> np.ndarray:
-    """Euclidean distances over the last axis (vectorised over leading batch axes)."""
-    return np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from .base import Task, charged
-from .objects import distance, object_space, object_state, place_object
+from .base import GoalDistanceTask
+from .objects import object_space, object_state, place_object
 from .push import TABLE_HOME
 
 #: The fixture's nominal position on the table (base frame) [m] and the half-width of
@@ -41,7 +41,7 @@ def quat_of(R: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
-class PegInsertion(Task):
+class PegInsertion(GoalDistanceTask):
     """Insert the held peg into the hole: success when its tip is within
     ``distance_threshold`` of the hole's bottom centre (full depth).
 
@@ -63,18 +63,11 @@ class PegInsertion(Task):
     held_object = "peg"
     #: the peg's free joint in scenes/peg_in_hole.xml
     object_joint = "peg"
+    #: the observation bounds a position to 2 m per axis (objects.object_space)
+    farthest_distance = float(np.sqrt(3) * 4.0)
 
     def __init__(self, reward_type: str = "sparse", distance_threshold: float = 0.002) -> None:
-        if reward_type not in ("sparse", "dense"):
-            raise ValueError(f"reward_type must be 'sparse' or 'dense', got {reward_type!r}")
-        if not distance_threshold > 0:
-            raise ValueError(f"distance_threshold must be > 0, got {distance_threshold!r}")
-        self.reward_type = reward_type
-        self.distance_threshold = float(distance_threshold)
-
-    def __repr__(self) -> str:
-        threshold = self.distance_threshold
-        return f"PegInsertion(reward_type={self.reward_type!r}, distance_threshold={threshold})"
+        super().__init__(reward_type, distance_threshold)
 
     # -- episodes ------------------------------------------------------------------------------
 
@@ -113,24 +106,6 @@ class PegInsertion(Task):
         state = object_state(physics, self.object_joint)
         return tip_of(state), state
 
-    # -- rewards -------------------------------------------------------------------------------
-
-    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
-        d = distance(achieved_goal, desired_goal)
-        if self.reward_type == "sparse":
-            reward = -(d > self.distance_threshold).astype(np.float32)
-        else:
-            reward = -d.astype(np.float32)
-        return charged(reward, info)
-
-    def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
-        return distance(achieved_goal, desired_goal) <= self.distance_threshold
-
-    @property
-    def worst_step_reward(self) -> float:
-        if self.reward_type == "sparse":
-            return -1.0
-        return -float(np.sqrt(3) * 4.0)
 
 
 def tip_of(state: np.ndarray) -> np.ndarray:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from .base import Task, charged
-from .objects import distance, object_space, object_state, place_object
+from .base import GoalDistanceTask
+from .objects import object_space, object_state, place_object
 
 #: The block's half size [m] (scenes/block.xml): its centre rests this high.
 HALF = 0.02
@@ -28,7 +28,7 @@ TABLE_HOME = np.array([0.0, 0.1513, 0.0, -2.398, 0.0, 2.5494, 0.7854])
 TABLE_HOME.flags.writeable = False
 
 
-class Push(Task):
+class Push(GoalDistanceTask):
     """Push the block's centre within ``distance_threshold`` of a goal on the table.
 
     Args:
@@ -47,18 +47,8 @@ class Push(Task):
     cartesian_kwargs = {"cartesian_dof": 3}
     #: the block's free joint in scenes/block.xml
     object_joint = "block"
-
-    def __init__(self, reward_type: str = "sparse", distance_threshold: float = 0.05) -> None:
-        if reward_type not in ("sparse", "dense"):
-            raise ValueError(f"reward_type must be 'sparse' or 'dense', got {reward_type!r}")
-        if not distance_threshold > 0:
-            raise ValueError(f"distance_threshold must be > 0, got {distance_threshold!r}")
-        self.reward_type = reward_type
-        self.distance_threshold = float(distance_threshold)
-
-    def __repr__(self) -> str:
-        name, threshold = type(self).__name__, self.distance_threshold
-        return f"{name}(reward_type={self.reward_type!r}, distance_threshold={threshold})"
+    #: the observation bounds a position to 2 m per axis (objects.object_space)
+    farthest_distance = float(np.sqrt(3) * 4.0)
 
     # -- episodes ------------------------------------------------------------------------------
 
@@ -85,25 +75,3 @@ class Push(Task):
     def observe(self, physics, ee):
         state = object_state(physics, self.object_joint)
         return state[:, :3], state
-
-    # -- rewards -------------------------------------------------------------------------------
-
-    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
-        """Vectorised over a leading batch axis (HER); adds the info's reflex charge."""
-        d = distance(achieved_goal, desired_goal)
-        if self.reward_type == "sparse":
-            reward = -(d > self.distance_threshold).astype(np.float32)
-        else:
-            reward = -d.astype(np.float32)
-        return charged(reward, info)
-
-    def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
-        return distance(achieved_goal, desired_goal) <= self.distance_threshold
-
-    @property
-    def worst_step_reward(self) -> float:
-        """-1 (sparse), or minus the farthest the block can be from a goal (dense): the
-        observation bounds a position to 2 m per axis."""
-        if self.reward_type == "sparse":
-            return -1.0
-        return -float(np.sqrt(3) * 4.0)
