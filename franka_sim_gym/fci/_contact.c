@@ -22,6 +22,7 @@
 #include <math.h>
 
 #include "_arrays.h"
+#include "_solve6.h"
 
 /* An int argument >= 0 (the decimals), as the power of ten numpy's round scales by. */
 static int scale_get(PyObject *obj, double *scale)
@@ -92,36 +93,6 @@ static PyObject *filter_residual(PyObject *self, PyObject *const *args, Py_ssize
 done:
     f64_release_all(a, COUNT);
     return result;
-}
-
-/* Solve A x = b (6 x 6, A and b overwritten) by elimination with partial pivoting. */
-static void solve6(double A[6][6], double b[6])
-{
-    for (int c = 0; c < 6; c++) {
-        int p = c;
-        for (int r = c + 1; r < 6; r++)
-            if (fabs(A[r][c]) > fabs(A[p][c])) p = r;
-        if (p != c) {
-            for (int k = 0; k < 6; k++) {
-                double t = A[c][k];
-                A[c][k] = A[p][k];
-                A[p][k] = t;
-            }
-            double t = b[c];
-            b[c] = b[p];
-            b[p] = t;
-        }
-        for (int r = c + 1; r < 6; r++) {
-            double f = A[r][c] / A[c][c];
-            for (int k = c; k < 6; k++) A[r][k] -= f * A[c][k];
-            b[r] -= f * b[c];
-        }
-    }
-    for (int r = 5; r >= 0; r--) {
-        double s = b[r];
-        for (int k = r + 1; k < 6; k++) s -= A[r][k] * b[k];
-        b[r] = s / A[r][r];
-    }
 }
 
 /* wrench_from_torque(jacobian, tau, damping, decimals, out): (n, 6, 7), (n, 7), float,

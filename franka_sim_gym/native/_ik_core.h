@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "_arrays.h"
+#include "_solve6.h"
 
 /* A bool (n,) argument (numpy bool: one byte each), or None (data NULL). */
 typedef struct {
@@ -110,37 +111,6 @@ static void pose_error(const F64 *target, Py_ssize_t i, const Pose *pose, double
     e[3] = 0.5 * (M[2][1] - M[1][2]);
     e[4] = 0.5 * (M[0][2] - M[2][0]);
     e[5] = 0.5 * (M[1][0] - M[0][1]);
-}
-
-/* Solve the 6x6 system A x = b in place (Gaussian elimination, partial pivoting, as
- * LAPACK's gesv does); b becomes x. A singular matrix gives inf / NaN, as there. */
-static void solve6(double A[6][6], double b[6])
-{
-    for (int c = 0; c < 6; c++) {
-        int pivot = c;
-        for (int r = c + 1; r < 6; r++)
-            if (fabs(A[r][c]) > fabs(A[pivot][c])) pivot = r;
-        if (pivot != c) {
-            for (int k = 0; k < 6; k++) {
-                double t = A[c][k];
-                A[c][k] = A[pivot][k];
-                A[pivot][k] = t;
-            }
-            double t = b[c];
-            b[c] = b[pivot];
-            b[pivot] = t;
-        }
-        for (int r = c + 1; r < 6; r++) {
-            double f = A[r][c] / A[c][c];
-            for (int k = c; k < 6; k++) A[r][k] -= f * A[c][k];
-            b[r] -= f * b[c];
-        }
-    }
-    for (int r = 5; r >= 0; r--) {
-        double s = b[r];
-        for (int k = r + 1; k < 6; k++) s -= A[r][k] * b[k];
-        b[r] = s / A[r][r];
-    }
 }
 
 /* One arm's damped Gauss-Newton step J^T (J J^T + lambda^2 I)^-1 e (sim/ik.py
