@@ -553,8 +553,6 @@ static void reference_pose_rows(const F64 *a, const double *s, Py_ssize_t n)
 KERNEL(reference_pose, 0, ARRAY(NUM_IN, "O_T_EE_c", 2, ROWS, 16),
        ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
-#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
-
 static PyMethodDef METHODS[] = {
     METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, "
                       "series_below): the rules' constants."),

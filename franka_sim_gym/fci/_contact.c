@@ -172,8 +172,6 @@ done:
     return result;
 }
 
-#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
-
 static PyMethodDef METHODS[] = {
     METHOD(filter_residual, "contact.filter_residual, out given."),
     METHOD(wrench_from_torque, "contact.wrench_from_torque, out given."),

@@ -125,6 +125,9 @@ static inline PyObject *kernel_module(PyModuleDef *def)
     return m;
 }
 
+/* One METH_FASTCALL entry of a kernel module's METHODS table. */
+#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
+
 /* The definition and the init function of kernel module ``name`` (an identifier such as
  * _client_filters: PyInit__client_filters) with its ``doc`` and METHODS table. */
 #define KERNEL_MODULE(name, doc)                                                         \

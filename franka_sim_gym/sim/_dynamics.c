@@ -50,8 +50,6 @@ done:
     return result;
 }
 
-#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
-
 static PyMethodDef METHODS[] = {
     METHOD(jacobian_at, "dynamics.jacobian_at, out given."),
     {NULL, NULL, 0, NULL},

@@ -293,8 +293,6 @@ done:
     return result;
 }
 
-#define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}
-
 static PyMethodDef METHODS[] = {
     METHOD(position_rows, "The tripped rows of check_joint_position, and dq, ddq."),
     METHOD(velocity_rows, "The tripped rows of check_joint_velocity, and ddq."),
