@@ -31,6 +31,9 @@ class CycleInput:
         self.refused = np.zeros(n, dtype=bool)
         #: (n,) of those, a Cartesian command refused for its elbow alone (named 17)
         self.refused_elbow = np.zeros(n, dtype=bool)
+        #: (n,) of those, a generator's command under an external controller refused for
+        #: its torque alone (named 34, as a torque-only command's)
+        self.refused_torque = np.zeros(n, dtype=bool)
         #: (n,) the command that arrived ends the motion (motion_generation_finished)
         self.finish = np.zeros(n, dtype=bool)
 

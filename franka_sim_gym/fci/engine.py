@@ -93,9 +93,10 @@ class MotionLimitEngine:
     def judge_non_finite(self, cycle: CycleInput) -> None:
         """docs/fci-behaviour.md "What is checked, and what it latches": a non-finite command is
         refused whatever the enforcement, and reported as
-        the limits violation of the generator it arrived in (12 q_c, 13 dq_c, 34 tau_J_d;
-        Cartesian: 31 for a pose that is no homogeneous transformation, NaN included, 18
-        for a non-finite twist, 17 for a non-finite elbow)."""
+        the limits violation of the field it arrived in (12 q_c, 13 dq_c, 34 tau_J_d, also
+        beside a finite generator command under an external controller; Cartesian: 31
+        for a pose that is no homogeneous transformation, NaN included, 18 for a
+        non-finite twist, 17 for a non-finite elbow)."""
         m = self.modes
         refused = cycle.refused & m.in_motion
         error = np.full(len(refused), NO_ERROR)
@@ -110,7 +111,9 @@ class MotionLimitEngine:
         )
         elbow = Error.cartesian_motion_generator_elbow_limit_violation
         error[cycle.refused_elbow & refused] = elbow
+        error[cycle.refused_torque & refused] = Error.tau_j_range_violation
         cycle.refused_elbow[...] = False
+        cycle.refused_torque[...] = False
 
         def describe(i: int) -> str:
             if error[i] == Error.cartesian_position_motion_generator_invalid_frame:
