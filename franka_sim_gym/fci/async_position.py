@@ -92,9 +92,8 @@ class AsyncPositionGenerator:
         self.active = np.zeros(n, dtype=bool)
         #: how many (the cycle's fast path skips everything at 0)
         self.count = 0
-        #: (n, 7) the newest target, and whether one arrived in this motion
+        #: (n, 7) the newest target (the start pose until one arrives)
         self.target = np.zeros((n, 7))
-        self.has_target = np.zeros(n, dtype=bool)
         #: (n, 7) the per-joint velocity cap the Move configured [rad/s]
         self.vmax = np.zeros((n, 7))
         #: (n,) motion_generation_finished arrived: braking to rest
@@ -127,7 +126,6 @@ class AsyncPositionGenerator:
         self.active[i] = True
         self.count = int(np.count_nonzero(self.active))
         self.target[i] = q
-        self.has_target[i] = False
         self.stopping[i] = False
         caps = np.asarray(maximum_velocity, dtype=float)
         self.vmax[i] = np.minimum(caps, self._v_band - self._shift)
@@ -136,7 +134,6 @@ class AsyncPositionGenerator:
         """Robot i's motion ended (however)."""
         self.active[i] = False
         self.count = int(np.count_nonzero(self.active))
-        self.has_target[i] = False
         self.stopping[i] = False
 
     # -- datagrams ----------------------------------------------------------------------------
@@ -195,7 +192,6 @@ class AsyncPositionGenerator:
             targets &= self.engine.live(~outside)
         if np.count_nonzero(targets):
             np.copyto(self.target, q_c, where=targets[:, None])
-            self.has_target |= targets
 
     def _describe_outside(self, i: int, q: np.ndarray) -> str:
         t = self.table
