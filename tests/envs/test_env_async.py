@@ -37,8 +37,12 @@ def test_a_held_action_reaches_its_target_without_a_violation():
     target = q0 + 0.5 * ActionScale().position
     np.testing.assert_allclose(ctrl.asynchronous.target[0], target, atol=1e-6)
     for _ in range(20):  # zero actions: each step's target is where q_d then is
+        q_d = ctrl.states["q_d"][0].astype(float).copy()
+        moving = np.abs(ctrl.states["dq_d"][0]).max() > 0.01
         _, _, terminated, _, info = env.step(np.zeros(7, dtype=np.float32))
         assert not terminated and info["violations"] == ()
+        if moving:  # (q_d, not the lagging measured q)
+            np.testing.assert_array_equal(ctrl.asynchronous.target[0], q_d)
     assert np.abs(ctrl.states["dq_d"][0]).max() < 0.01
     assert info["control_command_success_rate"] == 1.0
     env.close()
