@@ -34,7 +34,7 @@ def test_a_held_action_reaches_its_target_without_a_violation():
     q0 = ctrl.states["q_d"][0].astype(float).copy()
     action = np.full(7, 0.5, dtype=np.float32)
     _, _, terminated, _, info = env.step(action)  # the target: q_d + 0.05 rad per joint
-    target = q0 + 0.5 * ActionScale().position
+    target = q0 + 0.05  # docs/env.md: a target 0.1 rad (at action 1) from the step's q_d
     np.testing.assert_allclose(ctrl.asynchronous.target[0], target, atol=1e-6)
     for _ in range(20):  # zero actions: each step's target is where q_d then is
         q_d = ctrl.states["q_d"][0].astype(float).copy()

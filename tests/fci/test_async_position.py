@@ -189,6 +189,17 @@ def test_a_target_echoing_an_id_never_published_is_dropped():
     assert c.statuses() == []
 
 
+def test_a_target_echoing_a_state_before_the_motion_is_dropped():
+    c = AsyncClient()
+    for _ in range(5):
+        c.ctrl.step()
+    before = int(c.state["message_id"]) - 1  # an idle state published before the Move
+    c.start()
+    c.run(200, HOME_Q + 0.2, echo=before)
+    np.testing.assert_allclose(c.state["q_d"], HOME_Q, atol=1e-6)
+    assert c.statuses() == []
+
+
 def test_finish_brakes_to_rest_without_jumping_to_the_zero_target():
     c = AsyncClient()
     c.start()
