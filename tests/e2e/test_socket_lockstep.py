@@ -77,6 +77,7 @@ def test_a_client_skipping_states_loses_them_as_on_the_robot_clock(serve, client
     log = server.log()
     assert "5 ms for an answer" in log
     assert motion_summaries(log) == [("kSuccess", 199, 1)]
+    assert "lockstep: 200 answers" in log  # each answered state was waited for
 
 
 def test_frankys_callback_loop_runs_in_lockstep(serve, client):

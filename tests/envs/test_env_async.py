@@ -34,11 +34,15 @@ def test_a_held_action_reaches_its_target_without_a_violation():
     q0 = ctrl.states["q_d"][0].astype(float).copy()
     action = np.full(7, 0.5, dtype=np.float32)
     _, _, terminated, _, info = env.step(action)  # the target: q_d + 0.05 rad per joint
-    target = q0 + 0.5 * ActionScale().position
+    target = q0 + 0.05  # docs/env.md: a target 0.1 rad (at action 1) from the step's q_d
     np.testing.assert_allclose(ctrl.asynchronous.target[0], target, atol=1e-6)
     for _ in range(20):  # zero actions: each step's target is where q_d then is
+        q_d = ctrl.states["q_d"][0].astype(float).copy()
+        moving = np.abs(ctrl.states["dq_d"][0]).max() > 0.01
         _, _, terminated, _, info = env.step(np.zeros(7, dtype=np.float32))
         assert not terminated and info["violations"] == ()
+        if moving:  # (q_d, not the lagging measured q)
+            np.testing.assert_array_equal(ctrl.asynchronous.target[0], q_d)
     assert np.abs(ctrl.states["dq_d"][0]).max() < 0.01
     assert info["control_command_success_rate"] == 1.0
     env.close()

@@ -114,8 +114,14 @@ def test_a_new_target_mid_motion_reverses_inside_the_limits():
     c.start()
     c.run(300, HOME_Q + 0.3)  # at speed
     assert np.abs(c.state["dq_d"]).max() > 0.5
-    c.run(3000, HOME_Q - 0.3)
-    assert c.reached(HOME_Q - 0.3)
+    c.trace.clear()
+    target = HOME_Q - 0.3
+    c.run(3000, target)
+    assert c.reached(target)
+    q, dq, ddq = (np.array(x) for x in zip(*c.trace, strict=True))
+    assert np.all(dq[0] > 0.5) and np.all(dq[-1] == pytest.approx(0.0, abs=0.01))  # turned
+    assert np.abs(ddq).max() <= 0.9 * FR3.ddq_max.max() + 1e-3
+    assert np.all(q >= target - 1e-6)  # braked in time: no overshoot past the new target
     assert c.ctrl.violations.take().sum() == 0 and c.statuses() == []
 
 
@@ -135,11 +141,13 @@ def test_a_target_at_the_joint_stop_is_approached_inside_the_envelope(side):
     assert c.ctrl.violations.take().sum() == 0 and c.statuses() == []
 
 
-def test_a_target_outside_the_joint_range_is_12_at_arrival():
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_a_target_outside_the_joint_range_is_12_at_arrival(side):
     c = AsyncClient()
     c.start()
     target = HOME_Q.copy()
-    target[3] = 0.1
+    # joint 4, 1 mrad past one of its stops (-0.1458 / -3.0481 rad)
+    target[3] = FR3.q_upper[3] + 1e-3 if side == "upper" else FR3.q_lower[3] - 1e-3
     c.run(5, target)
     assert c.statuses() == [MoveStatus.kReflexAborted]
     assert int(c.state["robot_mode"]) == RobotMode.kReflex
@@ -177,6 +185,17 @@ def test_a_target_echoing_an_id_never_published_is_dropped():
     c = AsyncClient()
     c.start()
     c.run(200, HOME_Q + 0.2, echo=int(c.state["message_id"]) + 1000)
+    np.testing.assert_allclose(c.state["q_d"], HOME_Q, atol=1e-6)
+    assert c.statuses() == []
+
+
+def test_a_target_echoing_a_state_before_the_motion_is_dropped():
+    c = AsyncClient()
+    for _ in range(5):
+        c.ctrl.step()
+    before = int(c.state["message_id"]) - 1  # an idle state published before the Move
+    c.start()
+    c.run(200, HOME_Q + 0.2, echo=before)
     np.testing.assert_allclose(c.state["q_d"], HOME_Q, atol=1e-6)
     assert c.statuses() == []
 

@@ -37,7 +37,8 @@ def start_at(q7: float, generator, enforce: bool = True) -> LoopClient:
 
 
 def turned(T0: np.ndarray, angle: float) -> np.ndarray:
-    """T0 turned by ``angle`` about its own z axis (joint 7's axis: joint 7 alone turns)."""
+    """T0 turned by ``angle`` about its own z axis (joint 7's axis; the IK from the
+    previous solution spreads the turn over joints 1, 3, 5 and 7, joint 7 taking ~85 %)."""
     ca, sa = math.cos(angle), math.sin(angle)
     T = T0.copy()
     T[:3, :3] = T0[:3, :3] @ np.array([[ca, -sa, 0], [sa, ca, 0], [0, 0, 1]])
@@ -91,12 +92,25 @@ def test_the_same_first_pose_inside_the_range_passes():
     assert c.move_statuses() == [] and c.state["robot_mode"] == RobotMode.kMove
 
 
+@pytest.mark.parametrize(("inside", "statuses"), [(2e-6, [MoveStatus.kReflexAborted]), (8e-6, [])])
+def test_an_opening_twist_whose_solution_is_past_joint_7s_stop_is_27(inside, statuses):
+    """The opening twist's solution is judged for the range (its velocity is not: no
+    previous solution yet); 5 mrad/s about the EE's z axis turns joint 7 by ~4.2 urad."""
+    c = start_at(Q7_MAX - inside, CV)
+    axis = frames.from_wire(np.array(c.state["O_T_EE_d"], dtype=np.float64))[:3, 2]
+    c.send(O_dP_EE_c=np.concatenate([np.zeros(3), 0.005 * axis]))
+    assert c.move_statuses() == statuses
+    expected = ("cartesian_motion_generator_joint_position_limits_violation",) if statuses else ()
+    assert error_names(c.state["errors"]) == expected
+
+
 def test_a_twist_past_joint_7s_stop_is_27_and_outranks_28():
     c = start_at(Q7_MAX - 8e-6, CV)
     assert abs(c.ctrl.cartesian.q_ik[0, 6] - (Q7_MAX - 8e-6)) < 1e-6
     axis = frames.from_wire(np.array(c.state["O_T_EE_d"], dtype=np.float64))[:3, 2]
-    # 5 then 10 mrad/s from rest: 5 rad/s^2 and 5000 rad/s^3 (no 20); the solution 3 urad
-    # inside the stop, then 7 urad past it, its velocity outside the envelope there too.
+    # 5 then 10 mrad/s from rest: 5 rad/s^2 and 5000 rad/s^3 (no 20); joint 7's solution
+    # ~4 urad inside the stop, then ~5 urad past it, its velocity outside the envelope there
+    # too.
     c.send(O_dP_EE_c=np.concatenate([np.zeros(3), 0.005 * axis]))
     assert c.move_statuses() == []
     c.send(O_dP_EE_c=np.concatenate([np.zeros(3), 0.01 * axis]))
@@ -107,7 +121,7 @@ def test_a_twist_past_joint_7s_stop_is_27_and_outranks_28():
 
 
 @pytest.mark.parametrize("generator", [CP, CV])
-def test_a_smooth_turn_into_joint_7s_stop_is_28_before_the_range(generator):
+def test_a_smooth_turn_into_joint_7s_stop_is_28_before_the_range(generator, caplog):
     c = start_at(2.5, generator)
     aborted = spin(c, generator, omega_max=1.0, cycles=2000)
     assert aborted is not None
@@ -115,9 +129,17 @@ def test_a_smooth_turn_into_joint_7s_stop_is_28_before_the_range(generator):
     assert error_names(c.state["errors"]) == (
         "cartesian_motion_generator_joint_velocity_limits_violation",
     )
-    # At 1 rad/s the envelope sqrt(2 x 17 x d) - 0.35 falls below it 54 mrad before the stop.
+    # Joint 7 turns at ~0.85 rad/s (the IK gives it ~85 % of the EE's 1 rad/s): the envelope
+    # sqrt(2 x 17 x d) - 0.35 falls below that 42 mrad before the stop.
     q7 = float(c.state["q_d"][6]) if generator == CP else float(c.ctrl.cartesian.q_ik[0, 6])
     assert Q7_MAX - 0.08 < q7 < Q7_MAX - 0.03
+    # The solution's velocity is judged against the envelope at the previous solution (the
+    # last one followed): the log names both, the velocity over that bound.
+    [line] = [r.getMessage() for r in caplog.records if "IK joint velocity" in r.getMessage()]
+    value, limit = (float(x.split()[0]) for x in line.split("joint 7 = ")[1].split("limit "))
+    q_prev = c.ctrl.cartesian.q_ik[0].astype(float)
+    assert limit == pytest.approx(FR3.velocity_envelope(q_prev)[0][6], abs=1e-6)
+    assert value > limit
 
 
 @pytest.mark.parametrize("generator", [CP, CV])

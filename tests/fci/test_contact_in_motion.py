@@ -124,12 +124,15 @@ def test_the_pylibfranka_examples_goal_meets_the_table_and_only_then_the_estimat
     assert ctrl.set_collision_behavior(0, limits) == SetterStatus.kSuccess
     before = Recorder(ctrl)
     at_the_table: list[float] = []
+    contact = np.zeros(6)  # the cartesian_contact flags seen at the table
 
     def record(state) -> None:
         if table_contacts(ctrl.physics)[0] == 0.0:
             before(state)
-        elif not at_the_table:
+            return
+        if not at_the_table:
             at_the_table.append(float(state["O_T_EE"][14]))
+        np.maximum(contact, state["cartesian_contact"], out=contact)
 
     status = joint_move(client, PYLIBFRANKA_EXAMPLE_GOAL, 2.0, record)
     assert status == MoveStatus.kReflexAborted
@@ -138,3 +141,8 @@ def test_the_pylibfranka_examples_goal_meets_the_table_and_only_then_the_estimat
     assert at_the_table and at_the_table[0] < 0.1  # the flange 10 cm above the table at most
     assert before.force.max() < 0.5 and before.tau.max() < 0.1  # nothing sensed in free space
     assert before.flags == 0.0
+    # Pressed: the contact flags (above the 10 N lower thresholds) rise, and the collision
+    # flags of the axes over 20 N latch with the reflex.
+    assert contact.any()
+    collided = np.asarray(client.state["cartesian_collision"])
+    assert collided.any() and set(np.flatnonzero(collided)) <= set(np.flatnonzero(contact))

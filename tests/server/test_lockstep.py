@@ -161,6 +161,17 @@ def test_outside_a_motion_the_stream_keeps_1_khz(serve):
     client.close()
 
 
+def queued_states(client: RawClient) -> list[bytes]:
+    """The state datagrams that arrived and were not read yet."""
+    got: list[bytes] = []
+    client.udp.setblocking(False)
+    try:
+        drain(client.udp, got)
+    finally:
+        client.udp.settimeout(1.0)
+    return got
+
+
 @pytest.mark.socket
 def test_stop_move_during_a_wait_is_answered_without_waiting_out_the_bound(serve):
     """A motion nobody answers waits 900 ms per state here; StopMove still ends it at once."""
@@ -178,7 +189,9 @@ def test_stop_move_during_a_wait_is_answered_without_waiting_out_the_bound(serve
         state = client.state()
     # Answer one state so the wait is for a running motion's command, then go quiet.
     client.send_command(message_id=int(state["message_id"]), q_c=state["q"])
-    time.sleep(0.05)
+    time.sleep(0.1)
+    # The answer released one cycle, whose state now waits: no 1 kHz stream meanwhile.
+    assert 1 <= len(queued_states(client)) <= 2
     start = time.monotonic()
     stop = client.request(p.Command.kStopMove)
     assert client.reply(stop, timeout=10).payload[0] == p.StopMoveStatus.kSuccess

@@ -27,11 +27,16 @@ def available(user_namespace: bool) -> None:
 
 @pytest.mark.parametrize("user_namespace", [False, True], ids=["mount-ns", "user-ns"])
 def test_a_python_child_reads_1_and_the_rest_of_sys_kernel_is_unchanged(
-    user_namespace, capfd, tmp_path
+    user_namespace, capfd, tmp_path, monkeypatch
 ):
     if not user_namespace and not rc.has_capability(rc.CAP_SYS_ADMIN):
         pytest.skip("a mount namespace alone needs CAP_SYS_ADMIN (not held here)")
     available(user_namespace)
+    # The staging directory goes to a directory of this test's own (a parallel run's
+    # would share the system's temporary directory).
+    stage_root = tmp_path / "stage"
+    stage_root.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(stage_root))
     before = rc.kernel_reads_realtime()
     listing = tmp_path / "listing"
     write = f"open({str(listing)!r}, 'w').write(repr(top_level()))"
@@ -49,8 +54,7 @@ def test_a_python_child_reads_1_and_the_rest_of_sys_kernel_is_unchanged(
     assert any(value is not None for value in outside.values())
     # Nothing changed outside CMD's namespace, and the staging directory is gone.
     assert rc.kernel_reads_realtime() is before
-    staged = [p for p in os.listdir(tempfile.gettempdir()) if p.startswith("franka-sim-gym-")]
-    assert not [p for p in staged if p.startswith("franka-sim-gym-realtime-")]
+    assert os.listdir(stage_root) == []
 
 
 #: The top level of /sys/kernel: each entry, and the text of each small readable file.
@@ -75,10 +79,31 @@ def test_the_cli_passes_the_childs_exit_status():
     assert main(["run-client", "--", sys.executable, "-c", "import sys; sys.exit(3)"]) == 3
 
 
+def test_a_new_user_namespace_only_without_cap_sys_admin():
+    """With CAP_SYS_ADMIN only the mount namespace is new, so CMD keeps the caller's
+    scheduling rights; without it CMD runs in a user namespace of its own."""
+    new_user_namespace = not rc.has_capability(rc.CAP_SYS_ADMIN)
+    available(new_user_namespace)
+    mine = os.readlink("/proc/self/ns/user")
+    same = f"import os, sys; sys.exit(0 if os.readlink('/proc/self/ns/user') == {mine!r} else 4)"
+    assert main(["run-client", "--", sys.executable, "-c", same]) == (
+        4 if new_user_namespace else 0
+    )
+
+
 def test_no_command_is_refused():
     out = io.StringIO()
     assert rc.run_client([], stream=out) == 2
     assert "no command given" in out.getvalue()
+
+
+def test_an_rtprio_limit_of_99_grants_fifo_99_in_a_user_namespace(monkeypatch):
+    import resource
+
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (rc.FIFO_PRIORITY, 100))
+    assert rc.scheduling_problem(user_namespace=True) is None
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (rc.FIFO_PRIORITY - 1, 100))
+    assert "the limit here is 98" in rc.scheduling_problem(user_namespace=True)
 
 
 def test_in_a_user_namespace_the_scheduling_right_is_named_when_missing():
