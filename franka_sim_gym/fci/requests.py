@@ -11,6 +11,7 @@ and the Cartesian stiffness by ``fci/impedance.py``.
 from __future__ import annotations
 
 import logging
+from abc import ABC, abstractmethod
 
 import numpy as np
 
@@ -39,13 +40,12 @@ from .wire import (
 log = logging.getLogger("franka_sim_gym.fci")
 
 
-class ControllerRequests:
+class ControllerRequests(ABC):
     """The request API of :class:`~franka_sim_gym.fci.controller.FciController`.
 
     A base of the controller, not used alone: the controller owns the state named below
-    and provides the motion's lifecycle the requests share with the cycle
-    (``end_motion``, ``clear_commanded``, ``finish_recovery``, ``write_modes``,
-    ``publish``, ``drop_events``).
+    and provides the motion's lifecycle the requests share with the cycle (the abstract
+    methods at the end).
     """
 
     physics: ArmPhysics
@@ -247,3 +247,31 @@ class ControllerRequests:
         self.cycle_input.finish[robots] = False
         self.drop_events(set(robots.tolist()))
         self.publish()
+
+    # -- the motion's lifecycle, shared with the cycle (fci/controller.py) ----------------------
+
+    @abstractmethod
+    def end_motion(
+        self, i: int, status: MoveStatus, hold_reference: bool, robot_mode: int | None = None
+    ) -> None:
+        """End robot i's motion with ``status``; the idle hold takes the arm back."""
+
+    @abstractmethod
+    def clear_commanded(self, i: int) -> None:
+        """Between motions nothing is commanded: dq_d, ddq_d, tau_J_d read zero."""
+
+    @abstractmethod
+    def finish_recovery(self, i: int) -> None:
+        """AutomaticErrorRecovery is over for robot i: back to kIdle."""
+
+    @abstractmethod
+    def write_modes(self, i: int) -> None:
+        """Write robot i's modes, errors and last_motion_errors into the state."""
+
+    @abstractmethod
+    def publish(self) -> None:
+        """Write state k+1 from the current physics (no step) and publish it."""
+
+    @abstractmethod
+    def drop_events(self, robots: set[int]) -> None:
+        """Forget the unsent events of ``robots``."""
