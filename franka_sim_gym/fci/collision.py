@@ -33,7 +33,7 @@ DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)
 #: |ddq_d| above which a motion is in its acceleration phase [rad/s^2] (a choice).
 ACCELERATION_PHASE = 0.5
 
-#: The payload's arrays in wire order (fci/protocol.py SetCollisionBehaviorRequest).
+#: The payload's arrays in wire order (fci/request_payloads.py SetCollisionBehaviorRequest).
 THRESHOLD_NAMES = (
     "lower_torque_thresholds_acceleration",
     "upper_torque_thresholds_acceleration",

@@ -11,8 +11,9 @@ every per-cycle quantity has a leading robot axis. Two ways in drive it:
   the (n,) array in the v10 wire layout that *is* what the server sends.
 
 Requests (Move, StopMove, AutomaticErrorRecovery, the setters) are applied
-between cycles by the scalar methods below and answer immediately, or later
-through the events ``step()`` returns.
+between cycles by the scalar methods the controller takes from
+:class:`~franka_sim_gym.fci.requests.ControllerRequests` (fci/requests.py); they
+answer immediately, or later through the events ``step()`` returns.
 
 The controller owns the pieces and hands each what it needs: the cycle's
 ``CycleInput`` to the joint and Cartesian generators (peers), the measured state to
@@ -29,9 +30,9 @@ import numpy as np
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
 from ..sim.kinematics import ArmKinematics
-from . import arrival, frames, setters
+from . import arrival, frames
 from .accounting import CycleAccounting
-from .async_position import AsyncPositionGenerator, refusal
+from .async_position import AsyncPositionGenerator
 from .cartesian import CartesianGenerators
 from .config import ControllerConfig
 from .contact_sensing import ContactSensing
@@ -46,21 +47,19 @@ from .log_limit import CycleLogLimit
 from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
 from .recovery import RecoveryWait
 from .reference import JointReference
+from .requests import ControllerRequests
 from .safety_controller import SafetyController
 from .state import StateWriter
-from .statuses import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
+from .statuses import AutomaticErrorRecoveryStatus, MoveStatus
 from .tables import MAX_LOST_CYCLES
 from .wire import (
-    MoveControllerMode,
-    MoveMotionGeneratorMode,
     RobotMode,
-    state_motion_generator_mode,
 )
 
 log = logging.getLogger("franka_sim_gym.fci")
 
 
-class FciController:
+class FciController(ControllerRequests):
     """The robot's controller behind FCI, for ``physics.n`` robots.
 
     Args:
@@ -126,8 +125,8 @@ class FciController:
         self._events: list[Event] = []
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         for i in range(n):
-            self._write_modes(i)
-        self._publish()
+            self.write_modes(i)
+        self.publish()
 
     # -- convenience views ----------------------------------------------------------------------
 
@@ -271,12 +270,12 @@ class FciController:
                 self._apply_verdicts()
             if np.count_nonzero(cycle.finish):
                 for i in np.flatnonzero(cycle.finish & m.in_motion).tolist():
-                    self._end_motion(i, MoveStatus.kSuccess, hold_reference=True)
+                    self.end_motion(i, MoveStatus.kSuccess, hold_reference=True)
                 cycle.finish[...] = False
             cycle.have[...] = False
         if self.recovery.count:
             for i in self.recovery.advance(self.physics.dq):
-                self._finish_recovery(i)
+                self.finish_recovery(i)
                 status = int(AutomaticErrorRecoveryStatus.kSuccess)
                 self._events.append(Event(i, EventKind.RECOVERY_FINISHED, status))
         self._publish_rest()
@@ -293,11 +292,11 @@ class FciController:
         if not self.modes.in_motion[i]:
             self.errors[i, bits] = True
             self.reflex_reason[i, bits] = True
-            self._write_modes(i)
+            self.write_modes(i)
             return
         self.errors[i, bits] = True
         self.reflex_reason[i, bits] = True
-        self._end_motion(
+        self.end_motion(
             i, MoveStatus.kReflexAborted, hold_reference=False, robot_mode=int(RobotMode.kReflex)
         )
 
@@ -312,7 +311,11 @@ class FciController:
         events, self._events = self._events, []
         return events
 
-    def _publish(self) -> None:
+    def drop_events(self, robots: set[int]) -> None:
+        """Forget the unsent events of ``robots`` (their session ended, or they were reset)."""
+        self._events = [e for e in self._events if e.robot not in robots]
+
+    def publish(self) -> None:
         """Write state k+1 from the current physics (no step) and publish it."""
         self.writer.write_measured(self.physics)
         self._publish_rest()
@@ -340,194 +343,9 @@ class FciController:
         if m.n_cartesian:
             self.cartesian.remember(int(w.message_id[0]))
 
-    # -- requests (between cycles) --------------------------------------------------------------
+    # -- the motion's lifecycle (the cycle and the requests) ---------------------------------------
 
-    def move(
-        self,
-        robot: int,
-        controller_mode: int,
-        motion_generator_mode: int,
-        use_async_motion_generator: bool = False,
-        maximum_velocity=None,
-    ) -> MoveStatus:
-        """Move (command 1): kMotionStarted, or the rejection that is the only reply.
-
-        A Move during a Move preempts the running one (answered kPreempted) and
-        the new motion starts from the idle hold's standstill (docs/fci-behaviour.md "One Move
-        at a time"). With ``use_async_motion_generator`` the robot's own generator moves
-        toward the targets the client sends, within ``maximum_velocity`` (7 values, rad/s;
-        fci/async_position.py): joint positions under an internal controller only.
-        """
-        i = robot
-        mode = RobotMode(int(self.modes.robot_mode[i]))
-        if mode in (RobotMode.kReflex, RobotMode.kAutomaticErrorRecovery):
-            log.warning("robot %d: Move rejected: command not possible in mode %s", i, mode.name)
-            return MoveStatus.kCommandNotPossibleRejected
-        try:
-            ctrl = MoveControllerMode(controller_mode)
-            gen = MoveMotionGeneratorMode(motion_generator_mode)
-        except ValueError:
-            log.warning(
-                "robot %d: Move rejected: invalid controller mode %r / motion generator mode %r",
-                i,
-                controller_mode,
-                motion_generator_mode,
-            )
-            return MoveStatus.kInvalidArgumentRejected
-        if gen == MoveMotionGeneratorMode.kNone and ctrl != MoveControllerMode.kExternalController:
-            log.warning("robot %d: Move rejected: no motion generator, no external controller", i)
-            return MoveStatus.kInvalidArgumentRejected
-        if use_async_motion_generator:
-            problem = refusal(maximum_velocity)
-            if gen != MoveMotionGeneratorMode.kJointPosition:
-                problem = f"the asynchronous generator runs joint positions, not {gen.name}"
-            elif ctrl == MoveControllerMode.kExternalController:
-                problem = "the asynchronous generator needs an internal controller"
-            if problem is not None:
-                log.warning("robot %d: asynchronous Move rejected: %s", i, problem)
-                return MoveStatus.kInvalidArgumentRejected
-        if self.modes.in_motion[i]:
-            log.info("robot %d: Move during a Move: the running motion is preempted", i)
-            self._end_motion(i, MoveStatus.kPreempted, hold_reference=False)
-        q = self.physics.q[i].copy()
-        self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
-        self.reference.seed(i, q, int(self.writer.message_id[i]))
-        self.q_hold[i] = q
-        self.tau_J_d[i] = 0.0
-        # A new motion starts with last_motion_errors clear: it describes the
-        # motion that was aborted, not the connection (as the robot does).
-        self.reflex_reason[i] = False
-        self.accounting.start_motion(i, int(self.writer.message_id[i]))
-        self.cycle_input.start(i)
-        self.violations.begin_motion(i)
-        if self.modes.cartesian[i]:
-            self.cartesian.start(i)
-        if use_async_motion_generator:
-            # The robot's generator answers from the first cycle on: no client start pose.
-            self.asynchronous.start(i, q, maximum_velocity)
-            self.accounting.started[i] = True
-            self.cycle_input.first[i] = False
-        self._write_modes(i)
-        return MoveStatus.kMotionStarted
-
-    def stop_move(self, robot: int) -> StopMoveStatus:
-        """StopMove (command 2): ends the running motion (answered kPreempted); idle hold."""
-        if self.modes.in_motion[robot]:
-            self._end_motion(robot, MoveStatus.kPreempted, hold_reference=False)
-        return StopMoveStatus.kSuccess
-
-    def automatic_error_recovery(self, robot: int) -> AutomaticErrorRecoveryStatus | None:
-        """AutomaticErrorRecovery (command 10): clears ``errors`` (not ``reflex_reason``).
-
-        Returns None: the reply is deferred (an event) until the measured
-        |dq| < 0.005 rad/s for 50 consecutive cycles or 0.7 s have passed
-        (docs/fci-behaviour.md "Enabling the violation"). Refused during a running motion.
-        """
-        i = robot
-        if self.modes.in_motion[i]:
-            return AutomaticErrorRecoveryStatus.kCommandNotPossibleRejected
-        self.errors[i] = False
-        self.contact.clear(i)
-        self.accounting.rearm(i)
-        self.q_hold[i] = self.physics.q[i]
-        self.modes.set_robot_mode(i, int(RobotMode.kAutomaticErrorRecovery))
-        self.recovery.begin(i)
-        self._write_modes(i)
-        return None
-
-    def set_ne_to_ee(self, robot: int, NE_T_EE) -> SetterStatus:
-        """SetNEToEE (command 8): moves F_T_EE = F_T_NE · NE_T_EE, where O_T_EE is measured."""
-        status = setters.check_transform("SetNEToEE", robot, NE_T_EE)
-        if status == SetterStatus.kSuccess:
-            self.writer.set_end_effector(robot, NE_T_EE=np.asarray(NE_T_EE, dtype=float))
-        return status
-
-    def set_ee_to_k(self, robot: int, EE_T_K) -> SetterStatus:
-        """SetEEToK (command 7): reflected in EE_T_K; moves K, where the external wrench is
-        estimated and the Cartesian impedance servo holds the pose."""
-        status = setters.check_transform("SetEEToK", robot, EE_T_K)
-        if status == SetterStatus.kSuccess:
-            self.writer.set_end_effector(robot, EE_T_K=np.asarray(EE_T_K, dtype=float))
-        return status
-
-    def set_load(self, robot: int, m_load: float, F_x_Cload, I_load) -> SetterStatus:
-        """SetLoad (command 9): reflected in m_load / F_x_Cload / I_load, and in the robot's
-        model: the drives carry its weight, the external-torque estimate expects it."""
-        status = setters.check_load(robot, m_load, F_x_Cload, I_load)
-        if status == SetterStatus.kSuccess:
-            self.writer.set_load(robot, m_load, np.ravel(F_x_Cload), np.ravel(I_load))
-        return status
-
-    def set_joint_impedance(self, robot: int, K_theta) -> SetterStatus:
-        """SetJointImpedance (command 4): the internal joint servo's stiffness, applied."""
-        status = setters.check_joint_stiffness(robot, K_theta)
-        if status == SetterStatus.kSuccess:
-            self.physics.set_stiffness(np.array([robot]), np.asarray(K_theta, dtype=float))
-        return status
-
-    def set_collision_behavior(self, robot: int, thresholds) -> SetterStatus:
-        """SetCollisionBehavior (command 3): the contact and collision thresholds, applied
-        from the next cycle (``thresholds``: the payload's eight arrays by name,
-        fci/collision.py THRESHOLD_NAMES; libfranka's 4-argument form sends each pair
-        twice). Non-finite or negative thresholds: kInvalidArgumentRejected."""
-        return self.contact.configure(robot, thresholds)
-
-    def set_cartesian_impedance(self, robot: int, K_x) -> SetterStatus:
-        """SetCartesianImpedance (command 5): the Cartesian servo's stiffness along K's axes,
-        applied from the next cycle (fci/impedance.py); out of range: refused."""
-        return self.impedance.configure(robot, K_x)
-
-    def acknowledge_setter(self, robot: int, name: str, values) -> SetterStatus:
-        """SetGuidingMode: accepted, not simulated."""
-        return setters.check_finite(name, robot, values)
-
-    def end_session(self, robot: int) -> None:
-        """A client disconnected: end its motion, reset what it configured, keep latched errors.
-
-        NE_T_EE (so F_T_EE) resets on a new connection (docs/robot-state.md); a latched
-        reflex survives until AutomaticErrorRecovery clears it, as on the robot.
-        """
-        if self.modes.in_motion[robot]:
-            self._end_motion(robot, MoveStatus.kAborted, hold_reference=False)
-        if self.recovery.waiting(robot):
-            self._finish_recovery(robot)
-        self.writer.reset_configuration(robot)
-        self.contact.behavior.reset(robot)
-        self.impedance.reset(robot)
-        self.physics.set_stiffness(np.array([robot]), np.asarray(self.config.joint_stiffness))
-        self._events = [e for e in self._events if e.robot != robot]
-
-    def reset(self, robots, q: np.ndarray) -> None:
-        """Teleport ``robots`` to joint positions ``q`` at rest and clear everything.
-
-        For the Gymnasium env's resets: errors, reflex_reason, motions and the
-        configured frames are cleared; message ids keep increasing.
-        """
-        robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
-        q = np.asarray(q, dtype=float).reshape(len(robots), 7)
-        self.physics.reset_arms(robots, q)
-        for k, i in enumerate(robots.tolist()):
-            self.modes.end(i)
-            self.asynchronous.end(i)
-            self.q_hold[i] = q[k]
-            self._clear_commanded(i)
-            self.errors[i] = False
-            self.reflex_reason[i] = False
-            self.recovery.end(i)
-            self.accounting.stop_motion(i)
-            self.writer.reset_configuration(i)
-            self.impedance.reset(i)
-            self._write_modes(i)
-        self.contact.reset(robots)
-        self.cycle_input.have[robots] = False
-        self.cycle_input.finish[robots] = False
-        dropped = set(robots.tolist())
-        self._events = [e for e in self._events if e.robot not in dropped]
-        self._publish()
-
-    # -- internals ------------------------------------------------------------------------------
-
-    def _end_motion(
+    def end_motion(
         self, i: int, status: MoveStatus, hold_reference: bool, robot_mode: int | None = None
     ) -> None:
         """End robot i's motion with ``status``; the idle hold takes the arm back."""
@@ -548,26 +366,28 @@ class FciController:
             mode = int(self.modes.robot_mode[i])
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
         self.modes.end(i, robot_mode)
-        self._clear_commanded(i)
+        self.clear_commanded(i)
         accounting = self.accounting
         summary = accounting.motion_summary(i)
         accounting.stop_motion(i)
         self.cycle_input.clear(i)
-        self._write_modes(i)
+        self.write_modes(i)
         self._events.append(Event(i, EventKind.MOVE_FINISHED, int(status), *summary))
 
-    def _clear_commanded(self, i: int) -> None:
+    def clear_commanded(self, i: int) -> None:
         """Between motions nothing is commanded: dq_d, ddq_d, tau_J_d read zero."""
         self.reference.dq[i] = 0.0
         self.reference.ddq[i] = 0.0
         self.tau_J_d[i] = 0.0
 
-    def _finish_recovery(self, i: int) -> None:
+    def finish_recovery(self, i: int) -> None:
+        """AutomaticErrorRecovery is over for robot i: back to kIdle."""
         self.recovery.end(i)
         self.modes.set_robot_mode(i, int(RobotMode.kIdle))
-        self._write_modes(i)
+        self.write_modes(i)
 
-    def _write_modes(self, i: int) -> None:
+    def write_modes(self, i: int) -> None:
+        """Write robot i's modes, errors and last_motion_errors into the state."""
         m = self.modes
         self.writer.write_modes(
             i,

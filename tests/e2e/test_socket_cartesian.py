@@ -35,7 +35,7 @@ def _position(column_major):
 
 def test_pylibfranka_cartesian_pose_example_moves_the_arc(serve, client):
     server, r = unstarved(
-        serve, lambda server: client("pylibfranka", "cartesian_pose", server.host)
+        serve, lambda server: client("pylibfranka_cartesian", "cartesian_pose", server.host)
     )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
@@ -49,7 +49,7 @@ def test_pylibfranka_cartesian_velocity_example_arrives_within_2_mm(serve, clien
     """The twist integral arrives in full (docs/fci-behaviour.md "RobotState fields": a zero
     O_dP_EE_c would make it 39 %)."""
     server, r = unstarved(
-        serve, lambda server: client("pylibfranka", "cartesian_velocity", server.host)
+        serve, lambda server: client("pylibfranka_cartesian", "cartesian_velocity", server.host)
     )
     assert "exception" not in r, r
     assert r["error"] is None, r["error"]
@@ -65,7 +65,7 @@ def test_pylibfranka_cartesian_velocity_example_arrives_within_2_mm(serve, clien
 
 def test_pylibfranka_first_pose_15_cm_off_is_start_pose_invalid(serve, client):
     server = serve("--enforce-motion-limits")
-    r = client("pylibfranka", "cartesian_start_off", server.host)
+    r = client("pylibfranka_cartesian", "cartesian_start_off", server.host)
     assert "exception" not in r, r
     assert r["error"] is not None
     assert '["cartesian_position_motion_generator_start_pose_invalid"]' in r["error"]

@@ -14,7 +14,7 @@ def test_a_client_silent_for_100_ms_gets_communication_constraints_violation(ser
     """100 ms of silence is 100 cycles at 1 kHz: a loaded server that runs only a few
     hundred cycles a second still publishes the 20 unanswered states the bound counts."""
     server = serve("--enforce-comm-constraints")
-    r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "100"}, timeout=60)
+    r = client("pylibfranka_reflex", "silence", server.host, env={"SILENCE_MS": "100"}, timeout=60)
     assert "exception" not in r, r
     assert r["error"] is not None and '["communication_constraints_violation"]' in r["error"]
     assert r["mode_after"] == "Reflex"
@@ -36,7 +36,9 @@ def test_a_client_silent_for_10_ms_is_not_aborted(serve, client):
     """
     for _attempt in range(3):
         server = serve("--enforce-comm-constraints")
-        r = client("pylibfranka", "silence", server.host, env={"SILENCE_MS": "10"}, timeout=60)
+        r = client(
+            "pylibfranka_reflex", "silence", server.host, env={"SILENCE_MS": "10"}, timeout=60
+        )
         assert "exception" not in r, r
         server.stop()
         summaries = motion_summaries(server.log())

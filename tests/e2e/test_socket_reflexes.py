@@ -30,7 +30,9 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
     # outcome is judged.
     for _attempt in range(3):
         server = serve("--enforce-motion-limits")
-        r = client("pylibfranka", "reflex", server.host, env={"REFLEX": provocation}, timeout=90)
+        r = client(
+            "pylibfranka_reflex", "reflex", server.host, env={"REFLEX": provocation}, timeout=90
+        )
         server.stop()
         summaries = motion_summaries(server.log())
         lost_in_next = summaries[-1][1] if len(summaries) >= 2 else 0
@@ -62,7 +64,7 @@ def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, clie
     # any other outcome is judged.
     for _attempt in range(3):
         server = serve("--enforce-motion-limits")
-        r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
+        r = client("pylibfranka_reflex", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
         server.stop()
         first = motion_summaries(server.log())[:1]
         starved = "exception" in r and first and first[0][0] == "kReflexAborted"
@@ -84,7 +86,9 @@ def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, clie
 
 def test_without_enforcement_the_step_is_only_logged(serve, client):
     server = serve()
-    r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90)
+    r = client(
+        "pylibfranka_reflex", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90
+    )
     assert "exception" not in r, r
     # the provocation ran to its end without an abort
     assert r["error"] is None
@@ -96,7 +100,9 @@ def test_without_enforcement_the_step_is_only_logged(serve, client):
 
 def test_the_environment_variable_turns_enforcement_on(serve, client):
     server = serve(env={"FRANKA_SIM_ENFORCE_MOTION_LIMITS": "1"})
-    r = client("pylibfranka", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90)
+    r = client(
+        "pylibfranka_reflex", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90
+    )
     assert "exception" not in r, r
     assert r["error"] is not None and '["controller_torque_discontinuity"]' in r["error"]
     assert "enforce motion limits: True" in server.log()

@@ -24,11 +24,9 @@ from franka_sim_gym.fci.frames import from_wire, is_homogeneous, to_wire
 from franka_sim_gym.fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
 from franka_sim_gym.sim.rotations import rotation_exp
-from tests.envs.test_client_filters_cartesian import LIBFRANKA_LOWPASS_CASES as LOWPASS_CASES
-from tests.envs.test_client_filters_cartesian import (
-    LIBFRANKA_POSE_LIMITER_CASES as POSE_LIMITER_CASES,
-)
-from tests.envs.test_client_filters_cartesian import LIMITS as LIBFRANKA_LIMITS
+from tests.cartesian_filter_helpers import LIBFRANKA_LOWPASS_CASES as LOWPASS_CASES
+from tests.cartesian_filter_helpers import LIBFRANKA_POSE_LIMITER_CASES as POSE_LIMITER_CASES
+from tests.cartesian_filter_helpers import LIMITS as LIBFRANKA_LIMITS
 from tests.native_helpers import joint_and_client_kernels_off, joint_samples, rollout, same_bits
 
 pytestmark = pytest.mark.skipif(C is None, reason="envs/_client_filters.c not built / off")

@@ -36,8 +36,9 @@ are taken in the body frame — the frame the lost-cycle law composes the
 rotation increment in (docs/fci-behaviour.md "What the sim does with a lost cycle") — so an
 extrapolated pose stream is differenced onto its own frozen acceleration.
 
-All functions are pure and batch-first; derivatives are backward Euler over
-``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas").
+The IK rows (27, 29, 28, 30) are judged by ``limits/cartesian_joint.py``; the tables
+here place them. All functions are pure and batch-first; derivatives are backward Euler
+over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas").
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ from .cartesian_derivatives import (
     joint_side,
     pose_derivatives,
 )
+from .cartesian_joint import ik_limits, joint_side_rows, no_joint_rows, range_and_envelope_quiet
 from .precedence import NO_ERROR, Violation
 
 _E = Error
@@ -166,57 +168,6 @@ def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
     return sign, elbow.has & (out_of_range | (continuing & too_fast))
 
 
-def _joint_side_rows(joint: JointSide, table: RobotTable, scale: float):
-    """The joint side's four (n,) rows in precedence order (docs/motion-limits.md): the IK
-    solution outside the joint range (27, where ``solved``), its acceleration over
-    kMaxJointAcceleration (29), its velocity outside the envelope at the previous
-    solution (28), its jerk over kMaxJointJerk (30) (the robot's per-joint tables times
-    the discontinuity scale; 28 to 30 where ``checked``); None when no row tripped
-    anywhere (the common case)."""
-    checked = joint.checked
-    solved = checked if joint.solved is None else joint.solved
-    if not (np.count_nonzero(checked) or np.count_nonzero(solved)):
-        return None
-    over = np.abs(joint.stacked) > _ik_limits(table, scale)  # NaN is not over
-    r29, r30 = checked & over[:, 0].any(axis=1), checked & over[:, 1].any(axis=1)
-    r27 = r28 = np.zeros(len(checked), dtype=bool)
-    if joint.motion is not None:
-        q = joint.q
-        # Written as "not inside", so a NaN solution trips (as q_c's 12 does).
-        r27 = solved & ~((q >= table.q_lower) & (q <= table.q_upper)).all(axis=1)
-        r28 = checked & ~_in_envelope(joint, table)
-    if not _any(r27, r29, r28, r30):
-        return None
-    return r27, r29, r28, r30
-
-
-def _in_envelope(joint: JointSide, table: RobotTable) -> np.ndarray:
-    """(n,) the IK velocity inside the joint velocity envelope at the previous solution
-    (docs/limits.md §4: at the reference, as 13 for q_c), with libfranka's tolerance."""
-    halves = table.velocity_envelope_halves(joint.q_prev)  # [upper | -lower]
-    dq = joint.dq
-    return (np.concatenate((dq, -dq), axis=1) <= halves).all(axis=1)
-
-
-def _no_rows(n: int) -> tuple[np.ndarray, ...]:
-    """Four (n,) rows that did not trip."""
-    return tuple(np.zeros(n, dtype=bool) for _ in range(4))
-
-
-def _ik_limits(table: RobotTable, scale: float) -> np.ndarray:
-    """(2, 7) the joint side's acceleration and jerk limits, scaled."""
-    key = (table.name, scale)
-    cached = _IK_LIMITS.get(key)
-    if cached is None:
-        cached = np.stack((table.ik_ddq_max, table.ik_dddq_max)) * scale
-        cached.setflags(write=False)
-        _IK_LIMITS[key] = cached
-    return cached
-
-
-_IK_LIMITS: dict[tuple[str, float], np.ndarray] = {}
-
-
 def _inside(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
     """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] within the
     table's limits, in one pass (NaN is not within: it trips)."""
@@ -239,15 +190,7 @@ def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: floa
     np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
     if np.count_nonzero(values <= _quiet_limits(table, scale)) != 20 * n:
         return False
-    if joint.motion is None:
-        return True
-    rows = joint.checked if joint.solved is None else joint.solved
-    if not np.count_nonzero(rows):
-        return True
-    q = joint.q
-    if np.count_nonzero(rows & ~((q >= table.q_lower) & (q <= table.q_upper)).all(axis=1)):
-        return False
-    return not np.count_nonzero(joint.checked & ~_in_envelope(joint, table))
+    return range_and_envelope_quiet(joint, table)
 
 
 def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
@@ -255,7 +198,7 @@ def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
     key = (table.name, scale)
     cached = _QUIET_LIMITS.get(key)
     if cached is None:
-        cached = np.concatenate((_limits2(table), _ik_limits(table, scale).reshape(14)))
+        cached = np.concatenate((_limits2(table), ik_limits(table, scale).reshape(14)))
         cached.setflags(write=False)
         _QUIET_LIMITS[key] = cached
     return cached
@@ -316,7 +259,7 @@ def check_cartesian_pose(
     if not starting and not np.count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
         return _no_error(n)  # mid-motion, no elbow, nothing near a limit: the common case
     inside = _inside(d.stacked, table)
-    joint_rows = _joint_side_rows(joint, table, scale)
+    joint_rows = joint_side_rows(joint, table, scale)
     later = ~first
     if starting:
         T_m = from_wire(O_T_EE)
@@ -336,7 +279,7 @@ def check_cartesian_pose(
         start_pose = start_elbow = first
     over = ~inside
     over &= later[:, None]
-    ik27, ik29, ik28, ik30 = _no_rows(n) if joint_rows is None else joint_rows
+    ik27, ik29, ik28, ik30 = no_joint_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, later, table)
     if not (starting or _any(elbow.has, over, ik27, ik29, ik28, ik30)):
         return _no_error(n)
@@ -367,9 +310,9 @@ def check_cartesian_velocity(
     if not np.count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
         return _no_error(n)  # no elbow, nothing near a limit: the common case
     inside = _inside(stacked, table)
-    joint_rows = _joint_side_rows(joint, table, scale)
+    joint_rows = joint_side_rows(joint, table, scale)
     over = ~inside
-    ik_range, ik_acc, ik_envelope, ik_jerk = _no_rows(n) if joint_rows is None else joint_rows
+    ik_range, ik_acc, ik_envelope, ik_jerk = no_joint_rows(n) if joint_rows is None else joint_rows
     sign, elbow_limit = _elbow_rows(elbow, ~first, table)
     if not _any(over, ik_range, ik_acc, ik_envelope, ik_jerk, sign, elbow_limit):
         return _no_error(n)
