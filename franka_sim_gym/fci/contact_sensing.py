@@ -83,8 +83,8 @@ class ContactSensing:
         self.lowest_torque = min(DEFAULT_TORQUE_THRESHOLDS)
         self.lowest_force = min(DEFAULT_FORCE_THRESHOLDS)
         #: The frame K of every robot this cycle: origin (n, 3) and axes (n, 3, 3).
-        self._k_point = np.zeros((n, 3))
-        self._k_rotation = np.zeros((n, 3, 3))
+        self.k_point = np.zeros((n, 3))
+        self.k_rotation = np.zeros((n, 3, 3))
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -150,7 +150,7 @@ class ContactSensing:
         if load_weight is not None:
             bias = bias + load_weight
         m_ddq = self.dynamics.mass_times(self.estimator.acceleration(physics.dq))
-        point, rotation = self._k_point, self._k_rotation
+        point, rotation = self.k_point, self.k_rotation
         rules = contact.RULES  # the backend switch (contact.py)
         rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)
         jacobian = self.dynamics.jacobian(point)
