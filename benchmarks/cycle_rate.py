@@ -138,8 +138,15 @@ def motion(n: int, generator, rotate: bool = False, controller=IMPEDANCE):
 def motion_rate(n: int, seconds: float) -> float:
     ctrl, cycle = motion(n, JOINT_POSITION)
     cycles = rate(cycle, seconds)
-    # The cycle accounting alone (success-rate window, lost runs), every robot counting.
-    accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
+    # The cycle accounting alone (success-rate window, lost runs), every robot counting
+    # and answering, as in the motion.
+    answered = ctrl.accounting.answered
+
+    def close_cycle() -> None:
+        answered[...] = True
+        ctrl.accounting.close_cycle(n)
+
+    accounting = rate(close_cycle, seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting
     # What the robot senses of contact (fci/contact_sensing.py), every cycle: the model
     # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K

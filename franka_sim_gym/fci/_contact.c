@@ -1,7 +1,7 @@
 /* C replacements of the contact estimate's rules (fci/contact.py), each with the numpy
  * rule's arguments and ``out`` given, chosen by the backend switch (native.load,
  * contact.py RULES); every constant (the filter's gain, the damping, the published
- * decimals) is an argument from contact.py:
+ * decimals, collision.py's acceleration phase) is an argument:
  *
  *   filter_residual(tau_ext, tau_J, m_ddq, bias, alpha, decimals, out)
  *       tau_ext += alpha (tau_J - (m_ddq + bias) - tau_ext), in place; out its rounding
@@ -9,6 +9,12 @@
  *       the least-squares wrench (J J^T + damping I) F = J tau, rounded
  *   in_frame(wrench, rotation, decimals, out)
  *       [f R, m R] (R^T f, R^T m), rounded
+ *   k_frame(O_T_EE, EE_T_K, point, rotation)
+ *       K's origin and axes in the base frame (the same bits as numpy)
+ *   sense(...)
+ *       contact_sensing.py's step after the model terms, one call per cycle: the three
+ *       rules above per robot, then the collision levels (collision.py) on the published
+ *       values, the contact flags written (the same flags as numpy on the same values)
  *
  * Rounding is numpy's np.round: rint(x 10^d) / 10^d; the wrenches publish a negative
  * zero as zero. filter_residual is elementwise in the numpy rule's order, built without fused
