@@ -196,7 +196,7 @@ PIECES = (
 )
 
 
-def breakdown(n: int, blocks: int = 100, size: int = 50) -> tuple[dict[str, float], float, float]:
+def breakdown(n: int, blocks: int = 500, size: int = 10) -> tuple[dict[str, float], float, float]:
     """Microseconds per joint-position cycle spent in each of :data:`PIECES` and in the
     whole cycle, in the fastest of ``blocks`` blocks of ``size`` cycles (a loaded host
     slows some blocks; the pieces are those of that one block, so they add up), and bare
@@ -287,7 +287,7 @@ def main() -> None:
         print(f"the thresholds' comparisons in numpy (no kernels, in contact), n={n}: {share:.1%}")
     if args.breakdown:
         pieces, total, bare_us = breakdown(16)
-        print("\nwhere a joint-position cycle goes, n=16 (fastest of 100 blocks, wall clock, us):")
+        print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")
         print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
         print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
         inner = {"bias", "mass_times", "jacobian"}
