@@ -10,7 +10,8 @@
  *   in_frame(wrench, rotation, decimals, out)
  *       [f R, m R] (R^T f, R^T m), rounded
  *   k_frame(O_T_EE, EE_T_K, point, rotation)
- *       K's origin and axes in the base frame (the same bits as numpy)
+ *       K's origin and axes in the base frame (numpy's BLAS product to rounding; the
+ *       same bits while EE_T_K is the identity)
  *   sense(...)
  *       contact_sensing.py's step after the model terms, one call per cycle: the three
  *       rules above per robot, then the collision levels (collision.py) on the published
@@ -209,8 +210,7 @@ done:
 }
 
 /* k_frame(O_T_EE, EE_T_K, point, rotation): (n, 16) wire poses (column-major: element
- * (r, c) at 4 c + r) to K's origin (n, 3) p_EE + R_EE t_K and axes (n, 3, 3) R_EE R_K,
- * each sum in the numpy rule's order. */
+ * (r, c) at 4 c + r) to K's origin (n, 3) p_EE + R_EE t_K and axes (n, 3, 3) R_EE R_K. */
 static PyObject *k_frame(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;

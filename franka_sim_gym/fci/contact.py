@@ -124,19 +124,12 @@ def k_frame_core(
     O_T_EE: np.ndarray, EE_T_K: np.ndarray, point: np.ndarray, rotation: np.ndarray
 ) -> None:
     """The stiffness frame K in the base frame, O_T_K = O_T_EE · EE_T_K, from the wire's
-    (n, 16) column-major transforms: its origin into ``point`` (n, 3), p_EE + R_EE t_K,
-    and its axes into ``rotation`` (n, 3, 3), R_EE R_K. Each sum is written out in one
-    order (the C replacement's, for the same bits; a matrix product's order is BLAS's)."""
-    R, R_K = from_wire(O_T_EE)[:, :3, :3], from_wire(EE_T_K)[:, :3, :3]
-    t = EE_T_K[:, 12:15]
-    point[...] = (
-        O_T_EE[:, 12:15] + R[:, :, 0] * t[:, 0:1] + R[:, :, 1] * t[:, 1:2] + R[:, :, 2] * t[:, 2:3]
-    )
-    rotation[...] = (
-        R[:, :, 0:1] * R_K[:, 0:1, :]
-        + R[:, :, 1:2] * R_K[:, 1:2, :]
-        + R[:, :, 2:3] * R_K[:, 2:3, :]
-    )
+    (n, 16) column-major transforms: its origin into ``point`` (n, 3) and its axes into
+    ``rotation`` (n, 3, 3). (The C replacement sums each product in one fixed order, so
+    the two agree to rounding; exactly while EE_T_K is the identity, the default.)"""
+    O_T_K = from_wire(O_T_EE) @ from_wire(EE_T_K)
+    point[...] = O_T_K[:, :3, 3]
+    rotation[...] = O_T_K[:, :3, :3]
 
 
 _EYE6 = np.eye(6)

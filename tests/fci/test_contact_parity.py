@@ -102,9 +102,11 @@ def test_wrench_and_its_frame_match_numpy(seed):
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_k_frame_matches_numpy_bit_for_bit(seed):
+def test_k_frame_matches_numpy(seed):
+    """K's origin and axes: to rounding (numpy's product is BLAS's), and exactly while
+    EE_T_K is the identity (every robot's default: K is the EE frame)."""
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(1, 17))
+    n = int(rng.integers(2, 17))
     poses = []
     for _ in range(2):  # O_T_EE and EE_T_K: rotations and offsets, wire order
         T = np.zeros((n, 4, 4))
@@ -112,17 +114,16 @@ def test_k_frame_matches_numpy_bit_for_bit(seed):
         T[:, :3, 3] = rng.normal(scale=0.5, size=(n, 3))
         T[:, 3, 3] = 1.0
         poses.append(T.transpose(0, 2, 1).reshape(n, 16).copy())
-    poses[1][0] = np.eye(4).reshape(16)  # the default K: K is the EE frame
+    poses[1][0] = np.eye(4).reshape(16)
     got = np.empty((n, 3)), np.empty((n, 3, 3))
     want = np.empty((n, 3)), np.empty((n, 3, 3))
     C.k_frame(*poses, *got)
     NP.k_frame(*poses, *want)
     for a, b in zip(got, want, strict=True):
-        _same(a, b)
-    T = poses[0].reshape(n, 4, 4).transpose(0, 2, 1) @ poses[1].reshape(n, 4, 4).transpose(0, 2, 1)
-    np.testing.assert_allclose(want[0], T[:, :3, 3], atol=1e-15)  # O_T_EE · EE_T_K
-    np.testing.assert_allclose(want[1], T[:, :3, :3], atol=1e-15)
-    _same(want[1][0], poses[0][0].reshape(4, 4).T[:3, :3])  # identity K: R_EE exactly
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(a[0], b[0])  # identity K
+    np.testing.assert_array_equal(got[0][0], poses[0][0, 12:15])
+    np.testing.assert_array_equal(got[1][0], poses[0][0].reshape(4, 4).T[:3, :3])
 
 
 def _sense_inputs(seed: int, n: int = 16) -> dict:
