@@ -1,6 +1,6 @@
 """Cycle rate of the FCI controller against bare MuJoCo, in one run.
 
-    python benchmarks/cycle_rate.py [--seconds S]
+    python benchmarks/cycle_rate.py [--seconds S] [--breakdown]
 
 Rows: bare mj_step of the world (n = 1 and n = 16 arms), the controller idle
 (idle hold), and during a joint-position, a Cartesian-pose and a Cartesian-
@@ -18,8 +18,9 @@ import time
 import mujoco
 import numpy as np
 
-from franka_sim_gym.fci.collision import accelerating
+from franka_sim_gym.fci.collision import ACCELERATION_PHASE, accelerating
 from franka_sim_gym.fci.config import ControllerConfig
+from franka_sim_gym.fci.contact import ALPHA, KERNEL, RESOLUTION_DECIMALS, WRENCH_DAMPING
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from franka_sim_gym.native import describe
@@ -137,23 +138,101 @@ def motion(n: int, generator, rotate: bool = False, controller=IMPEDANCE):
 def motion_rate(n: int, seconds: float) -> float:
     ctrl, cycle = motion(n, JOINT_POSITION)
     cycles = rate(cycle, seconds)
-    # The cycle accounting alone (success-rate window, lost runs), every robot counting.
-    accounting = rate(lambda: ctrl.accounting.close_cycle(n), seconds / 4)
+    # The cycle accounting alone (success-rate window, lost runs), every robot counting
+    # and answering, as in the motion.
+    answered = ctrl.accounting.answered
+
+    def close_cycle() -> None:
+        answered[...] = True
+        ctrl.accounting.close_cycle(n)
+
+    accounting = rate(close_cycle, seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting
-    # What the robot senses of contact: the external-torque estimate, the wrench at K
-    # and the collision thresholds (fci/contact_sensing.py), every cycle.
-    in_motion = ctrl.modes.in_motion
-    sensing = rate(lambda: ctrl.contact.sense(in_motion, None), seconds / 4)
-    SENSING_SHARE[n] = cycles / sensing
-    # The detector alone: the thresholds' comparisons, which sense() skips while the
-    # estimate lies below every threshold (free space, as here) and runs in contact.
+    # What the robot senses of contact (fci/contact_sensing.py), every cycle: the model
+    # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K
+    # and the collision thresholds (one C call where fci/_contact.c is built).
     contact, field = ctrl.contact, ctrl.contact.field
+    in_motion = ctrl.modes.in_motion
+    sensing = rate(lambda: contact.sense(in_motion, None), seconds / 4)
+    SENSING_SHARE[n] = cycles / sensing
+    dynamics = contact.dynamics
+    bias, m_ddq = dynamics.bias().copy(), dynamics.mass_times(np.zeros((n, 7))).copy()
+    jacobian = dynamics.jacobian(contact.k_point).copy()
     tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
+    if KERNEL is not None:
+        estimate = contact.estimator.tau_ext.copy()
+        outputs = tuple(field[k] for k in ("K_F_ext_hat_K", "joint_contact", "cartesian_contact"))
+        args = (
+            estimate, ctrl.physics.tau_J, m_ddq, bias, jacobian, contact.k_rotation, ddq_d,
+            in_motion, contact.behavior.thresholds, ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS,
+            ACCELERATION_PHASE, tau, wrench, *outputs,
+        )  # fmt: skip
+        step = rate(lambda: KERNEL.sense(*args), seconds / 4)
+        STEP_SHARE[n] = cycles / step
+    # The detector in numpy: the thresholds' comparisons (the path without the C step,
+    # and where a collision is reported).
     detect = rate(
         lambda: contact.behavior.levels(tau, wrench, accelerating(ddq_d, in_motion)), seconds / 4
     )
     DETECTOR_SHARE[n] = cycles / detect
     return cycles
+
+
+#: The pieces of a joint-position cycle, as the controller's public objects call them
+#: (controller.py FciController.step); "other" is the controller's own code between them
+#: (modes, references, publishing the derived fields) and the client's loop.
+PIECES = (
+    ("receive", "receive (arrival, cycle input)", lambda c: c),
+    ("advance", "joint generators and their limits", lambda c: c.joint),
+    ("step", "physics step (servo + mj_step2/mj_step1)", lambda c: c.physics),
+    ("write_measured", "state writer: measured fields", lambda c: c.writer),
+    ("sense", "contact sensing", lambda c: c.contact),
+    ("bias", "  model terms C dq + g (sim)", lambda c: c.contact.dynamics),
+    ("mass_times", "  model term M ddq (sim)", lambda c: c.contact.dynamics),
+    ("jacobian", "  Jacobian at K (sim)", lambda c: c.contact.dynamics),
+    ("check", "safety controller (errors 2, 3, 4)", lambda c: c.safety),
+    ("close_cycle", "cycle accounting", lambda c: c.accounting),
+    ("publish", "state writer: publish", lambda c: c.writer),
+)
+
+
+def breakdown(n: int, blocks: int = 500, size: int = 10) -> tuple[dict[str, float], float, float]:
+    """Microseconds per joint-position cycle spent in each of :data:`PIECES` and in the
+    whole cycle, in the fastest of ``blocks`` blocks of ``size`` cycles (a loaded host
+    slows some blocks; the pieces are those of that one block, so they add up), and bare
+    mj_step of the same world (its fastest block). Wall clock: CPU time is read by a
+    system call, too slow to wrap every piece in."""
+    ctrl, cycle = motion(n, JOINT_POSITION)
+    clock = time.perf_counter_ns
+    spent: dict[str, int] = {}
+
+    def timed(name, method):
+        def call(*args, **kwargs):
+            start = clock()
+            result = method(*args, **kwargs)
+            spent[name] = spent.get(name, 0) + clock() - start
+            return result
+
+        return call
+
+    for name, _, owner in PIECES:
+        obj = owner(ctrl)
+        setattr(obj, name, timed(name, getattr(obj, name)))
+    physics = ArmPhysics(n_arms=n)
+    best, pieces, bare = np.inf, {}, np.inf
+    for _ in range(blocks):
+        spent.clear()
+        start = clock()
+        for _ in range(size):
+            cycle()
+        total = (clock() - start) / size / 1e3
+        if total < best:
+            best, pieces = total, {name: ns / size / 1e3 for name, ns in spent.items()}
+        start = clock()
+        for _ in range(size):
+            mujoco.mj_step(physics.model, physics.data)
+        bare = min(bare, (clock() - start) / size / 1e3)
+    return pieces, best, bare
 
 
 def cartesian_rate(n: int, seconds: float, generator) -> float:
@@ -165,13 +244,18 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
 ACCOUNTING_SHARE: dict[int, float] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
-#: per n: the collision detector's comparisons' share, where they run (in contact)
+#: per n: the C step's share (estimate, wrench, thresholds: fci/_contact.c sense)
+STEP_SHARE: dict[int, float] = {}
+#: per n: the collision detector's comparisons' share in numpy
 DETECTOR_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="measuring time per row")
+    parser.add_argument(
+        "--breakdown", action="store_true", help="also time each piece of a cycle at n = 16"
+    )
     args = parser.parse_args()
     rows = []
     bare = {}
@@ -194,9 +278,27 @@ def main() -> None:
     for n, share in ACCOUNTING_SHARE.items():
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
     for n, share in SENSING_SHARE.items():
-        print(f"contact estimate and collision detection's share, n={n}: {share:.1%}")
+        print(
+            f"contact sensing's share (model terms, estimate, wrench, levels), n={n}: {share:.1%}"
+        )
+    for n, share in STEP_SHARE.items():
+        print(f"  of which the C step (estimate, wrench at K, thresholds), n={n}: {share:.1%}")
     for n, share in DETECTOR_SHARE.items():
-        print(f"the thresholds' comparisons when they run (in contact), n={n}: {share:.1%}")
+        print(f"the thresholds' comparisons in numpy (no kernels, in contact), n={n}: {share:.1%}")
+    if args.breakdown:
+        pieces, total, bare_us = breakdown(16)
+        print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")
+        print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
+        print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
+        inner = {"bias", "mass_times", "jacobian"}
+        outer = sum(t for name, t in pieces.items() if name not in inner)
+        for name, label, _ in PIECES:
+            print(f"{label:<50}{pieces[name]:>8.1f}{pieces[name] / total:>8.1%}")
+        print(
+            f"{'other (controller glue, client loop)':<50}{total - outer:>8.1f}"
+            f"{(total - outer) / total:>8.1%}"
+        )
+        print(f"a ratio of 0.55 needs a cycle of {bare_us / 0.55:.1f} us")
     by_name = {name: cycles for name, _, cycles in rows}
     n1 = by_name["controller joint-position motion, n=1"]
     n16 = by_name["controller joint-position motion, n=16"] * 16

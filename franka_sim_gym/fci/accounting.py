@@ -43,6 +43,8 @@ class CycleAccounting:
         #: the first message_id a command of the running motion may echo
         self.motion_first_id = np.full(n, _NO_MOTION, dtype=np.uint64)
         self._rate = np.zeros(n)
+        #: consecutive cycles every robot counted and answered (see close_cycle)
+        self._steady = 0
 
     def start_motion(self, i: int, last_published_id: int) -> None:
         """A Move started; commands echoing states from now on belong to it."""
@@ -62,6 +64,7 @@ class CycleAccounting:
         self.lost_total[i] = 0
         self.motion_first_id[i] = _NO_MOTION
         self._rate[i] = 0.0
+        self._steady = 0
 
     def motion_summary(self, i: int) -> tuple[int, int, int]:
         """(cycles counted, cycles lost, longest lost run) of robot i's running motion."""
@@ -81,8 +84,18 @@ class CycleAccounting:
             self._close_cycle_one(n_started)
             return
         answered = self.answered
+        every = n_started == self.n and np.count_nonzero(answered) == self.n
+        self._steady = self._steady + 1 if every else 0
+        if self._steady > self.window:
+            # every robot counted and answered for the whole window: every ring is full
+            # of answers, the sums are the window, the rates 1.0 and the runs 0 already;
+            # only the count goes on
+            self._counted += 1
+            answered[...] = False
+            self._pos = (self._pos + 1) % self.window
+            return
         column = self._ring[:, self._pos]  # the oldest entry, about to be replaced
-        if n_started == self.n and np.count_nonzero(answered) == self.n:
+        if every:
             # every robot counts and answered: nothing lost, no run goes on (the longest
             # stays the longest)
             self._answered_sum += 1

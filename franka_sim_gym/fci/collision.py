@@ -103,13 +103,16 @@ class Levels(NamedTuple):
 
 class CollisionBehavior:
     """The configured thresholds of n robots: (n, 2, 7) torques and (n, 2, 6) forces,
-    phase 0 = acceleration, 1 = nominal."""
+    phase 0 = acceleration, 1 = nominal; all four are views of :attr:`thresholds`."""
 
     def __init__(self, n: int) -> None:
-        self.lower_torque = np.empty((n, 2, 7))
-        self.upper_torque = np.empty((n, 2, 7))
-        self.lower_force = np.empty((n, 2, 6))
-        self.upper_force = np.empty((n, 2, 6))
+        #: (n, 2, 26) per phase: lower torque (7), upper torque (7), lower force (6),
+        #: upper force (6), side by side (one array for the C replacement, fci/_contact.c)
+        self.thresholds = np.empty((n, 2, 26))
+        self.lower_torque = self.thresholds[:, :, 0:7]
+        self.upper_torque = self.thresholds[:, :, 7:14]
+        self.lower_force = self.thresholds[:, :, 14:20]
+        self.upper_force = self.thresholds[:, :, 20:26]
         for i in range(n):
             self.reset(i)
 

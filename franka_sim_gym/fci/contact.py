@@ -25,10 +25,12 @@ velocity a real robot's noisy encoders make unusable; the simulation's velocitie
 carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
 
-The three rules (the filter step, the wrench, its copy in K's axes) are written here in
-numpy, each with the signature of its C replacement in ``fci/_contact.c``; :data:`RULES`
-is the C module where the backend switch loaded it (``native.load``), else
-:data:`NUMPY_RULES` (tests/fci/test_contact_parity.py holds the two together).
+The four rules (the filter step, the frame K, the wrench at K, its copy in K's axes) are
+written here in numpy, each with the signature of its C replacement in
+``fci/_contact.c``; :data:`RULES` is the C module where the backend switch loaded it
+(``native.load``), else :data:`NUMPY_RULES` (tests/fci/test_contact_parity.py holds the
+two together). The same module holds the C copy of the whole cycle's step
+(fci/contact_sensing.py).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from types import ModuleType, SimpleNamespace
 import numpy as np
 
 from .. import native
+from .frames import from_wire
 from .tables import DELTA_T
 
 __all__ = [
@@ -48,6 +51,7 @@ __all__ = [
     "filter_residual_core",
     "in_frame",
     "in_frame_core",
+    "k_frame_core",
     "wrench_core",
     "wrench_from_torque",
 ]
@@ -116,11 +120,26 @@ def in_frame_core(
     return out
 
 
+def k_frame_core(
+    O_T_EE: np.ndarray, EE_T_K: np.ndarray, point: np.ndarray, rotation: np.ndarray
+) -> None:
+    """The stiffness frame K in the base frame, O_T_K = O_T_EE · EE_T_K, from the wire's
+    (n, 16) column-major transforms: its origin into ``point`` (n, 3) and its axes into
+    ``rotation`` (n, 3, 3). (The C replacement sums each product in one fixed order, so
+    the two agree to rounding; exactly while EE_T_K is the identity, the default.)"""
+    O_T_K = from_wire(O_T_EE) @ from_wire(EE_T_K)
+    point[...] = O_T_K[:, :3, 3]
+    rotation[...] = O_T_K[:, :3, :3]
+
+
 _EYE6 = np.eye(6)
 
 #: The numpy rules, by the names their C replacements (fci/_contact.c) have.
 NUMPY_RULES = SimpleNamespace(
-    filter_residual=filter_residual_core, wrench_from_torque=wrench_core, in_frame=in_frame_core
+    filter_residual=filter_residual_core,
+    wrench_from_torque=wrench_core,
+    in_frame=in_frame_core,
+    k_frame=k_frame_core,
 )
 #: The C replacements (fci/_contact.c), or None where not built or switched off.
 KERNEL: ModuleType | None = native.load("fci._contact")
@@ -170,6 +189,22 @@ class ExternalTorqueEstimator:
         self.dq_prev[robots] = dq
         self.tau_ext[robots] = 0.0
 
+    def acceleration(self, dq: np.ndarray) -> np.ndarray:
+        """(n, 7) the measured acceleration of the cycle: ``dq`` (the new velocity)
+        differenced against the last one over the 1 ms cycle; remembers ``dq``."""
+        ddq = (dq - self.dq_prev) / DELTA_T
+        self.dq_prev[...] = dq
+        return ddq
+
+    def filter(
+        self, tau_J: np.ndarray, m_ddq: np.ndarray, bias: np.ndarray, out: np.ndarray
+    ) -> np.ndarray:
+        """One step of the filter on the residual tau_J - (M ddq + bias); the estimate
+        at the published resolution into ``out``."""
+        return RULES.filter_residual(
+            self.tau_ext, tau_J, m_ddq, bias, ALPHA, RESOLUTION_DECIMALS, out
+        )
+
     def update(
         self,
         mass_times,
@@ -182,11 +217,6 @@ class ExternalTorqueEstimator:
         ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
         Returns the filtered estimate (n, 7), at the published resolution (in ``out``
         where given, e.g. the state's own field)."""
-        ddq = (dq - self.dq_prev) / DELTA_T
-        self.dq_prev[...] = dq
         if out is None:
             out = np.empty_like(self.tau_ext)
-        m_ddq = mass_times(ddq)
-        return RULES.filter_residual(
-            self.tau_ext, tau_J, m_ddq, bias, ALPHA, RESOLUTION_DECIMALS, out
-        )
+        return self.filter(tau_J, mass_times(self.acceleration(dq)), bias, out)

@@ -22,7 +22,9 @@ import numpy as np
 
 from ..sim.arm import ArmPhysics
 from ..sim.dynamics import ArmDynamics, weight_torque
+from . import contact
 from .collision import (
+    ACCELERATION_PHASE,
     DEFAULT_FORCE_THRESHOLDS,
     DEFAULT_TORQUE_THRESHOLDS,
     THRESHOLD_NAMES,
@@ -31,10 +33,16 @@ from .collision import (
     accelerating,
     invalid_thresholds,
 )
-from .contact import ExternalTorqueEstimator, in_frame, wrench_from_torque
+from .contact import (
+    ALPHA,
+    RESOLUTION_DECIMALS,
+    WRENCH_DAMPING,
+    ExternalTorqueEstimator,
+    in_frame,
+    wrench_from_torque,
+)
 from .engine import MotionLimitEngine
 from .errors import Error
-from .frames import from_wire
 from .statuses import SetterStatus
 
 _AXES = ("x", "y", "z", "R", "P", "Y")
@@ -74,10 +82,9 @@ class ContactSensing:
         #: comparison, whatever the thresholds are now.
         self.lowest_torque = min(DEFAULT_TORQUE_THRESHOLDS)
         self.lowest_force = min(DEFAULT_FORCE_THRESHOLDS)
-        #: The cycle's levels when nothing reaches them (every flag clear; read only).
-        self.quiet = Levels(*(np.zeros((n, k), dtype=bool) for k in (7, 6, 7, 6)))
-        for flags in self.quiet:
-            flags.setflags(write=False)
+        #: The frame K of every robot this cycle: origin (n, 3) and axes (n, 3, 3).
+        self.k_point = np.zeros((n, 3))
+        self.k_rotation = np.zeros((n, 3, 3))
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -135,33 +142,49 @@ class ContactSensing:
         )
         return SetterStatus.kSuccess
 
-    def sense(self, in_motion: np.ndarray, load_weight: np.ndarray | None) -> Levels:
+    def sense(self, in_motion: np.ndarray, load_weight: np.ndarray | None) -> None:
         """Estimate, write the contact group, judge the thresholds (after the state's
-        measured fields are written); returns the cycle's levels."""
+        measured fields are written)."""
         physics, f = self.physics, self.field
         bias = self.dynamics.bias()
         if load_weight is not None:
             bias = bias + load_weight
-        tau = f["tau_ext_hat_filtered"]
-        self.estimator.update(self.dynamics.mass_times, bias, physics.tau_J, physics.dq, tau)
-        O_T_K = from_wire(f["O_T_EE"]) @ from_wire(f["EE_T_K"])
-        wrench = f["O_F_ext_hat_K"]
-        wrench_from_torque(self.dynamics.jacobian(O_T_K[:, :3, 3]), tau, wrench)
-        in_frame(wrench, O_T_K[:, :3, :3], f["K_F_ext_hat_K"])
-        if np.abs(tau).max() <= self.lowest_torque and np.abs(wrench).max() <= self.lowest_force:
-            # At or below every threshold: no comparison (a strict ">") can trip, so
-            # the levels are all clear without comparing (a NaN fails this test and
-            # takes the comparisons).
-            f["joint_contact"][...] = 0.0
-            f["cartesian_contact"][...] = 0.0
-            return self.quiet
+        m_ddq = self.dynamics.mass_times(self.estimator.acceleration(physics.dq))
+        point, rotation = self.k_point, self.k_rotation
+        rules = contact.RULES  # the backend switch (contact.py)
+        rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)
+        jacobian = self.dynamics.jacobian(point)
+        tau, wrench = f["tau_ext_hat_filtered"], f["O_F_ext_hat_K"]
+        if rules is not contact.NUMPY_RULES:
+            # The numpy steps below in one C call (fci/_contact.c sense, held to them by
+            # tests/fci/test_contact_parity.py): the flags written, the robots over an
+            # upper threshold counted.
+            over = rules.sense(
+                self.estimator.tau_ext, physics.tau_J, m_ddq, bias, jacobian, rotation,
+                f["ddq_d"], in_motion, self.behavior.thresholds,
+                ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE,
+                tau, wrench, f["K_F_ext_hat_K"], f["joint_contact"], f["cartesian_contact"],
+            )  # fmt: skip
+            if not over:
+                return
+        else:
+            self.estimator.filter(physics.tau_J, m_ddq, bias, tau)
+            wrench_from_torque(jacobian, tau, wrench)
+            in_frame(wrench, rotation, f["K_F_ext_hat_K"])
+            quiet = np.abs(tau).max() <= self.lowest_torque
+            if quiet and np.abs(wrench).max() <= self.lowest_force:
+                # At or below every threshold: no comparison (a strict ">") can trip, so
+                # the levels are all clear without comparing (a NaN fails this test and
+                # takes the comparisons).
+                f["joint_contact"][...] = 0.0
+                f["cartesian_contact"][...] = 0.0
+                return
         phase = accelerating(f["ddq_d"], in_motion)
         levels = self.behavior.levels(tau, wrench, phase)
         f["joint_contact"][...] = levels.joint_contact
         f["cartesian_contact"][...] = levels.cartesian_contact
         if np.count_nonzero(levels.joint_over) or np.count_nonzero(levels.cartesian_over):
             self._collide(levels, in_motion & self.engine.live(in_motion), phase, tau, wrench)
-        return levels
 
     def _collide(self, levels: Levels, rows: np.ndarray, phase, tau, wrench) -> None:
         """Latch the collision flags of the robots in motion (``rows``) that crossed an

@@ -2,14 +2,16 @@
 
 A kernel replaces one whole rule: the same signature as the numpy function it stands
 in for, in that function's layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the
-Jacobian at a point; ``envs/_client_filters.c``:
-the libfranka client's filters; ``fci/limits/_joint.c``: the joint rules' per-joint
-arithmetic; ``fci/_contact.c``: the contact estimate's filter and wrench), every constant
-passed in from the tables, never fused with the code of another layer. The numpy function
-stays the rule (the one the docs describe); a test holds the kernel to it
-(docs/architecture.md, "One implementation per rule", says which rules have one and why).
+Jacobian at a point; ``envs/_client_filters.c``: the libfranka client's filters;
+``fci/limits/_joint.c``: the joint rules' per-joint arithmetic; ``fci/_contact.c``: the
+contact estimate's rules, the frame K, and the whole sensing step after the model terms:
+estimate, wrench at K, collision levels), every constant passed in from the tables,
+never fused with the code of another layer. The numpy function stays the rule (the one
+the docs describe); a test holds the kernel to it (docs/architecture.md, "One
+implementation per rule", says which rules have one and why).
 This package holds what the kernels share: the switch, the loader and the C headers
-``_arrays.h`` (checked array arguments), ``_rotation.h`` and ``_ik_core.h``.
+``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_rotation.h``,
+``_solve6.h`` and ``_ik_core.h``.
 
 The kernels are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler was available

@@ -1,8 +1,8 @@
 /* What every C kernel shares (franka_sim_gym/<layer>/_<name>.c, built by setup.py):
  * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
  * state fields and of stacked scratch rows are fine), with their shape checked before a
- * single element is read or written; the argument count; numpy's minimum / maximum; the
- * module with its cycle. No rule of the robot lives here. */
+ * single element is read or written; (n,) one-byte flags (uint8, or numpy's bool read only);
+ * the argument count; numpy's minimum / maximum; the module with its cycle. No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 
@@ -107,6 +107,48 @@ static inline void f64_release(F64 *a)
 {
     if (a->view.obj) PyBuffer_Release(&a->view);
     a->view.obj = NULL;
+}
+
+/* An (n,) array of one-byte flags: uint8, or (read only) numpy's bool. */
+typedef struct {
+    Py_buffer view;
+    char *data;
+    Py_ssize_t stride;
+} Bytes;
+
+#define BYTE1(b, i) (*(unsigned char *)((b).data + (i) * (b).stride))
+
+/* Borrow ``obj`` as (n,) one-byte flags: writable uint8, or readable uint8 / bool. Returns
+ * 0, or -1 with a ValueError naming ``name``. */
+static inline int bytes_get(PyObject *obj, Bytes *b, Py_ssize_t n, int writable, const char *name)
+{
+    memset(b, 0, sizeof(*b));
+    int flags = PyBUF_RECORDS_RO | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, &b->view, flags) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: expected a%s uint8 array", name,
+                     writable ? " writable" : "");
+        return -1;
+    }
+    const char *f = b->view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
+    int kind_ok = f && (strcmp(f, "B") == 0 || (!writable && strcmp(f, "?") == 0));
+    if (b->view.ndim != 1 || b->view.itemsize != 1 || !kind_ok || b->view.shape[0] != n) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a uint8%s array of shape (%zd,)", name,
+                     writable ? "" : " or bool", n);
+        PyBuffer_Release(&b->view);
+        b->view.obj = NULL;
+        return -1;
+    }
+    b->data = (char *)b->view.buf;
+    b->stride = b->view.strides ? b->view.strides[0] : 1;
+    return 0;
+}
+
+static inline void bytes_release(Bytes *b)
+{
+    if (b->view.obj) PyBuffer_Release(&b->view);
+    b->view.obj = NULL;
 }
 
 /* fci/tables.py DELTA_T, the 1 ms cycle every kernel differences and integrates over;

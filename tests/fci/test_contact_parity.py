@@ -15,7 +15,12 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci import contact
-from franka_sim_gym.fci.collision import THRESHOLD_NAMES
+from franka_sim_gym.fci.collision import (
+    ACCELERATION_PHASE,
+    THRESHOLD_NAMES,
+    CollisionBehavior,
+    accelerating,
+)
 from franka_sim_gym.fci.limits import joint, safety
 from franka_sim_gym.fci.statuses import SetterStatus
 from franka_sim_gym.fci.tables import FR3
@@ -96,6 +101,105 @@ def test_wrench_and_its_frame_match_numpy(seed):
     assert not np.signbit(got_k[got_k == 0]).any()
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_k_frame_matches_numpy(seed):
+    """K's origin and axes: to rounding (numpy's product is BLAS's), and exactly while
+    EE_T_K is the identity (every robot's default: K is the EE frame)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 17))
+    poses = []
+    for _ in range(2):  # O_T_EE and EE_T_K: rotations and offsets, wire order
+        T = np.zeros((n, 4, 4))
+        T[:, :3, :3] = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
+        T[:, :3, 3] = rng.normal(scale=0.5, size=(n, 3))
+        T[:, 3, 3] = 1.0
+        poses.append(T.transpose(0, 2, 1).reshape(n, 16).copy())
+    poses[1][0] = np.eye(4).reshape(16)
+    got = np.empty((n, 3)), np.empty((n, 3, 3))
+    want = np.empty((n, 3)), np.empty((n, 3, 3))
+    C.k_frame(*poses, *got)
+    NP.k_frame(*poses, *want)
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(a[0], b[0])  # identity K
+    np.testing.assert_array_equal(got[0][0], poses[0][0, 12:15])
+    np.testing.assert_array_equal(got[1][0], poses[0][0].reshape(4, 4).T[:3, :3])
+
+
+def _sense_inputs(seed: int, n: int = 16) -> dict:
+    """Random inputs of one sensing step: estimates on both sides of random thresholds,
+    some robots accelerating, one with a NaN torque reading."""
+    rng = np.random.default_rng(seed)
+    scale = rng.choice([0.5, 5.0, 30.0])
+    behavior = CollisionBehavior(n)
+    behavior.thresholds[...] = rng.uniform(0.0, 2 * scale, behavior.thresholds.shape)
+    behavior.thresholds[rng.random(n) < 0.4] *= 100.0  # robots far from theirs
+    behavior.thresholds[0] = 0.0  # every comparison trips at any non-zero value
+    ddq_d = rng.normal(scale=0.6, size=(n, 7))
+    ddq_d[1] = [0.5] * 7  # at the bound: nominal
+    tau_ext, tau_J, m_ddq, bias = (rng.normal(scale=scale, size=(n, 7)) for _ in range(4))
+    tau_J[2, 3] = np.nan
+    # robot 3 at rest, estimate 0.0, thresholds 0.0: at a threshold is not above it
+    tau_ext[3], tau_J[3] = 0.0, m_ddq[3] + bias[3]
+    behavior.thresholds[3] = 0.0
+    in_motion = rng.random(n) < 0.7
+    in_motion[1] = True
+    return {
+        "tau_ext": tau_ext,
+        "tau_J": tau_J,
+        "m_ddq": m_ddq,
+        "bias": bias,
+        "jacobian": _arm_jacobians(n, seed),
+        "rotation": np.linalg.qr(rng.normal(size=(n, 3, 3)))[0],
+        "ddq_d": ddq_d,
+        "in_motion": in_motion,
+        "behavior": behavior,
+    }
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_whole_sensing_step_matches_the_numpy_rules(seed):
+    """fci/_contact.c sense against contact_sensing's numpy steps: the estimate (state
+    and published) bit for bit, the wrenches to rounding (as above), and the flags and
+    the count over an upper threshold exactly those CollisionBehavior.levels gives on
+    the published values, in the phase collision.accelerating gives."""
+    x = _sense_inputs(seed)
+    n = len(x["tau_J"])
+    b = x["behavior"]
+    consts = (contact.ALPHA, contact.WRENCH_DAMPING, DECIMALS, ACCELERATION_PHASE)
+    out = {k: np.full((n, size), -1.0) for k, size in
+           (("tau", 7), ("wrench", 6), ("k", 6), ("joint", 7), ("cartesian", 6))}  # fmt: skip
+    tau_ext = x["tau_ext"].copy()
+    over = C.sense(
+        tau_ext, x["tau_J"], x["m_ddq"], x["bias"], x["jacobian"], x["rotation"], x["ddq_d"],
+        x["in_motion"], b.thresholds, *consts, *out.values(),
+    )  # fmt: skip
+    want_ext, want_tau = x["tau_ext"].copy(), np.empty((n, 7))
+    NP.filter_residual(want_ext, x["tau_J"], x["m_ddq"], x["bias"], contact.ALPHA, DECIMALS,
+                       want_tau)  # fmt: skip
+    _same(tau_ext, want_ext)
+    _same(out["tau"], want_tau)
+    want_wrench = NP.wrench_from_torque(
+        x["jacobian"], np.nan_to_num(want_tau), contact.WRENCH_DAMPING, DECIMALS, np.empty((n, 6))
+    )
+    finite = np.isfinite(want_tau).all(axis=1)
+    np.testing.assert_allclose(out["wrench"][finite], want_wrench[finite], rtol=0, atol=1.01e-4)
+    assert np.isnan(out["wrench"][~finite]).all() and (~finite).sum() == 1
+    want_k = NP.in_frame(out["wrench"], x["rotation"], DECIMALS, np.empty((n, 6)))
+    _same(out["k"], want_k)
+    phase = accelerating(x["ddq_d"], x["in_motion"])
+    assert 0 < phase.sum() < n
+    levels = b.levels(out["tau"], out["wrench"], phase)
+    np.testing.assert_array_equal(out["joint"], levels.joint_contact)
+    np.testing.assert_array_equal(out["cartesian"], levels.cartesian_contact)
+    crossed = levels.joint_over.any(axis=1) | levels.cartesian_over.any(axis=1)
+    assert over == crossed.sum() and 0 < over < n
+    assert out["joint"].any() and not out["joint"].all()
+    assert out["joint"][2, 3] == 0.0  # a NaN estimate crosses nothing, as in numpy
+    assert not out["joint"][3].any() and not out["cartesian"][3].any()
+    assert not phase[1]  # |ddq_d| at the bound is not above it
+
+
 def test_the_estimate_runs_the_same_on_both_paths(monkeypatch):
     """The public functions take the C rules where loaded and numpy where RULES says so."""
     J = _arm_jacobians(4, 9)
@@ -144,8 +248,9 @@ def test_a_press_on_the_table_publishes_the_same_states_with_and_without_the_ker
 
 def _sense_estimates(monkeypatch, thresholds: tuple) -> set:
     """Robot 1 of 2 configured with ``thresholds`` (then reset to the defaults halfway),
-    estimates of growing size: checks that sense()'s flags are the comparisons' flags;
-    returns which (robot 1 in contact, robot 0 quiet) pairs were seen."""
+    estimates of growing size: checks that sense()'s flags (its numpy path) are the
+    comparisons' flags; returns which (robot 1 in contact, robot 0 quiet) pairs were seen."""
+    monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
     ctrl = make_controller(2)
     sensing, field = ctrl.contact, ctrl.contact.field
     values = dict(zip(THRESHOLD_NAMES, thresholds, strict=True))
@@ -158,11 +263,11 @@ def _sense_estimates(monkeypatch, thresholds: tuple) -> set:
             sensing.reset([1])  # back to the defaults; the lowest bounds stay
         estimate = np.round(rng.normal(scale=scale, size=(2, 7)), 4)
 
-        def update(mass_times, bias, tau_J, dq, out=None, estimate=estimate):
+        def filter(tau_J, m_ddq, bias, out, estimate=estimate):
             out[...] = estimate
             return out
 
-        monkeypatch.setattr(sensing.estimator, "update", update)
+        monkeypatch.setattr(sensing.estimator, "filter", filter)
         sensing.sense(nowhere, None)
         want = sensing.behavior.levels(
             field["tau_ext_hat_filtered"], field["O_F_ext_hat_K"], nowhere
@@ -175,7 +280,7 @@ def _sense_estimates(monkeypatch, thresholds: tuple) -> set:
 
 
 def test_skipping_the_comparisons_gives_the_levels_the_comparisons_give(monkeypatch):
-    """ContactSensing.sense skips the threshold comparisons while the estimate lies at
+    """ContactSensing.sense's numpy path skips the threshold comparisons while the estimate lies at
     or below every threshold any robot has had: the flags must be those the comparisons
     give, with a robot's torque (then force) thresholds configured below the defaults
     and later reset to them, estimates on both sides of every threshold."""

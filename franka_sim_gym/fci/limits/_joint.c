@@ -62,41 +62,6 @@ static inline void envelope(const F64 *c, int j, double q, int positional, doubl
 
 /* ---- arguments -------------------------------------------------------------------------- */
 
-/* A writable (n,) uint8 array. */
-typedef struct {
-    Py_buffer view;
-    char *data;
-    Py_ssize_t stride;
-} Bytes;
-
-static int bytes_get(PyObject *obj, Bytes *b, Py_ssize_t n, const char *name)
-{
-    memset(b, 0, sizeof(*b));
-    if (PyObject_GetBuffer(obj, &b->view, PyBUF_RECORDS) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_ValueError, "%s: expected a writable uint8 array", name);
-        return -1;
-    }
-    const char *f = b->view.format;
-    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
-    if (b->view.ndim != 1 || b->view.itemsize != 1 || !f || strcmp(f, "B") != 0 ||
-        b->view.shape[0] != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a uint8 array of shape (%zd,)", name, n);
-        PyBuffer_Release(&b->view);
-        b->view.obj = NULL;
-        return -1;
-    }
-    b->data = (char *)b->view.buf;
-    b->stride = b->view.strides ? b->view.strides[0] : 1;
-    return 0;
-}
-
-static void bytes_release(Bytes *b)
-{
-    if (b->view.obj) PyBuffer_Release(&b->view);
-    b->view.obj = NULL;
-}
-
 /* The differencing interval: one float for every robot, or (n,) per robot. */
 typedef struct {
     double scalar;
@@ -174,7 +139,7 @@ static int call_get(PyObject *const *args, Py_ssize_t nargs, int outs, const cha
         f64_get(args[6], &c->a[CONSTANTS], 2, sc, 0, "constants") < 0 ||
         number(args[7], &positional, "positional") < 0 ||
         number(args[8], &c->tolerance, "start_tolerance") < 0 ||
-        number(args[9], &c->shift, "shift") < 0 || bytes_get(args[10], &c->rows, n, "rows") < 0)
+        number(args[9], &c->shift, "shift") < 0 || bytes_get(args[10], &c->rows, n, 1, "rows") < 0)
         return -1;
     c->positional = positional != 0.0;
     for (int k = 0; k < outs; k++)
@@ -275,7 +240,7 @@ static PyObject *measured_velocity_rows(PyObject *self, PyObject *const *args,
         num_get(args[1], &a[Q], 2, s7, 0, "q") < 0 ||
         f64_get(args[2], &a[C], 2, sc, 0, "constants") < 0 ||
         number(args[3], &positional, "positional") < 0 || number(args[4], &shift, "shift") < 0 ||
-        number(args[5], &margin, "margin") < 0 || bytes_get(args[6], &outside, n, "outside") < 0)
+        number(args[5], &margin, "margin") < 0 || bytes_get(args[6], &outside, n, 1, "outside") < 0)
         goto done;
     for (Py_ssize_t i = 0; i < n; i++) {
         unsigned out = 0;
