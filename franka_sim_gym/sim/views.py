@@ -41,3 +41,59 @@ def strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
     if not np.array_equal(rows_of(probe), probe[index]):  # pragma: no cover - a layout error
         raise AssertionError("a strided view disagrees with its gather")
     return rows_of(array)
+
+
+class ArmRows:
+    """One slice of every robot's MjData array: robot i's ``array[index]`` of its own
+    MjData, gathered into one (n, ...) array and written back per robot.
+
+    Args:
+        arrays: robot i's MuJoCo data array (e.g. ``datas[i].qpos``), one per robot.
+        index: the slice's rows (the same in every robot's MjData: one model); an int
+            gives rows of that one entry's shape.
+
+    ``out`` is the gathered array, refreshed in place by :meth:`gather` (so a reference
+    to it reads like a live view after every gather).
+    """
+
+    def __init__(self, arrays: list[np.ndarray], index) -> None:
+        self.arrays = arrays
+        self.index = index = np.asarray(index, dtype=np.intp)
+        flat = index.reshape(-1) if index.ndim else index.reshape(1)
+        views = [strided_rows(a, flat) for a in arrays]
+        shape = arrays[0][index].shape
+        #: robot i's rows as a view of its MjData (None: the rows are not evenly spaced)
+        self.views = None
+        if all(v is not None for v in views):
+            self.views = [v.reshape(shape) for v in views]
+        self.out = np.empty((len(arrays), *shape), dtype=arrays[0].dtype)
+
+    def gather(self) -> np.ndarray:
+        """``out`` refreshed from every robot's MjData."""
+        out = self.out
+        if self.views is not None:
+            for i, view in enumerate(self.views):
+                out[i] = view
+        else:
+            index = self.index
+            for i, array in enumerate(self.arrays):
+                out[i] = array[index]
+        return out
+
+    def get(self, i: int) -> np.ndarray:
+        """Robot i's rows (a view where the rows are evenly spaced, else a copy)."""
+        return self.views[i] if self.views is not None else self.arrays[i][self.index]
+
+    def set(self, i: int, value) -> None:
+        """Write robot i's rows of its MjData."""
+        if self.views is not None:
+            self.views[i][...] = value
+        else:
+            self.arrays[i][self.index] = value
+
+    def scatter(self, values: np.ndarray, arms=None) -> None:
+        """Write row k of ``values`` into robot ``arms[k]``'s MjData (every robot in order
+        when ``arms`` is None)."""
+        rows = range(len(self.arrays)) if arms is None else np.asarray(arms).tolist()
+        for k, i in enumerate(rows):
+            self.set(i, values[k])

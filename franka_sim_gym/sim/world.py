@@ -1,4 +1,10 @@
-"""Compose n FR3 arms, optionally with Franka Hands, into one MuJoCo world.
+"""Compose FR3 arms, optionally with Franka Hands, into a MuJoCo world.
+
+The simulator's physics is a world of ONE arm at the origin (:func:`build_world` with
+``n_arms=1``): every simulated robot steps its own MjData of that one model
+(sim/arm.py), so robot i's arithmetic is exactly a single robot's. Worlds of n arms
+are for kinematics alone (sim/kinematics.py stacks n arms at the origin, where each
+arm's frames are computed exactly as in the one-arm world) and for tests.
 
 Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
 (spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
@@ -64,7 +70,8 @@ _ARM_GEOM_CLASS = "arm_collision"
 class ArmLayout:
     """Indices of every arm's elements in the compiled world model.
 
-    Rows are arms; columns joints 1..7 (or links 0..7). ``geom_arm`` /
+    Rows are arms (:func:`repeat_layout`: n rows of the one arm of a one-arm world, each
+    indexing that arm's own MjData); columns joints 1..7 (or links 0..7). ``geom_arm`` /
     ``geom_link`` map every geom to the arm and link it belongs to, -1 for
     geoms that are not arm-link geoms (the table, the hand, scene objects).
     ``scene_body`` / ``scene_qpos_adr`` map a scene fragment's body names and its
@@ -324,6 +331,40 @@ def _layout(
         geom_link=geom_link,
         **fingers,
         **scene,
+    )
+
+
+def repeat_layout(layout: ArmLayout, n: int) -> ArmLayout:
+    """The layout of n robots that each step their own MjData of ``layout``'s one-arm
+    world: n rows, every one the arm's (row i indexes robot i's MjData)."""
+    if layout.n != 1:
+        raise ValueError(f"repeat_layout needs a one-arm layout, got {layout.n} arms")
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+
+    def rows(a):
+        return None if a is None else np.repeat(a, n, axis=0)
+
+    return ArmLayout(
+        n=n,
+        hand=layout.hand,
+        qpos_adr=rows(layout.qpos_adr),
+        dof_adr=rows(layout.dof_adr),
+        actuator_ids=rows(layout.actuator_ids),
+        flange_site=rows(layout.flange_site),
+        base_pos=rows(layout.base_pos),
+        link_body=rows(layout.link_body),
+        geom_arm=layout.geom_arm,
+        geom_link=layout.geom_link,
+        finger_qpos_adr=rows(layout.finger_qpos_adr),
+        finger_dof_adr=rows(layout.finger_dof_adr),
+        finger_actuator=rows(layout.finger_actuator),
+        tcp_site=rows(layout.tcp_site),
+        hand_body=rows(layout.hand_body),
+        payload_body=rows(layout.payload_body),
+        scene_body={k: rows(v) for k, v in layout.scene_body.items()},
+        scene_qpos_adr={k: rows(v) for k, v in layout.scene_qpos_adr.items()},
+        scene_dof_adr={k: rows(v) for k, v in layout.scene_dof_adr.items()},
     )
 
 
