@@ -63,7 +63,7 @@ class SafetyController:
         joint = limits.check_measured_joint_velocity(dq, q, table, margin)
         cartesian = limits.check_measured_cartesian_speed(v_ee, table)
         distance = self.config.self_collision_distance
-        close = close_link_pairs(physics.model, physics.datas, physics.layout, distance)
+        close = close_link_pairs(physics, distance)
         # A robot is bad where either rule or the distance trips; which error it latches
         # (4 outranks 3) is decided for those alone.
         bad = np.maximum(joint, cartesian) >= 0

@@ -106,6 +106,7 @@ class ArmPhysics:
             self.finger_force = np.full(n_arms, self.model.actuator_forcerange[self._finger_act, 1])
             self._applied_force = float(self.finger_force[0])
         self._payload = None if one.payload_body is None else rows("xipos", one.payload_body[0])
+        self._link_contacts = rows("sensordata", one.link_contact_adr[0])
         #: (n, 7) measured joint positions, velocities and torques (refreshed in place
         #: after every step and reset)
         self.q = self._qpos.out
@@ -246,6 +247,12 @@ class ArmPhysics:
             self._anchors.gather()
             self._frames_fresh = True
         return jacobian_at(self._axes.out, self._anchors.out, point)
+
+    def link_contacts(self) -> np.ndarray:
+        """(n,) bool: arm i's world reports a contact of a link with a link three or more
+        further down the chain, or with the hand (world.py's contact sensors): the arms
+        whose contact list a self-collision check must read."""
+        return self._link_contacts.gather().any(axis=1)
 
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo

@@ -12,49 +12,46 @@ view widens. Neighbours and once-removed pairs are not monitored, nor the hand
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from .world import SELF_COLLISION_DISTANCE, ArmLayout
 
+if TYPE_CHECKING:
+    from .arm import ArmPhysics
+
 #: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three apart
 #: in the chain are monitored.
 MIN_CHAIN_SEPARATION = 3
 
 
-def close_link_pairs(
-    model: mujoco.MjModel,
-    datas: Sequence[mujoco.MjData],
-    layout: ArmLayout,
-    distance: float = SELF_COLLISION_DISTANCE,
-) -> np.ndarray:
-    """(n,) bool: arm i (its own MjData ``datas[i]``) has a monitored link pair closer
-    than ``distance``.
+def close_link_pairs(physics: ArmPhysics, distance: float = SELF_COLLISION_DISTANCE) -> np.ndarray:
+    """(n,) bool: arm i (its own MjData ``physics.datas[i]``) has a monitored link pair
+    closer than ``distance``.
 
-    Costs next to nothing for an arm whose world reports no contact at all (the usual
-    case without objects); the contacts of the others are judged in one pass.
+    Reads the contact lists of the arms whose link contact sensors count a contact
+    (``physics.link_contacts``: none, the usual case) and judges them in one pass.
     """
-    close = np.zeros(len(datas), dtype=bool)
-    geoms, dists, arms = [], [], []
-    for i, data in enumerate(datas):
-        if data.ncon:
-            contact = data.contact
-            geoms.append(contact.geom)
-            dists.append(contact.dist)
-            arms.append(np.full(len(contact.dist), i))
-    if not geoms:
+    close = np.zeros(physics.n, dtype=bool)
+    arms = np.flatnonzero(physics.link_contacts())
+    if not len(arms):
         return close
-    geoms = np.concatenate(geoms)
-    link = layout.geom_link[geoms]
+    geoms, dists, rows = [], [], []
+    for i in arms.tolist():
+        contact = physics.datas[i].contact
+        geoms.append(contact.geom)
+        dists.append(contact.dist)
+        rows.append(np.full(len(contact.dist), i))
+    link = physics.layout.geom_link[np.concatenate(geoms)]
     monitored = (
         (link[:, 0] >= 0)
         & (link[:, 1] >= 0)
         & (np.abs(link[:, 0] - link[:, 1]) >= MIN_CHAIN_SEPARATION)
         & (np.concatenate(dists) < distance)
     )
-    close[np.concatenate(arms)[monitored]] = True
+    close[np.concatenate(rows)[monitored]] = True
     return close
 
 

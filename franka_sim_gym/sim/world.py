@@ -98,6 +98,9 @@ class ArmLayout:
     scene_body: dict[str, np.ndarray] = field(default_factory=dict)
     scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
     scene_dof_adr: dict[str, np.ndarray] = field(default_factory=dict)  # (n,) 6 dofs each
+    #: (n, 5) sensordata address of the contact sensors :func:`_add_link_contact_sensors`
+    #: adds: each counts the reported contacts of link a with link a + 3 or beyond
+    link_contact_adr: np.ndarray | None = None
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -196,6 +199,7 @@ def build_world(
                 _add_object(spec, prefix, object_width)
         if payload is not None:
             _add_payload(spec, prefix, payload)
+        _add_link_contact_sensors(spec, prefix)
     spec.add_key(name="home")
     model = spec.compile()
     if hand:
@@ -208,6 +212,28 @@ def build_world(
     layout = _layout(model, n_arms, hand, fragment, payload is not None)
     _set_home(model, layout)
     return model, layout
+
+
+#: Links at least this far apart in the chain are the self-collision's pairs
+#: (sim/self_collision.py MIN_CHAIN_SEPARATION).
+_LINK_SEPARATION = 3
+
+
+def _add_link_contact_sensors(spec: mujoco.MjSpec, prefix: str) -> None:
+    """Five contact sensors per arm, sensor a counting the contacts MuJoCo reports between
+    link a's geoms and those of link a + 3's subtree (the links beyond it and the hand):
+    every self-collision pair is in one of them (sim/self_collision.py reads the contact
+    list only of arms whose count is not zero). Sensors add nothing to the dynamics."""
+    for a in range(8 - _LINK_SEPARATION):
+        spec.add_sensor(
+            name=f"{prefix}link{a}_contacts",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            objname=f"{prefix}link{a}",
+            reftype=mujoco.mjtObj.mjOBJ_XBODY,  # the subtree of link a + 3
+            refname=f"{prefix}link{a + _LINK_SEPARATION}",
+            intprm=[1, 0, 1],  # data "found", no reduction, one slot
+        )
 
 
 #: Radius [m] of the payload's inertia: a solid sphere, 2/5 m r^2 about each axis.
@@ -318,6 +344,8 @@ def _layout(
         )
     if payload:
         scene["payload_body"] = _ids(model, "body", [[p + "payload"] for p in pre])[:, 0]
+    sensors = [[f"{p}link{a}_contacts" for a in range(8 - _LINK_SEPARATION)] for p in pre]
+    scene["link_contact_adr"] = model.sensor_adr[_ids(model, "sensor", sensors)]
     return ArmLayout(
         n=n,
         hand=hand,
@@ -365,6 +393,7 @@ def repeat_layout(layout: ArmLayout, n: int) -> ArmLayout:
         scene_body={k: rows(v) for k, v in layout.scene_body.items()},
         scene_qpos_adr={k: rows(v) for k, v in layout.scene_qpos_adr.items()},
         scene_dof_adr={k: rows(v) for k, v in layout.scene_dof_adr.items()},
+        link_contact_adr=rows(layout.link_contact_adr),
     )
 
 
