@@ -52,7 +52,14 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
-MODULES = ("sim._ik", "sim._dynamics", "envs._client_filters", "fci.limits._joint", "fci._contact")
+MODULES = (
+    "sim._ik",
+    "sim._dynamics",
+    "sim._rows",
+    "envs._client_filters",
+    "fci.limits._joint",
+    "fci._contact",
+)
 
 
 def loaded() -> dict[str, bool]:

@@ -10,6 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import native
+
+#: The C replacement of ArmRows' loops over the robots (sim/_rows.c: copies, the same
+#: bits), or None where not built or the backend switch is off.
+ROWS_KERNEL = native.load("sim._rows")
+
 
 def strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
     """``array[index]`` as a view when ``index`` (integer, any shape) steps evenly along
@@ -67,11 +73,22 @@ class ArmRows:
         if all(v is not None for v in views):
             self.views = [v.reshape(shape) for v in views]
         self.out = np.empty((len(arrays), *shape), dtype=arrays[0].dtype)
+        # the rows as the C loops take them: contiguous float64 views, or None
+        self._sources = None
+        if (
+            ROWS_KERNEL is not None
+            and self.views is not None
+            and self.out.dtype == np.float64
+            and all(v.flags.c_contiguous for v in self.views)
+        ):
+            self._sources = tuple(self.views)
 
     def gather(self) -> np.ndarray:
         """``out`` refreshed from every robot's MjData."""
         out = self.out
-        if self.views is not None:
+        if self._sources is not None:
+            ROWS_KERNEL.gather(self._sources, out)
+        elif self.views is not None:
             for i, view in enumerate(self.views):
                 out[i] = view
         else:
@@ -94,6 +111,11 @@ class ArmRows:
     def scatter(self, values: np.ndarray, arms=None) -> None:
         """Write row k of ``values`` into robot ``arms[k]``'s MjData (every robot in order
         when ``arms`` is None)."""
+        if self._sources is not None:
+            values = np.ascontiguousarray(values, dtype=np.float64)
+            rows = None if arms is None else np.ascontiguousarray(arms, dtype=np.int64)
+            ROWS_KERNEL.scatter(values, self._sources, rows)
+            return
         rows = range(len(self.arrays)) if arms is None else np.asarray(arms).tolist()
         for k, i in enumerate(rows):
             self.set(i, values[k])
