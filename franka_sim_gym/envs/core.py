@@ -1,5 +1,5 @@
-"""The batched core of every FrankaFCI env: n arms in one MuJoCo world, one controller call
-per cycle.
+"""The batched core of every FrankaFCI env: n arms, each in its own MuJoCo world (sim/arm.py),
+one controller call per cycle.
 
 ``FrankaFCIEnv`` is its n = 1 case; ``FrankaFCIVectorEnv`` and the SB3 adapter drive n
 arms. One policy step is ``cycles_per_step`` cycles; per cycle the core stamps every

@@ -172,10 +172,8 @@ def build_world(
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     # Always the sparse constraint Jacobian: MuJoCo's "auto" picks dense below 60 dofs
-    # and sparse above, and the two sum in different orders, so an arm pushing a block
-    # would differ (~1e-14) between a world of one arm and one of n. Sparse, with the
-    # constraint islands MuJoCo solves one by one, makes arm i of n arms bit for bit the
-    # arm of a one-arm world (docs/env.md, "Native vector env").
+    # and sparse above, and the two sum in different orders (~1e-14 apart): one choice
+    # for every world this builds, whatever its size.
     spec.option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     world = spec.worldbody
     add_table(spec)
