@@ -327,10 +327,15 @@ class ArmPhysics:
                 mujoco.mj_step2(model, data)
                 mujoco.mj_step1(model, data)
         else:  # the force range is the model's, the limits are every arm's own
-            for i, data in enumerate(self.datas):
-                self._apply_finger_force(i)
+            forcerange, act = model.actuator_forcerange, self._finger_act
+            applied = self._applied_force
+            for force, data in zip(self.finger_force.tolist(), self.datas, strict=True):
+                if force != applied:
+                    forcerange[act] = (-force, force)
+                    applied = force
                 mujoco.mj_step2(model, data)
                 mujoco.mj_step1(model, data)
+            self._applied_force = applied
         self._refresh()
 
     def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
