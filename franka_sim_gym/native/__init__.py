@@ -2,7 +2,8 @@
 
 A kernel replaces one whole rule: the same signature as the numpy function it stands
 in for, in that function's layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the
-Jacobian at a point; ``envs/_client_filters.c``:
+Jacobian at a point; ``sim/_rows.c``: the loops copying every robot's MjData rows, no
+rule; ``envs/_client_filters.c``:
 the libfranka client's filters; ``fci/limits/_joint.c``: the joint rules' per-joint
 arithmetic; ``fci/_contact.c``: the contact estimate's filter and wrench), every constant
 passed in from the tables, never fused with the code of another layer. The numpy function
