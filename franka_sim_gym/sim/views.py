@@ -1,9 +1,11 @@
-"""The arms' rows of MuJoCo's data arrays as views, where the layout allows.
+"""Rows of MuJoCo's data arrays as views, and every robot's rows of its own MjData.
 
-MuJoCo lays the arms of a world out one after another, so arm i's entries of a data
-array sit at evenly spaced rows; a strided view of them replaces a fancy-index copy on
-every read and write of the 1 kHz path (sim/arm.py's joint arrays, sim/kinematics.py's
-private MjData).
+Where a world holds several arms (sim/kinematics.py's stacked world), MuJoCo lays them
+out one after another, so arm i's entries of a data array sit at evenly spaced rows: a
+strided view of them replaces a fancy-index copy on every read and write of the 1 kHz
+path (:func:`strided_rows`). Where every robot steps its own MjData of one model
+(sim/arm.py), :class:`ArmRows` gathers robot i's rows of each into one (n, ...) array
+and writes rows back.
 """
 
 from __future__ import annotations
@@ -71,7 +73,9 @@ class ArmRows:
         #: robot i's rows as a view of its MjData (None: the rows are not evenly spaced)
         self.views = None
         if all(v is not None for v in views):
-            self.views = [v.reshape(shape) for v in views]
+            shaped = [v.reshape(shape) for v in views]
+            if all(np.shares_memory(v, a) for v, a in zip(shaped, arrays, strict=True)):
+                self.views = shaped
         self.out = np.empty((len(arrays), *shape), dtype=arrays[0].dtype)
         # the rows as the C loops take them: contiguous float64 views, or None
         self._sources = None
