@@ -17,14 +17,11 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from .world import SELF_COLLISION_DISTANCE, ArmLayout
+from .world import MIN_CHAIN_SEPARATION, SELF_COLLISION_DISTANCE, ArmLayout
 
 if TYPE_CHECKING:
     from .arm import ArmPhysics
 
-#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three apart
-#: in the chain are monitored.
-MIN_CHAIN_SEPARATION = 3
 
 
 def close_link_pairs(physics: ArmPhysics, distance: float = SELF_COLLISION_DISTANCE) -> np.ndarray:

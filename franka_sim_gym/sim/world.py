@@ -212,9 +212,9 @@ def build_world(
     return model, layout
 
 
-#: Links at least this far apart in the chain are the self-collision's pairs
-#: (sim/self_collision.py MIN_CHAIN_SEPARATION).
-_LINK_SEPARATION = 3
+#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three
+#: apart in the chain are monitored (sim/self_collision.py; the sensors below).
+MIN_CHAIN_SEPARATION = 3
 
 
 def _add_link_contact_sensors(spec: mujoco.MjSpec, prefix: str) -> None:
@@ -222,14 +222,14 @@ def _add_link_contact_sensors(spec: mujoco.MjSpec, prefix: str) -> None:
     link a's geoms and those of link a + 3's subtree (the links beyond it and the hand):
     every self-collision pair is in one of them (sim/self_collision.py reads the contact
     list only of arms whose count is not zero). Sensors add nothing to the dynamics."""
-    for a in range(8 - _LINK_SEPARATION):
+    for a in range(8 - MIN_CHAIN_SEPARATION):
         spec.add_sensor(
             name=f"{prefix}link{a}_contacts",
             type=mujoco.mjtSensor.mjSENS_CONTACT,
             objtype=mujoco.mjtObj.mjOBJ_BODY,
             objname=f"{prefix}link{a}",
             reftype=mujoco.mjtObj.mjOBJ_XBODY,  # the subtree of link a + 3
-            refname=f"{prefix}link{a + _LINK_SEPARATION}",
+            refname=f"{prefix}link{a + MIN_CHAIN_SEPARATION}",
             intprm=[1, 0, 1],  # data "found", no reduction, one slot
         )
 
@@ -342,7 +342,7 @@ def _layout(
         )
     if payload:
         scene["payload_body"] = _ids(model, "body", [[p + "payload"] for p in pre])[:, 0]
-    sensors = [[f"{p}link{a}_contacts" for a in range(8 - _LINK_SEPARATION)] for p in pre]
+    sensors = [[f"{p}link{a}_contacts" for a in range(8 - MIN_CHAIN_SEPARATION)] for p in pre]
     scene["link_contact_adr"] = model.sensor_adr[_ids(model, "sensor", sensors)]
     return ArmLayout(
         n=n,
