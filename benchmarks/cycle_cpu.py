@@ -58,8 +58,10 @@ def main() -> None:
     print(f"{'row':<32}{'us/cycle':>10}{'vs joint':>10}{'vs mj_step':>12}")
     for n in args.arms:
         physics = ArmPhysics(n_arms=n)
-        bare = cycle_cpu(
-            lambda p=physics: mujoco.mj_step(p.model, p.data), args.cycles, args.repeats
+        bare = cycle_cpu(  # n one-arm worlds: each arm's MjData stepped in turn
+            lambda p=physics: [mujoco.mj_step(p.model, d) for d in p.datas],
+            args.cycles,
+            args.repeats,
         )
         print(f"{f'bare mj_step, n={n}':<32}{bare * 1e6:>10.1f}{'':>10}{1.0:>12.3f}")
         joint = None

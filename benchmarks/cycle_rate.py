@@ -76,9 +76,15 @@ def streaming_cycle(ctrl: FciController, field: str, waypoints: np.ndarray):
 
 
 def bare_step_rate(n: int, seconds: float) -> float:
+    """Cycles/s of n one-arm worlds: mj_step on each arm's MjData in a loop."""
     physics = ArmPhysics(n_arms=n)
-    model, data = physics.model, physics.data
-    return rate(lambda: mujoco.mj_step(model, data), seconds)
+    model, datas = physics.model, physics.datas
+
+    def step() -> None:
+        for data in datas:
+            mujoco.mj_step(model, data)
+
+    return rate(step, seconds)
 
 
 def idle_rate(n: int, seconds: float) -> float:

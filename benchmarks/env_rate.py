@@ -7,9 +7,10 @@ checks on), with cycles/s (40 cycles per step) and the ratio to bare mj_step of
 the same one-arm world in the same run, rates in this process's CPU time. Episodes
 that end (reflex or time limit) are reset, and resets are counted in the time.
 
-Then the native batched vector env (joint position) at N = 16 and 64 arms in one
-world: env steps/s and arm-cycles/s (one core), the ratio to N single envs in a
-Gymnasium SyncVectorEnv, and to bare mj_step of the same N-arm world.
+Then the native batched vector env (joint position) at N = 16 and 64 arms (each arm its
+own MjData of the one-arm world): env steps/s and arm-cycles/s (one core), the ratio to
+N single envs in a Gymnasium SyncVectorEnv, and to bare mj_step of the same N one-arm
+worlds, stepped one after the other in a loop.
 
 With ``--shares``, a second table: for each interface (and the batched env at N = 64),
 the share of the env step's wall time spent in the client's filters
@@ -66,12 +67,14 @@ def vector_rate(n: int, mode: str, seconds: float) -> float:
 
 
 def bare_rate(n: int, seconds: float) -> float:
-    """mj_step calls/s of the n-arm world."""
+    """Cycles/s of n one-arm worlds: mj_step on each arm's MjData in a loop."""
     physics = ArmPhysics(n_arms=n)
+    model, datas = physics.model, physics.datas
     calls, start = 0, clock()
     while clock() - start < seconds:
         for _ in range(20):
-            mujoco.mj_step(physics.model, physics.data)
+            for data in datas:
+                mujoco.mj_step(model, data)
         calls += 20
     return calls / (clock() - start)
 

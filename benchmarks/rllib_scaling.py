@@ -82,18 +82,20 @@ def _bare_env(arms: int, seconds: float, seed: int, ready, results) -> None:
 
 
 def _bare_mj_step(arms: int, seconds: float, seed: int, ready, results) -> None:
-    """One process: mj_step calls/s of the ``arms``-arm world."""
+    """One process: cycles/s of ``arms`` one-arm worlds (mj_step on each arm's MjData)."""
     import mujoco
 
     from franka_sim_gym.sim.arm import ArmPhysics
 
     physics = ArmPhysics(n_arms=arms)
-    mujoco.mj_step(physics.model, physics.data)
+    model, datas = physics.model, physics.datas  # each arm's own one-arm world
+    mujoco.mj_step(model, datas[0])
     ready.wait()
     calls, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         for _ in range(100):
-            mujoco.mj_step(physics.model, physics.data)
+            for data in datas:
+                mujoco.mj_step(model, data)
         calls += 100
     results.put(calls / (time.perf_counter() - start))
 

@@ -5,8 +5,10 @@
 Per task id (its default interface, Cartesian velocity; random actions at 25 Hz, all
 checks on, the objects in the scene and the hand mounted): env steps/s of a single env
 and of the native batched env at N arms, arm-cycles/s (40 cycles per step), and the
-ratio to bare ``mj_step`` of the same world (the same scene and hands, one arm and N
-arms) timed in the same run, just before and just after the env (their mean).
+ratio to bare ``mj_step`` of the same worlds (the one-arm world with the task's scene
+and hand; N of them, each arm its own MjData, stepped one after the other in a loop)
+timed in the same run, just before and just after the env (their mean). Rates are in
+this process's CPU time, so that the other processes of a shared host move them little.
 Episodes that end (reflex or time limit) are reset, and resets are counted in the time.
 """
 
@@ -24,6 +26,9 @@ from franka_sim_gym.envs.tasks import TASKS
 from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
 
+#: This process's CPU time (benchmarks/env_rate.py: a shared host's load moves it little).
+clock = time.process_time
+
 TASK_IDS = ["FrankaFCIPush-v0", "FrankaFCIPickAndPlace-v0", "FrankaFCIPegInsertion-v0"]
 CYCLES = 40
 
@@ -32,14 +37,14 @@ def single_rate(env_id: str, seconds: float) -> float:
     env = gym.make(env_id)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    steps, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
+    steps, start = 0, clock()
+    while clock() - start < seconds:
         action = rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32)
         _, _, terminated, truncated, _ = env.step(action)
         steps += 1
         if terminated or truncated:
             env.reset()
-    return steps / (time.perf_counter() - start)
+    return steps / (clock() - start)
 
 
 def batched_rate(env_id: str, n: int, seconds: float) -> float:
@@ -48,23 +53,26 @@ def batched_rate(env_id: str, n: int, seconds: float) -> float:
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     shape = env.action_space.shape
-    calls, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
+    calls, start = 0, clock()
+    while clock() - start < seconds:
         env.step(rng.uniform(-1, 1, size=shape).astype(np.float32))
         calls += 1
-    return calls * n / (time.perf_counter() - start)
+    return calls * n / (clock() - start)
 
 
 def bare_rate(env_id: str, n: int, seconds: float) -> float:
-    """Arm-cycles/s of bare mj_step on the task's world of n arms (scene and hands)."""
+    """Arm-cycles/s of bare mj_step on n of the task's one-arm worlds (scene and hand),
+    each arm's MjData stepped in turn."""
     task = TASKS[gym.spec(env_id).kwargs["task"]]
     physics = ArmPhysics(n_arms=n, hand=True, scene=task.scene)
-    calls, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
+    model, datas = physics.model, physics.datas
+    calls, start = 0, clock()
+    while clock() - start < seconds:
         for _ in range(20):
-            mujoco.mj_step(physics.model, physics.data)
+            for data in datas:
+                mujoco.mj_step(model, data)
         calls += 20
-    return calls * n / (time.perf_counter() - start)
+    return calls * n / (clock() - start)
 
 
 def main() -> None:

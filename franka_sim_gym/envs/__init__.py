@@ -15,7 +15,7 @@ interface plus its default:
 Every constructor argument of ``franka_sim_gym.envs.fci_env.FrankaFCIEnv`` can be passed
 to ``gym.make``; each id's spec carries its task's ``max_episode_steps``, which
 ``gym.make(id, max_episode_steps=N)`` overrides. Every id also has a native batched
-vector env (N arms in one MuJoCo world):
+vector env (N arms, each its own MuJoCo world):
 ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
 (``franka_sim_gym.envs.vector_env.FrankaFCIVectorEnv``).
 """

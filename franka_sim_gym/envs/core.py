@@ -1,5 +1,5 @@
-"""The batched core of every FrankaFCI env: n arms in one MuJoCo world, one controller call
-per cycle.
+"""The batched core of every FrankaFCI env: n arms, each in its own MuJoCo world (sim/arm.py),
+one controller call per cycle.
 
 ``FrankaFCIEnv`` is its n = 1 case; ``FrankaFCIVectorEnv`` and the SB3 adapter drive n
 arms. One policy step is ``cycles_per_step`` cycles; per cycle the core stamps every
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
@@ -249,7 +248,7 @@ class FciBatch:
         if hands is not None:
             hands.after_task_reset(arms)
         if hands is not None or self.task.scene is not None:
-            mujoco.mj_forward(physics.model, physics.data)  # the placed objects' frames
+            physics.forward(arms)  # the placed objects' frames
         if hands is not None:
             hands.configure_loads(ctrl, arms)
         self.commands.reset(arms)

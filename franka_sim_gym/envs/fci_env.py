@@ -226,7 +226,7 @@ class FrankaFCIEnv(gym.Env):
         if self._renderer is None:
             self._renderer = OffscreenRenderer(physics.model, self.width, self.height)
             camera = self._renderer.camera
-            camera.lookat[:] = physics.base_pos[0] + (0.35, 0.0, 0.4)
+            camera.lookat[:] = (0.35, 0.0, 0.4)
             camera.distance, camera.azimuth, camera.elevation = 1.6, 135, -20
         renderer = self._renderer
         renderer.update_scene(physics.data)
@@ -237,7 +237,7 @@ class FrankaFCIEnv(gym.Env):
                 scene.geoms[scene.ngeom],
                 mujoco.mjtGeom.mjGEOM_SPHERE,
                 np.array([radius, 0, 0]),
-                physics.base_pos[0] + self.core.goals[0],
+                self.core.goals[0].astype(np.float64),
                 np.eye(3).ravel(),
                 np.array([1.0, 0.1, 0.1, 0.6], dtype=np.float32),
             )

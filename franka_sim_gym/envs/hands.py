@@ -78,10 +78,12 @@ class EnvHands:
 
     def before_task_reset(self, arms: np.ndarray, width_action: bool, teleported: bool) -> None:
         """A closed hand shut; a hand with a width action open, as the teleport left it."""
-        lay, data = self.physics.layout, self.physics.data
+        lay = self.physics.layout
         if self.hand == "closed":
-            data.qpos[lay.finger_qpos_adr[arms]] = 0.0
-            data.qvel[lay.finger_dof_adr[arms]] = 0.0
+            for i in np.asarray(arms).tolist():
+                data = self.physics.datas[i]
+                data.qpos[lay.finger_qpos_adr[i]] = 0.0
+                data.qvel[lay.finger_dof_adr[i]] = 0.0
         elif width_action and teleported:
             self.servos.command(arms, MAX_WIDTH, self.speed)
             self._targets[arms] = MAX_WIDTH
@@ -114,11 +116,11 @@ class EnvHands:
         SetLoad(0) when it lets go (what a careful robot program does after a grasp)."""
         if self.held is None or not self.configure_load or not len(arms):
             return
-        data = self.physics.data
-        held = self.held.held(data)
+        datas = self.physics.datas
+        held = self.held.held(datas)
         for i in arms[held[arms] != self.load_configured[arms]].tolist():
             if held[i]:
-                status = ctrl.set_load(i, *self.held.load(data, i))
+                status = ctrl.set_load(i, *self.held.load(datas[i], i))
             else:
                 status = ctrl.set_load(i, 0.0, np.zeros(3), np.zeros(9))
             if status != SetterStatus.kSuccess:  # pragma: no cover - the model's values

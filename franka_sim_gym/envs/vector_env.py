@@ -1,4 +1,4 @@
-"""The native batched vector env: N arms in one MuJoCo world, one controller call per cycle.
+"""The native batched vector env: N arms, each its own MuJoCo world, one controller call a cycle.
 
 ``gym.make_vec("FrankaFCI-v0", num_envs=N, vectorization_mode="vector_entry_point")``
 (or any per-interface id) returns a :class:`FrankaFCIVectorEnv`. Arm i behaves

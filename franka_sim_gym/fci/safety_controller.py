@@ -63,7 +63,7 @@ class SafetyController:
         joint = limits.check_measured_joint_velocity(dq, q, table, margin)
         cartesian = limits.check_measured_cartesian_speed(v_ee, table)
         distance = self.config.self_collision_distance
-        close = close_link_pairs(physics.model, physics.data, physics.layout, distance)
+        close = close_link_pairs(physics, distance)
         # A robot is bad where either rule or the distance trips; which error it latches
         # (4 outranks 3) is decided for those alone.
         bad = np.maximum(joint, cartesian) >= 0
@@ -86,7 +86,7 @@ class SafetyController:
                 bits.append(e)
             if close[i]:
                 e = int(Error.self_collision_avoidance_violation)
-                pair = closest_link_pair(physics.model, physics.data, physics.layout, i)
+                pair = closest_link_pair(physics.model, physics.datas[i], physics.layout)
                 where = f"link{pair[1]} / link{pair[2]} at {pair[0] * 1000:.1f} mm" if pair else ""
                 self.engine.report(i, e, f"{where}, limit {distance * 1000:.0f} mm", enforce)
                 bits.append(e)

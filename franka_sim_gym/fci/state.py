@@ -144,7 +144,7 @@ class StateWriter:
         pose = self.O_T_EE
         views = physics.flange_views
         if views is not None:  # straight from MjData's arrays, no gathers
-            np.subtract(views[0], physics.base_pos, out=self._O_T_EE_position)
+            self._O_T_EE_position[...] = views[0]  # bases at their worlds' origins
             self._O_T_EE_rotation[...] = views[1]
         else:
             pos, xmat = physics.flange_pose_raw()

@@ -2,7 +2,8 @@
 
 A kernel replaces one whole rule: the same signature as the numpy function it stands
 in for, in that function's layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the
-Jacobian at a point; ``envs/_client_filters.c``: the libfranka client's filters;
+Jacobian at a point; ``sim/_rows.c``: the loops copying every robot's MjData rows, no
+rule; ``envs/_client_filters.c``: the libfranka client's filters;
 ``fci/limits/_joint.c``: the joint rules' per-joint arithmetic; ``fci/_contact.c``: the
 contact estimate's rules, the frame K, and the whole sensing step after the model terms:
 estimate, wrench at K, collision levels), every constant passed in from the tables,
@@ -54,7 +55,14 @@ def load(name: str) -> ModuleType | None:
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
-MODULES = ("sim._ik", "sim._dynamics", "envs._client_filters", "fci.limits._joint", "fci._contact")
+MODULES = (
+    "sim._ik",
+    "sim._dynamics",
+    "sim._rows",
+    "envs._client_filters",
+    "fci.limits._joint",
+    "fci._contact",
+)
 
 
 def loaded() -> dict[str, bool]:

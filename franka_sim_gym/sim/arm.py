@@ -1,9 +1,10 @@
-"""n FR3 arms in one MuJoCo world: the joint servo, the torque path, measurements.
+"""n FR3 arms, each in its own MuJoCo world: the joint servo, the torque path, measurements.
 
-This is the physics half of the robot. It knows nothing of the FCI (no modes,
-errors or message ids): each cycle it is handed, per arm, a joint reference
-for the internal joint impedance servo or an external torque, steps the world
-by 1 ms, and exposes the measured state as (n, 7) arrays.
+Every robot steps its own MjData of ONE shared model: a world of one arm at the origin
+with its hand, its table and its scene objects (sim/world.py). Robot i's arithmetic is
+then exactly a single robot's, bit for bit, whatever n is (docs/env.md, "Native vector
+env"). The measured state is gathered from the n MjData into (n, 7) arrays after every
+step.
 
 Gravity compensation is MuJoCo's own: every arm body has gravcomp="1" and
 every joint actuatorgravcomp="true" (models/fr3.xml), so the gravity torque is
@@ -24,8 +25,8 @@ import numpy as np
 
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
-from .views import strided_rows
-from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
+from .views import ArmRows
+from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world, repeat_layout
 
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
 #: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,
@@ -34,69 +35,83 @@ from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world
 DEFAULT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 
 
-class _ArmArray:
-    """Read/write access to one (n, 7) slice of a flat MuJoCo array."""
-
-    def __init__(self, flat: np.ndarray, adr: np.ndarray) -> None:
-        self.flat = flat
-        self.adr = adr
-        self.view = strided_rows(flat, adr)  # None: addresses not evenly spaced
-
-    def get(self) -> np.ndarray:
-        return self.view if self.view is not None else self.flat[self.adr]
-
-    def set(self, value: np.ndarray) -> None:
-        if self.view is not None:
-            self.view[...] = value
-        else:
-            self.flat[self.adr] = value
-
-
 class ArmPhysics:
-    """The simulated arms: one MuJoCo world, n FR3 arms, stepped 1 ms at a time.
+    """The simulated arms: n FR3 arms, each stepping its own MjData of one shared
+    one-arm world, 1 ms at a time.
 
     Args:
-        n_arms: number of arms in the world (one per simulated robot).
+        n_arms: number of arms (one per simulated robot).
         hand: mount the Franka Hand on every flange.
-        spacing: distance between arm bases along x [m].
         object_width: a rigid object this wide [m] between every hand's fingers
             (the gripper's ``--gripper-object-width``); None: empty hands.
         scene: a scene fragment on every arm's table (a shipped name, "block" or
             "peg_in_hole", or an MJCF file; sim/scene.py); None: the bare table.
         payload: (mass, x, y, z) a mass on every flange, centre of mass in the flange
             frame, whose weight nothing compensates (``serve --payload``); None: none.
+
+    ``model`` is the shared one-arm world, ``datas[i]`` robot i's MjData (``data`` is
+    robot 0's), ``layout`` has one row per robot, every row indexing that robot's own
+    MjData. Every arm's base is its world's origin, so world and base frames coincide.
     """
 
     def __init__(
         self,
         n_arms: int = 1,
         hand: bool = False,
-        spacing: float = 2.0,
         object_width: float | None = None,
         scene: str | Path | None = None,
         payload: tuple[float, float, float, float] | None = None,
     ) -> None:
         if n_arms < 1:
             raise ValueError(f"n_arms must be >= 1, got {n_arms}")
-        self.model, self.layout = build_world(
-            n_arms=n_arms,
-            hand=hand,
-            spacing=spacing,
-            object_width=object_width,
-            scene=scene,
-            payload=payload,
+        self.model, one = build_world(
+            n_arms=1, hand=hand, object_width=object_width, scene=scene, payload=payload
         )
-        self.data = mujoco.MjData(self.model)
+        self.layout: ArmLayout = repeat_layout(one, n_arms)
+        #: robot i's MjData (all of the one model)
+        self.datas: tuple[mujoco.MjData, ...] = tuple(
+            mujoco.MjData(self.model) for _ in range(n_arms)
+        )
+        #: robot 0's MjData (the socket server's one robot; rendering)
+        self.data = self.datas[0]
         self.n = n_arms
         self.hand = hand
-        lay: ArmLayout = self.layout
-        self._qpos = _ArmArray(self.data.qpos, lay.qpos_adr)
-        self._qvel = _ArmArray(self.data.qvel, lay.dof_adr)
-        self._ctrl = _ArmArray(self.data.ctrl, lay.actuator_ids)
-        self._bias = _ArmArray(self.data.qfrc_bias, lay.dof_adr)
-        self._gravcomp = _ArmArray(self.data.qfrc_gravcomp, lay.dof_adr)
-        self._actuator = _ArmArray(self.data.qfrc_actuator, lay.dof_adr)
-        self.base_pos = np.asarray(lay.base_pos, dtype=np.float64)
+        #: (n, 3) every base at its world's origin (zeros, read-only)
+        self.base_pos = np.zeros((n_arms, 3))
+        self.base_pos.flags.writeable = False
+        datas = self.datas
+
+        def rows(field: str, index) -> ArmRows:
+            return ArmRows([getattr(d, field) for d in datas], index)
+
+        self._qpos = rows("qpos", one.qpos_adr[0])
+        self._qvel = rows("qvel", one.dof_adr[0])
+        self._ctrl = rows("ctrl", one.actuator_ids[0])
+        self._bias = rows("qfrc_bias", one.dof_adr[0])
+        self._gravcomp = rows("qfrc_gravcomp", one.dof_adr[0])
+        self._actuator = rows("qfrc_actuator", one.dof_adr[0])
+        self._flange_pos = rows("site_xpos", one.flange_site[0])
+        self._flange_mat = rows("site_xmat", one.flange_site[0])
+        self._joints = self.model.dof_jntid[np.asarray(one.dof_adr[0])]
+        self._axes = rows("xaxis", self._joints)
+        self._anchors = rows("xanchor", self._joints)
+        self._fingers = None
+        #: (n,) every hand's finger force limit [N] (None: no hand), applied to the shared
+        #: model's actuator force range before each arm's world steps
+        self.finger_force: np.ndarray | None = None
+        if one.finger_qpos_adr is not None:
+            self._fingers = rows("qpos", one.finger_qpos_adr[0])
+            self._finger_ctrl = rows("ctrl", one.finger_actuator[:1])
+            self._finger_act = int(one.finger_actuator[0])
+            self.finger_force = np.full(n_arms, self.model.actuator_forcerange[self._finger_act, 1])
+            self._applied_force = float(self.finger_force[0])
+        self._payload = None if one.payload_body is None else rows("xipos", one.payload_body[0])
+        self._link_contacts = rows("sensordata", one.link_contact_adr[0])
+        #: (n, 7) measured joint positions, velocities and torques (refreshed in place
+        #: after every step and reset)
+        self.q = self._qpos.out
+        self.dq = self._qvel.out
+        self.tau_J = self._actuator.out
         self.kp = np.empty((n_arms, 7))
         self.kd = np.empty((n_arms, 7))
         self.coriolis = np.zeros((n_arms, 7))
@@ -104,32 +119,24 @@ class ArmPhysics:
         self.payload_weight = np.zeros((n_arms, 7))
         self._tau = np.zeros((n_arms, 7))
         self._tmp = np.zeros((n_arms, 7))
-        self._copies = any(
-            a.view is None
-            for a in (self._qpos, self._qvel, self._actuator, self._bias, self._gravcomp)
+        #: the flange's position (n, 3) and its rotation transposed (n, 3, 3) -- the
+        #: column-major wire layout of O_T_EE's block -- refreshed after every step
+        self.flange_views: tuple[np.ndarray, np.ndarray] = (
+            self._flange_pos.out,
+            self._flange_mat.out.reshape(n_arms, 3, 3).transpose(0, 2, 1),
         )
-        self._flange_sites = np.asarray(lay.flange_site)
-        pos = strided_rows(self.data.site_xpos, self._flange_sites)
-        mat = strided_rows(self.data.site_xmat, self._flange_sites)
-        #: live views of the flange's world position (n, 3) and of its rotation
-        #: transposed (n, 3, 3) -- the column-major wire layout of O_T_EE's block --
-        #: when the sites are evenly spaced; None otherwise
-        self.flange_views: tuple[np.ndarray, np.ndarray] | None = None
-        R = None if mat is None else mat.reshape(n_arms, 3, 3)
-        if pos is not None and R is not None and np.shares_memory(R, self.data.site_xmat):
-            self.flange_views = (pos, R.transpose(0, 2, 1))
+        #: the joints' axes and anchors are gathered when a Jacobian first needs them
+        self._frames_fresh = False
         self._effective_inertia, self._cartesian_inertia = self._home_inertia()
         self._nullspace_damping = damping_for(NULLSPACE_STIFFNESS, self._effective_inertia)
-        self._joints = self.model.dof_jntid[np.asarray(lay.dof_adr)]
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
         self.reset_arms(np.arange(n_arms), np.broadcast_to(HOME_Q, (n_arms, 7)))
 
     # -- configuration -------------------------------------------------------------------------
 
     def _home_inertia(self) -> tuple[np.ndarray, np.ndarray]:
-        """At home, arm 0: the diagonal of the joint-space inertia (armature included)
-        and of the flange's Cartesian inertia (J M^-1 J^T)^-1, what the servos damp
-        against."""
+        """At home: the diagonal of the joint-space inertia (armature included) and of
+        the flange's Cartesian inertia (J M^-1 J^T)^-1, what the servos damp against."""
         data = mujoco.MjData(self.model)
         data.qpos[self.layout.qpos_adr[0]] = HOME_Q
         mujoco.mj_forward(self.model, data)
@@ -160,79 +167,111 @@ class ArmPhysics:
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         q = np.asarray(q, dtype=np.float64).reshape(len(arms), 7)
         lay = self.layout
-        self.data.qpos[lay.qpos_adr[arms]] = q
-        self.data.qvel[lay.dof_adr[arms]] = 0.0
-        self.data.qacc_warmstart[lay.dof_adr[arms]] = 0.0
-        self.data.ctrl[lay.actuator_ids[arms]] = 0.0
-        # Every dof of the arm's subtree restarts with no warm start, so an episode does
-        # not depend on how long the world ran on after the arm's last one ended (the
-        # vector env steps a stopped arm to the end of the step; a single env stops).
-        if lay.finger_qpos_adr is not None:
-            self.data.qpos[lay.finger_qpos_adr[arms]] = FINGER_OPEN
-            self.data.qvel[lay.finger_dof_adr[arms]] = 0.0
-            self.data.qacc_warmstart[lay.finger_dof_adr[arms]] = 0.0
-            self.data.ctrl[lay.finger_actuator[arms]] = FINGER_OPEN
-        # The arms' scene objects back where their fragment put them, at rest (a task
-        # then places them for its episode).
-        for joint, qadr in lay.scene_qpos_adr.items():
-            rows = (qadr[arms][:, None] + np.arange(7)).ravel()
-            self.data.qpos[rows] = self.model.qpos0[rows]
-            dofs = (lay.scene_dof_adr[joint][arms][:, None] + np.arange(6)).ravel()
-            self.data.qvel[dofs] = 0.0
-            self.data.qacc_warmstart[dofs] = 0.0
-        mujoco.mj_forward(self.model, self.data)
+        model = self.model
+        for k, i in enumerate(arms.tolist()):
+            data = self.datas[i]
+            data.qpos[lay.qpos_adr[i]] = q[k]
+            data.qvel[lay.dof_adr[i]] = 0.0
+            data.qacc_warmstart[lay.dof_adr[i]] = 0.0
+            data.ctrl[lay.actuator_ids[i]] = 0.0
+            # Every dof of the arm's world restarts with no warm start, so an episode does
+            # not depend on how long the world ran on after the arm's last one ended (the
+            # vector env steps a stopped arm to the end of the step; a single env stops).
+            if lay.finger_qpos_adr is not None:
+                data.qpos[lay.finger_qpos_adr[i]] = FINGER_OPEN
+                data.qvel[lay.finger_dof_adr[i]] = 0.0
+                data.qacc_warmstart[lay.finger_dof_adr[i]] = 0.0
+                data.ctrl[lay.finger_actuator[i]] = FINGER_OPEN
+            # The scene objects back where their fragment put them, at rest (a task then
+            # places them for its episode).
+            for joint, qadr in lay.scene_qpos_adr.items():
+                adr, dof = int(qadr[i]), int(lay.scene_dof_adr[joint][i])
+                data.qpos[adr : adr + 7] = model.qpos0[adr : adr + 7]
+                data.qvel[dof : dof + 6] = 0.0
+                data.qacc_warmstart[dof : dof + 6] = 0.0
+        self.forward(arms)
+
+    def forward(self, arms: np.ndarray) -> None:
+        """mj_forward on the worlds of ``arms`` (after their state was set: a reset, an
+        object placed), and the measured arrays refreshed."""
+        for i in np.atleast_1d(np.asarray(arms, dtype=np.intp)).tolist():
+            self._apply_finger_force(i)
+            mujoco.mj_forward(self.model, self.datas[i])
         self._refresh()
 
-    def _refresh(self) -> None:
-        """Measured quantities of the current MuJoCo state, as (n, 7) arrays.
+    def set_finger_force(self, arms, force) -> None:
+        """The finger force limit [N] of the hands of ``arms`` from the next step on (the
+        fingers' position servo saturates there: models/hand.xml)."""
+        if self.finger_force is None:
+            raise ValueError("no hand is mounted (ArmPhysics(hand=True) mounts one)")
+        self.finger_force[arms] = force
 
-        Where the arms' addresses are affine these are live views into MjData
-        (no copy per cycle); otherwise copies made here.
-        """
-        self.q = self._qpos.get()
-        self.dq = self._qvel.get()
+    def _apply_finger_force(self, i: int) -> None:
+        """The shared model's finger force range set to arm i's (only when it differs)."""
+        if self.finger_force is not None and self.finger_force[i] != self._applied_force:
+            force = self._applied_force = float(self.finger_force[i])
+            self.model.actuator_forcerange[self._finger_act] = (-force, force)
+
+    def _refresh(self) -> None:
+        """Gather the measured quantities of every robot's MjData into the (n, ...) arrays
+        (in place: references to ``q``, ``dq``, ``tau_J``, ``flange_views`` stay valid)."""
+        self._qpos.gather()
+        self._qvel.gather()
         # qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone.
-        self.tau_J = self._actuator.get()
+        self._actuator.gather()
+        self._flange_pos.gather()
+        self._flange_mat.gather()
+        self._frames_fresh = False
         self._update_coriolis()
 
     def _update_coriolis(self) -> None:
         """C(q, dq) dq of the new state: the bias forces without the gravity MuJoCo's
         actuators compensate; a payload nobody configured (gravcomp 0) is not in that
         compensation, and its weight is not Coriolis: it is left to sag the arm."""
-        np.subtract(self._bias.get(), self._gravcomp.get(), out=self.coriolis)
-        if self.layout.payload_body is not None:
+        np.subtract(self._bias.gather(), self._gravcomp.gather(), out=self.coriolis)
+        if self._payload is not None:
             self.payload_weight[...] = self._payload_weight()
             self.coriolis -= self.payload_weight
 
     def _payload_weight(self) -> np.ndarray:
         """(n, 7) the joint torques that would hold the payloads against gravity."""
         lay = self.layout
-        J = self.jacobian(self.data.xipos[lay.payload_body] - self.base_pos)
+        J = self.jacobian(self._payload.gather())
         return weight_torque(J, self.model.body_mass[lay.payload_body], self.model.opt.gravity)
 
     def jacobian(self, point: np.ndarray) -> np.ndarray:
         """(n, 6, 7) geometric Jacobian of ``point`` (n, 3, each arm's base frame) on each
         arm's last link, from the joints' axes and anchors of the current state."""
-        data = self.data
-        anchors = data.xanchor[self._joints] - self.base_pos[:, None, :]
-        return jacobian_at(data.xaxis[self._joints], anchors, point)
+        if not self._frames_fresh:
+            self._axes.gather()
+            self._anchors.gather()
+            self._frames_fresh = True
+        return jacobian_at(self._axes.out, self._anchors.out, point)
+
+    def link_contacts(self) -> np.ndarray:
+        """(n,) bool: arm i's world reports a contact of a link with a link three or more
+        further down the chain, or with the hand (world.py's contact sensors): the arms
+        whose contact list a self-collision check must read."""
+        return self._link_contacts.gather().any(axis=1)
 
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo
         takes half of it per finger: models/hand.xml)."""
-        if self.layout.finger_actuator is None:
+        if self._fingers is None:
             raise ValueError("no hand is mounted (ArmPhysics(hand=True) mounts one)")
-        self.data.ctrl[self.layout.finger_actuator[arms]] = np.asarray(width) / 2.0
+        arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
+        half = np.broadcast_to(np.asarray(width, dtype=float) / 2.0, arms.shape)
+        self._finger_ctrl.scatter(half[:, None], arms)
 
     def finger_width(self) -> np.ndarray:
         """(n,) measured opening width [m]: the two finger joints summed."""
-        if self.layout.finger_qpos_adr is None:
+        if self._fingers is None:
             raise ValueError("no hand is mounted")
-        return self.data.qpos[self.layout.finger_qpos_adr].sum(axis=1)
+        return self._fingers.gather().sum(axis=1)
 
     @property
     def time(self) -> float:
-        """Simulated time [s]."""
+        """Simulated time [s] (every robot's world steps in lockstep)."""
         return float(self.data.time)
 
     # -- the cycle -----------------------------------------------------------------------------
@@ -281,13 +320,23 @@ class ArmPhysics:
             tau = np.where(external[:, None], tau_external, tau)
         if compensation is not None:
             tau = tau + compensation
-        self._ctrl.set(tau)
-        mujoco.mj_step2(self.model, self.data)
-        mujoco.mj_step1(self.model, self.data)
-        if self._copies:
-            self._refresh()
-        else:
-            self._update_coriolis()
+        self._ctrl.scatter(tau)
+        model = self.model
+        if self.finger_force is None:
+            for data in self.datas:
+                mujoco.mj_step2(model, data)
+                mujoco.mj_step1(model, data)
+        else:  # the force range is the model's, the limits are every arm's own
+            forcerange, act = model.actuator_forcerange, self._finger_act
+            applied = self._applied_force
+            for force, data in zip(self.finger_force.tolist(), self.datas, strict=True):
+                if force != applied:
+                    forcerange[act] = (-force, force)
+                    applied = force
+                mujoco.mj_step2(model, data)
+                mujoco.mj_step1(model, data)
+            self._applied_force = applied
+        self._refresh()
 
     def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
         """(n, 7) the Cartesian impedance servo's torque (without Coriolis) of every arm."""
@@ -306,9 +355,7 @@ class ArmPhysics:
     def flange_pose_raw(self) -> tuple[np.ndarray, np.ndarray]:
         """Flange (link8) position (n, 3) in each arm's base frame, and its rotation as
         MuJoCo's row-major (n, 9) xmat (arm bases are not rotated)."""
-        sites = self._flange_sites
-        pos = self.data.site_xpos[sites] - self.base_pos
-        return pos, self.data.site_xmat[sites]
+        return self._flange_pos.out.copy(), self._flange_mat.out.copy()
 
     def flange_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Flange (link8) position (n, 3) and rotation (n, 3, 3) in each arm's base frame."""

@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import native
 from .rotations import LEVI_CIVITA
+from .views import ArmRows
 
 if TYPE_CHECKING:
     from .arm import ArmPhysics
@@ -60,17 +61,34 @@ class ArmDynamics:
 
     Args:
         physics: the arms (after a step, mj_step1 has left M and the bias forces of
-            the new state in MjData; see sim/arm.py).
+            the new state in every arm's MjData; see sim/arm.py).
     """
 
     def __init__(self, physics: ArmPhysics) -> None:
         self.physics = physics
-        lay = physics.layout
-        self._dofs = np.asarray(lay.dof_adr)
+        model, lay = physics.model, physics.layout
+        datas = physics.datas
+        dofs = np.asarray(lay.dof_adr[0])
         self._bias = np.zeros((physics.n, 7))
         self._payload = lay.payload_body
-        self._full = np.zeros(physics.model.nv)
-        self._product = np.zeros(physics.model.nv)
+        self._qfrc_bias = ArmRows([d.qfrc_bias for d in datas], dofs)
+        self._passive = ArmRows([d.qfrc_passive for d in datas], dofs)
+        # Where the arm's 7 x 7 block sits in MuJoCo's sparse inertia d.M: mj_fullM of a
+        # probe whose M holds its own indices.
+        probe = mujoco.MjData(model)
+        probe.M[:] = np.arange(len(probe.M))
+        full = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, probe, full)
+        block = full[np.ix_(dofs, dofs)].astype(np.intp)
+        lo, hi = int(block.min()), int(block.max()) + 1
+        # the arm's stretch of M, gathered as rows; the block indexed out of it
+        self._qM = ArmRows([d.M for d in datas], np.arange(lo, hi))
+        self._block = block - lo
+
+    def mass_matrix(self) -> np.ndarray:
+        """(n, 7, 7) each arm's own block of MuJoCo's joint-space inertia (armature
+        included), gathered from every arm's MjData."""
+        return self._qM.gather()[:, self._block]
 
     def mass_times(self, x: np.ndarray) -> np.ndarray:
         """(n, 7) M(q) x per arm: the joint-space inertia of each arm times ``x`` (n, 7).
@@ -79,10 +97,8 @@ class ArmDynamics:
         fingers' and objects' degrees of freedom are left at zero, as the robot's model
         treats its end effector as a rigid load on the flange.
         """
-        full = self._full
-        full[self._dofs] = x
-        mujoco.mj_mulM(self.physics.model, self.physics.data, self._product, full)
-        return self._product[self._dofs]
+        M = self.mass_matrix()
+        return np.matmul(M, np.asarray(x, dtype=np.float64)[..., None])[..., 0]
 
     def bias(self) -> np.ndarray:
         """(n, 7) C(q, dq) dq + g(q) + the joint friction: what the drives must supply
@@ -94,9 +110,7 @@ class ArmDynamics:
         the robot being told (``ArmPhysics(payload=...)``) is not in the robot's model:
         its weight is left out (its inertia stays in M, a small error in fast motions).
         """
-        data = self.physics.data
-        bias = np.subtract(data.qfrc_bias[self._dofs], data.qfrc_passive[self._dofs],
-                           out=self._bias)  # fmt: skip
+        bias = np.subtract(self._qfrc_bias.gather(), self._passive.gather(), out=self._bias)
         if self._payload is not None:  # a payload the robot is not told of: not its model
             bias -= self.physics.payload_weight
         return bias

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .arm import ArmPhysics
+from .views import ArmRows
 
 #: The fingers count as blocked when the ramp leads them by this much [m of
 #: width]. Free fingers track the fed-forward ramp within ~0.3 mm at 0.1 m/s
@@ -100,7 +101,8 @@ class FingerDrive:
         layout = physics.layout
         if layout.finger_actuator is None:
             raise ValueError("the physics gripper needs a hand: ArmPhysics(hand=True)")
-        self._model, self._data = physics.model, physics.data
+        self.physics, self._arm = physics, arm
+        self._model, self._data = physics.model, physics.datas[arm]
         self._act = int(layout.finger_actuator[arm])
         self._qpos = [int(a) for a in layout.finger_qpos_adr[arm]]
         self._dof = [int(a) for a in layout.finger_dof_adr[arm]]
@@ -150,7 +152,7 @@ class FingerDrive:
             self._ref = width  # start from where the fingers are: no jump in force
             self._target = width if cmd.target is None else cmd.target
             self._squeezing = False
-            self._model.actuator_forcerange[self._act] = (-cmd.force, cmd.force)
+            self.physics.set_finger_force(self._arm, cmd.force)
         ref, ref_velocity, stalled = ramp(self._ref, self._target, width, cmd.speed, self._dt)
         self._ref, stalled = float(ref), bool(stalled)
         if cmd.squeeze and stalled:
@@ -217,17 +219,17 @@ class FingerServos:
             raise ValueError("finger servos need a hand: ArmPhysics(hand=True)")
         self.physics = physics
         model = physics.model
-        self._act = np.asarray(layout.finger_actuator)
-        self._qpos = np.asarray(layout.finger_qpos_adr)
-        self._dof = np.asarray(layout.finger_dof_adr)
-        act0 = int(self._act[0])
+        act0 = int(layout.finger_actuator[0])
+        # every arm's finger joints and servo control, in its own MjData
+        self._qpos = ArmRows([d.qpos for d in physics.datas], layout.finger_qpos_adr[0])
+        self._ctrl = ArmRows([d.ctrl for d in physics.datas], layout.finger_actuator[:1])
         self._kp = float(model.actuator_gainprm[act0, 0])
         self._feed_forward = -float(model.actuator_biasprm[act0, 2]) / self._kp
         self._dt = float(model.opt.timestep)
         limit = model.actuator_forcerange[act0, 1] if force is None else force
         #: the force limit of motions that give none [N]
         self.default_force = float(limit)
-        model.actuator_ctrlrange[self._act] = (-math.inf, math.inf)
+        model.actuator_ctrlrange[act0] = (-math.inf, math.inf)
         n = physics.n
         self.ref = np.zeros(n)
         self.target = np.zeros(n)
@@ -240,7 +242,7 @@ class FingerServos:
 
     def width(self) -> np.ndarray:
         """(n,) measured opening [m]: the two finger joints summed."""
-        return self.physics.data.qpos[self._qpos].sum(axis=1)
+        return self._qpos.gather().sum(axis=1)
 
     def command(self, arms, target, speed, force=None, squeeze=False) -> None:
         """New commands for ``arms``: the ramp starts from where the fingers are.
@@ -260,8 +262,7 @@ class FingerServos:
         self.speed[arms] = speed
         self.force[arms] = force
         self.squeeze[arms] = squeeze
-        force = self.force[arms]
-        self.physics.model.actuator_forcerange[self._act[arms]] = np.stack([-force, force], 1)
+        self.physics.set_finger_force(arms, self.force[arms])
 
     def hold(self, arms, force: float) -> None:
         """Squeeze the hands of ``arms`` closed (on what is between the fingers) with
@@ -272,15 +273,15 @@ class FingerServos:
         self.squeezing[arms] = True
         self.stalled[arms] = True
         ctrl = finger_ctrl(True, self.force[arms], self._kp, 0.0, 0.0, 0.0)
-        self.physics.data.ctrl[self._act[arms]] = ctrl
+        self._ctrl.scatter(np.broadcast_to(ctrl, arms.shape)[:, None], arms)
 
     def tick(self, arms) -> None:
         """Advance the ramps of ``arms`` by one step and set their servos' controls."""
         arms = np.asarray(arms, dtype=np.intp)
         if not len(arms):
             return
-        q = self.physics.data.qpos
-        width = q[self._qpos[arms, 0]] + q[self._qpos[arms, 1]]
+        q = self._qpos.gather()[arms]
+        width = q[:, 0] + q[:, 1]
         ref, velocity, stalled = ramp(
             self.ref[arms], self.target[arms], width, self.speed[arms], self._dt
         )
@@ -288,6 +289,5 @@ class FingerServos:
         squeezing = self.squeezing[arms] | (self.squeeze[arms] & stalled)
         self.squeezing[arms] = squeezing
         self.stalled[arms] = stalled | squeezing
-        self.physics.data.ctrl[self._act[arms]] = finger_ctrl(
-            squeezing, self.force[arms], self._kp, ref, self._feed_forward, velocity
-        )
+        ctrl = finger_ctrl(squeezing, self.force[arms], self._kp, ref, self._feed_forward, velocity)
+        self._ctrl.scatter(ctrl[:, None], arms)

@@ -105,7 +105,8 @@ class HeldObjects:
     object's load in libfranka's SetLoad terms, for the env's ``configure_load``.
 
     Args:
-        model, layout: the world (with hands) and its layout.
+        model, layout: the one-arm world every arm steps (with a hand) and the arms'
+            layout (``ArmPhysics.layout``).
         body: (n,) each arm's object body (``layout.scene_body[name]``).
     """
 
@@ -115,37 +116,31 @@ class HeldObjects:
         n = layout.n
         self.body = np.asarray(body, dtype=np.intp)
         self._flange = np.asarray(layout.flange_site, dtype=np.intp)
-        # Every geom's role in the test: 1 an object, 2 a left tip, 3 a right tip.
+        # Every geom's role in the test: 1 the object, 2 the left tip, 3 the right tip.
         self._role = np.zeros(model.ngeom, dtype=np.int64)
-        self._arm = np.full(model.ngeom, -1, dtype=np.int64)
-        for i in range(n):
-            for role, name in ((2, f"arm{i}/left_tip"), (3, f"arm{i}/right_tip")):
-                g = model.geom(name).id
-                self._role[g], self._arm[g] = role, i
-        for i, b in enumerate(self.body.tolist()):
-            geoms = np.flatnonzero(model.geom_bodyid == b)
-            self._role[geoms], self._arm[geoms] = 1, i
+        for role, name in ((2, "arm0/left_tip"), (3, "arm0/right_tip")):
+            self._role[model.geom(name).id] = role
+        self._role[np.flatnonzero(model.geom_bodyid == self.body[0])] = 1
         self.mass = model.body_mass[self.body].copy()
         self._inertia = model.body_inertia[self.body].copy()
         self.n = n
 
-    def held(self, data: mujoco.MjData) -> np.ndarray:
-        """(n,) True where both fingertips of arm i's hand touch arm i's object."""
+    def held(self, datas) -> np.ndarray:
+        """(n,) True where both fingertips of arm i's hand touch arm i's object
+        (``datas[i]``: arm i's MjData)."""
         touching = np.zeros((self.n, 4), dtype=bool)
-        ncon = data.ncon
-        if ncon:
-            geoms = data.contact.geom[:ncon]
-            roles = self._role[geoms]
-            arms = self._arm[geoms]
+        for i, data in enumerate(datas):
+            if not data.ncon:
+                continue
+            roles = self._role[data.contact.geom]
             for a, b in ((0, 1), (1, 0)):
-                rows = (roles[:, a] == 1) & (roles[:, b] >= 2) & (arms[:, a] == arms[:, b])
-                touching[arms[rows, a], roles[rows, b]] = True
+                touching[i, roles[roles[:, a] == 1, b]] = True
         return touching[:, 2] & touching[:, 3]
 
     def load(self, data: mujoco.MjData, i: int) -> tuple[float, np.ndarray, np.ndarray]:
-        """Arm i's object as SetLoad's (m_load, F_x_Cload, I_load): its mass, its centre
-        of mass in the flange frame, and its inertia about that centre in flange axes
-        (9 values, column-major: symmetric)."""
+        """Arm i's object (``data``: arm i's MjData) as SetLoad's (m_load, F_x_Cload,
+        I_load): its mass, its centre of mass in the flange frame, and its inertia about
+        that centre in flange axes (9 values, column-major: symmetric)."""
         b, site = int(self.body[i]), int(self._flange[i])
         F_R_O = data.site_xmat[site].reshape(3, 3).T
         com = F_R_O @ (data.xipos[b] - data.site_xpos[site])

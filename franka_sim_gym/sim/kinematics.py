@@ -1,13 +1,16 @@
-"""Forward kinematics, the end-effector Jacobian and the IK solve of the n arms of a world.
+"""Forward kinematics, the end-effector Jacobian and the IK solve of n arms.
 
-The kinematics are MuJoCo's own, on a second MjData of the physics model, so the pose
-the IK solves for is exactly the pose the simulated arm reaches -- no second kinematic
-model to drift from the first. The IK's rule (the pose error, the damped Gauss-Newton
+The kinematics are MuJoCo's own, on a world of n bare arms stacked at the origin
+(``build_world(n, spacing=0)``): each arm's frames there are computed exactly as the
+one arm of the physics world computes them (the same chain from the same origin), so
+the pose the IK solves for is exactly the pose the simulated arm reaches -- no second
+kinematic model to drift from the first -- and one ``mj_kinematics`` serves all n arms.
+The IK's rule (the pose error, the damped Gauss-Newton
 step, its settings) is :mod:`franka_sim_gym.sim.ik`; rotations are
 :mod:`franka_sim_gym.sim.rotations`.
 
-Batch-first: every call handles all n arms of the world (one ``mj_kinematics`` for the
-whole world per evaluation, the Jacobian assembled for every arm at once from MuJoCo's
+Batch-first: every call handles all n arms (one ``mj_kinematics`` for the stacked world
+per evaluation, the Jacobian assembled for every arm at once from MuJoCo's
 joint anchors and axes).
 """
 
@@ -27,7 +30,7 @@ from .ik import (
     pose_error,
 )
 from .views import strided_rows
-from .world import ArmLayout
+from .world import ArmLayout, build_world
 
 __all__ = ["IK_KERNEL", "ArmKinematics"]
 
@@ -36,11 +39,13 @@ IK_KERNEL = native.load("sim._ik")
 
 
 class ArmKinematics:
-    """Kinematics of the n arms of a world, on a private MjData (physics is not touched).
+    """Kinematics of n arms, on a private world of n arms stacked at the origin (physics
+    is not touched).
 
     Args:
-        model: the compiled world (``world.build_world``).
-        layout: its arm layout.
+        model: the physics world (``ArmPhysics.model``): its arms' kinematics are those of
+            models/fr3.xml at the origin, which the private world repeats.
+        layout: its arm layout (``layout.n`` arms).
         damping: Levenberg-Marquardt damping lambda of the IK step; small, so the
             fixed point is the exact solution (damping only tames singular steps).
         max_iterations: Gauss-Newton updates per solve at most.
@@ -67,6 +72,8 @@ class ArmKinematics:
         tolerance: float = 1e-7,
         kernel: bool = True,
     ) -> None:
+        # The arms' frames alone: the hands, the table and the objects change no link's pose.
+        model, layout = build_world(n_arms=layout.n, spacing=0.0)
         self.model = model
         self.data = mujoco.MjData(model)
         self.layout = layout

@@ -10,10 +10,10 @@ welded to the world like the table, and MuJoCo never collides two static geoms: 
 base cannot touch it.
 
 A scene fragment is an MJCF file whose ``<worldbody>`` holds bodies positioned in an
-arm's base frame (objects with a ``<freejoint>``, fixtures without). The world builder
-attaches one copy per arm at that arm's base, with the arm's name prefix
-(``arm{i}/block``), so n arms get n sets of objects that never meet: arms stand
-``spacing`` apart (2 m by default, more than twice the FR3's 855 mm reach). The project
+arm's base frame (objects with a ``<freejoint>``, fixtures without, or as mocap bodies a
+task places per episode). The world builder attaches it at the arm's base, with the
+arm's name prefix (``arm0/block``); every robot steps its own MjData of that one-arm
+world (sim/arm.py), so n robots have n sets of objects that never meet. The project
 ships the fragments its tasks use (:data:`SCENES`); any other file can be given by path.
 """
 

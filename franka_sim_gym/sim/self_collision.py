@@ -12,54 +12,54 @@ view widens. Neighbours and once-removed pairs are not monitored, nor the hand
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 
-from .world import SELF_COLLISION_DISTANCE, ArmLayout
+from .world import MIN_CHAIN_SEPARATION, SELF_COLLISION_DISTANCE, ArmLayout
 
-#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three apart
-#: in the chain are monitored.
-MIN_CHAIN_SEPARATION = 3
+if TYPE_CHECKING:
+    from .arm import ArmPhysics
 
 
-def close_link_pairs(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    layout: ArmLayout,
-    distance: float = SELF_COLLISION_DISTANCE,
-) -> np.ndarray:
-    """(n,) bool: arm i has a monitored link pair closer than ``distance``.
 
-    Costs nothing when MuJoCo reports no contact at all (the usual case).
+def close_link_pairs(physics: ArmPhysics, distance: float = SELF_COLLISION_DISTANCE) -> np.ndarray:
+    """(n,) bool: arm i (its own MjData ``physics.datas[i]``) has a monitored link pair
+    closer than ``distance``.
+
+    Reads the contact lists of the arms whose link contact sensors count a contact
+    (``physics.link_contacts``: none, the usual case) and judges them in one pass.
     """
-    close = np.zeros(layout.n, dtype=bool)
-    ncon = data.ncon
-    if ncon == 0:
+    close = np.zeros(physics.n, dtype=bool)
+    arms = np.flatnonzero(physics.link_contacts())
+    if not len(arms):
         return close
-    geoms = data.contact.geom[:ncon]
-    arm = layout.geom_arm[geoms]
-    link = layout.geom_link[geoms]
+    geoms, dists, rows = [], [], []
+    for i in arms.tolist():
+        contact = physics.datas[i].contact
+        geoms.append(contact.geom)
+        dists.append(contact.dist)
+        rows.append(np.full(len(contact.dist), i))
+    link = physics.layout.geom_link[np.concatenate(geoms)]
     monitored = (
-        (arm[:, 0] >= 0)
-        & (arm[:, 0] == arm[:, 1])
-        & (link[:, 0] >= 0)
+        (link[:, 0] >= 0)
         & (link[:, 1] >= 0)
         & (np.abs(link[:, 0] - link[:, 1]) >= MIN_CHAIN_SEPARATION)
-        & (data.contact.dist[:ncon] < distance)
+        & (np.concatenate(dists) < distance)
     )
-    close[arm[monitored, 0]] = True
+    close[np.concatenate(rows)[monitored]] = True
     return close
 
 
 def closest_link_pair(
-    model: mujoco.MjModel, data: mujoco.MjData, layout: ArmLayout, arm: int
+    model: mujoco.MjModel, data: mujoco.MjData, layout: ArmLayout
 ) -> tuple[float, int, int] | None:
-    """For the log line: (distance, link a, link b) of arm ``arm``'s closest monitored pair."""
+    """For the log line: (distance, link a, link b) of the closest monitored pair of the
+    arm whose MjData is ``data``."""
     best = None
     for c in range(data.ncon):
         g1, g2 = data.contact.geom[c]
-        if layout.geom_arm[g1] != arm or layout.geom_arm[g2] != arm:
-            continue
         a, b = int(layout.geom_link[g1]), int(layout.geom_link[g2])
         if a < 0 or b < 0 or abs(a - b) < MIN_CHAIN_SEPARATION:
             continue

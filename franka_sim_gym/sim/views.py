@@ -1,14 +1,22 @@
-"""The arms' rows of MuJoCo's data arrays as views, where the layout allows.
+"""Rows of MuJoCo's data arrays as views, and every robot's rows of its own MjData.
 
-MuJoCo lays the arms of a world out one after another, so arm i's entries of a data
-array sit at evenly spaced rows; a strided view of them replaces a fancy-index copy on
-every read and write of the 1 kHz path (sim/arm.py's joint arrays, sim/kinematics.py's
-private MjData).
+Where a world holds several arms (sim/kinematics.py's stacked world), MuJoCo lays them
+out one after another, so arm i's entries of a data array sit at evenly spaced rows: a
+strided view of them replaces a fancy-index copy on every read and write of the 1 kHz
+path (:func:`strided_rows`). Where every robot steps its own MjData of one model
+(sim/arm.py), :class:`ArmRows` gathers robot i's rows of each into one (n, ...) array
+and writes rows back.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .. import native
+
+#: The C replacement of ArmRows' loops over the robots (sim/_rows.c: copies, the same
+#: bits), or None where not built or the backend switch is off.
+ROWS_KERNEL = native.load("sim._rows")
 
 
 def strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
@@ -41,3 +49,77 @@ def strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
     if not np.array_equal(rows_of(probe), probe[index]):  # pragma: no cover - a layout error
         raise AssertionError("a strided view disagrees with its gather")
     return rows_of(array)
+
+
+class ArmRows:
+    """One slice of every robot's MjData array: robot i's ``array[index]`` of its own
+    MjData, gathered into one (n, ...) array and written back per robot.
+
+    Args:
+        arrays: robot i's MuJoCo data array (e.g. ``datas[i].qpos``), one per robot.
+        index: the slice's rows (the same in every robot's MjData: one model); an int
+            gives rows of that one entry's shape.
+
+    ``out`` is the gathered array, refreshed in place by :meth:`gather` (so a reference
+    to it reads like a live view after every gather).
+    """
+
+    def __init__(self, arrays: list[np.ndarray], index) -> None:
+        self.arrays = arrays
+        self.index = index = np.asarray(index, dtype=np.intp)
+        flat = index.reshape(-1) if index.ndim else index.reshape(1)
+        views = [strided_rows(a, flat) for a in arrays]
+        shape = arrays[0][index].shape
+        #: robot i's rows as a view of its MjData (None: the rows are not evenly spaced)
+        self.views = None
+        if all(v is not None for v in views):
+            shaped = [v.reshape(shape) for v in views]
+            if all(np.shares_memory(v, a) for v, a in zip(shaped, arrays, strict=True)):
+                self.views = shaped
+        self.out = np.empty((len(arrays), *shape), dtype=arrays[0].dtype)
+        # the rows as the C loops take them: contiguous float64 views, or None
+        self._sources = None
+        if (
+            ROWS_KERNEL is not None
+            and self.views is not None
+            and self.out.dtype == np.float64
+            and all(v.flags.c_contiguous for v in self.views)
+        ):
+            self._sources = tuple(self.views)
+
+    def gather(self) -> np.ndarray:
+        """``out`` refreshed from every robot's MjData."""
+        out = self.out
+        if self._sources is not None:
+            ROWS_KERNEL.gather(self._sources, out)
+        elif self.views is not None:
+            for i, view in enumerate(self.views):
+                out[i] = view
+        else:
+            index = self.index
+            for i, array in enumerate(self.arrays):
+                out[i] = array[index]
+        return out
+
+    def get(self, i: int) -> np.ndarray:
+        """Robot i's rows (a view where the rows are evenly spaced, else a copy)."""
+        return self.views[i] if self.views is not None else self.arrays[i][self.index]
+
+    def set(self, i: int, value) -> None:
+        """Write robot i's rows of its MjData."""
+        if self.views is not None:
+            self.views[i][...] = value
+        else:
+            self.arrays[i][self.index] = value
+
+    def scatter(self, values: np.ndarray, arms=None) -> None:
+        """Write row k of ``values`` into robot ``arms[k]``'s MjData (every robot in order
+        when ``arms`` is None)."""
+        if self._sources is not None:
+            values = np.ascontiguousarray(values, dtype=np.float64)
+            rows = None if arms is None else np.ascontiguousarray(arms, dtype=np.int64)
+            ROWS_KERNEL.scatter(values, self._sources, rows)
+            return
+        rows = range(len(self.arrays)) if arms is None else np.asarray(arms).tolist()
+        for k, i in enumerate(rows):
+            self.set(i, values[k])

@@ -1,4 +1,10 @@
-"""Compose n FR3 arms, optionally with Franka Hands, into one MuJoCo world.
+"""Compose FR3 arms, optionally with Franka Hands, into a MuJoCo world.
+
+The simulator's physics is a world of ONE arm at the origin (:func:`build_world` with
+``n_arms=1``): every simulated robot steps its own MjData of that one model
+(sim/arm.py), so robot i's arithmetic is exactly a single robot's. Worlds of n arms
+are for kinematics alone (sim/kinematics.py stacks n arms at the origin, where each
+arm's frames are computed exactly as in the one-arm world) and for tests.
 
 Arm i is models/fr3.xml attached with the name prefix ``arm{i}/`` at
 (spacing * i, 0, 0), unrotated; with ``hand=True`` models/hand.xml is attached
@@ -64,7 +70,8 @@ _ARM_GEOM_CLASS = "arm_collision"
 class ArmLayout:
     """Indices of every arm's elements in the compiled world model.
 
-    Rows are arms; columns joints 1..7 (or links 0..7). ``geom_arm`` /
+    Rows are arms (:func:`repeat_layout`: n rows of the one arm of a one-arm world, each
+    indexing that arm's own MjData); columns joints 1..7 (or links 0..7). ``geom_arm`` /
     ``geom_link`` map every geom to the arm and link it belongs to, -1 for
     geoms that are not arm-link geoms (the table, the hand, scene objects).
     ``scene_body`` / ``scene_qpos_adr`` map a scene fragment's body names and its
@@ -91,6 +98,9 @@ class ArmLayout:
     scene_body: dict[str, np.ndarray] = field(default_factory=dict)
     scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
     scene_dof_adr: dict[str, np.ndarray] = field(default_factory=dict)  # (n,) 6 dofs each
+    #: (n, 5) sensordata address of the contact sensors :func:`_add_link_contact_sensors`
+    #: adds: each counts the reported contacts of link a with link a + 3 or beyond
+    link_contact_adr: np.ndarray | None = None
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -162,10 +172,8 @@ def build_world(
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     # Always the sparse constraint Jacobian: MuJoCo's "auto" picks dense below 60 dofs
-    # and sparse above, and the two sum in different orders, so an arm pushing a block
-    # would differ (~1e-14) between a world of one arm and one of n. Sparse, with the
-    # constraint islands MuJoCo solves one by one, makes arm i of n arms bit for bit the
-    # arm of a one-arm world (docs/env.md, "Native vector env").
+    # and sparse above, and the two sum in different orders (~1e-14 apart): one choice
+    # for every world this builds, whatever its size.
     spec.option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     world = spec.worldbody
     add_table(spec)
@@ -189,6 +197,7 @@ def build_world(
                 _add_object(spec, prefix, object_width)
         if payload is not None:
             _add_payload(spec, prefix, payload)
+        _add_link_contact_sensors(spec, prefix)
     spec.add_key(name="home")
     model = spec.compile()
     if hand:
@@ -201,6 +210,28 @@ def build_world(
     layout = _layout(model, n_arms, hand, fragment, payload is not None)
     _set_home(model, layout)
     return model, layout
+
+
+#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three
+#: apart in the chain are monitored (sim/self_collision.py; the sensors below).
+MIN_CHAIN_SEPARATION = 3
+
+
+def _add_link_contact_sensors(spec: mujoco.MjSpec, prefix: str) -> None:
+    """Five contact sensors per arm, sensor a counting the contacts MuJoCo reports between
+    link a's geoms and those of link a + 3's subtree (the links beyond it and the hand):
+    every self-collision pair is in one of them (sim/self_collision.py reads the contact
+    list only of arms whose count is not zero). Sensors add nothing to the dynamics."""
+    for a in range(8 - MIN_CHAIN_SEPARATION):
+        spec.add_sensor(
+            name=f"{prefix}link{a}_contacts",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            objname=f"{prefix}link{a}",
+            reftype=mujoco.mjtObj.mjOBJ_XBODY,  # the subtree of link a + 3
+            refname=f"{prefix}link{a + MIN_CHAIN_SEPARATION}",
+            intprm=[1, 0, 1],  # data "found", no reduction, one slot
+        )
 
 
 #: Radius [m] of the payload's inertia: a solid sphere, 2/5 m r^2 about each axis.
@@ -311,6 +342,8 @@ def _layout(
         )
     if payload:
         scene["payload_body"] = _ids(model, "body", [[p + "payload"] for p in pre])[:, 0]
+    sensors = [[f"{p}link{a}_contacts" for a in range(8 - MIN_CHAIN_SEPARATION)] for p in pre]
+    scene["link_contact_adr"] = model.sensor_adr[_ids(model, "sensor", sensors)]
     return ArmLayout(
         n=n,
         hand=hand,
@@ -324,6 +357,41 @@ def _layout(
         geom_link=geom_link,
         **fingers,
         **scene,
+    )
+
+
+def repeat_layout(layout: ArmLayout, n: int) -> ArmLayout:
+    """The layout of n robots that each step their own MjData of ``layout``'s one-arm
+    world: n rows, every one the arm's (row i indexes robot i's MjData)."""
+    if layout.n != 1:
+        raise ValueError(f"repeat_layout needs a one-arm layout, got {layout.n} arms")
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+
+    def rows(a):
+        return None if a is None else np.repeat(a, n, axis=0)
+
+    return ArmLayout(
+        n=n,
+        hand=layout.hand,
+        qpos_adr=rows(layout.qpos_adr),
+        dof_adr=rows(layout.dof_adr),
+        actuator_ids=rows(layout.actuator_ids),
+        flange_site=rows(layout.flange_site),
+        base_pos=rows(layout.base_pos),
+        link_body=rows(layout.link_body),
+        geom_arm=layout.geom_arm,
+        geom_link=layout.geom_link,
+        finger_qpos_adr=rows(layout.finger_qpos_adr),
+        finger_dof_adr=rows(layout.finger_dof_adr),
+        finger_actuator=rows(layout.finger_actuator),
+        tcp_site=rows(layout.tcp_site),
+        hand_body=rows(layout.hand_body),
+        payload_body=rows(layout.payload_body),
+        scene_body={k: rows(v) for k, v in layout.scene_body.items()},
+        scene_qpos_adr={k: rows(v) for k, v in layout.scene_qpos_adr.items()},
+        scene_dof_adr={k: rows(v) for k, v in layout.scene_dof_adr.items()},
+        link_contact_adr=rows(layout.link_contact_adr),
     )
 
 

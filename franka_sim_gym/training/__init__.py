@@ -5,7 +5,7 @@ stable-baselines3, torch, matplotlib, tqdm, tensorboard). docs/training.md tells
 default run and its figures.
 
 * ``franka_sim_gym.training.sb3_vec_env.FrankaFCISB3VecEnv`` — an SB3 ``VecEnv`` over
-  the native batched env (N arms in one MuJoCo world);
+  the native batched env (N arms, each its own MuJoCo world);
 * ``franka_sim_gym.training.sb3_her.ReflexChargedHerReplayBuffer`` — SB3's HER replay
   buffer keeping each transition's reflex charge, so that a relabelled reflex is no
   success;

@@ -1,4 +1,4 @@
-"""stable-baselines3's ``VecEnv`` on the native batched env: N arms, one world, no subprocesses.
+"""stable-baselines3's ``VecEnv`` on the native batched env: N arms, one call, no subprocesses.
 
     from stable_baselines3 import SAC
     from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer

@@ -61,8 +61,12 @@ def test_free_space_episodes_sense_nothing_under_the_default_thresholds():
 def test_a_scene_gives_every_arm_its_own_objects():
     envs = gym.make_vec("FrankaFCI-v0", num_envs=3, vectorization_mode="vector_entry_point",
                         scene="block")  # fmt: skip
-    layout = envs.unwrapped.core.controller.physics.layout
-    assert len(set(layout.scene_body["block"].tolist())) == 3
+    physics = envs.unwrapped.core.controller.physics
+    adr = int(physics.layout.scene_qpos_adr["block"][0])
+    envs.reset(seed=0)
+    physics.datas[1].qpos[adr] += 0.1  # arm 1's block, in arm 1's own world (MjData)
+    blocks = [d.qpos[adr : adr + 3].copy() for d in physics.datas]
+    assert blocks[1][0] != blocks[0][0] and np.array_equal(blocks[0], blocks[2])
 
 
 @pytest.mark.parametrize(

@@ -23,7 +23,7 @@ from tests.sim.test_scene import OVER_THE_TABLE
 
 def flange_jacobian(physics: ArmPhysics, dyn: ArmDynamics) -> tuple[np.ndarray, np.ndarray]:
     """(n, 6, 7) Jacobian at the flange and (n, 3) its position, base frame."""
-    point = physics.data.site_xpos[physics.layout.flange_site] - physics.base_pos
+    point = physics.flange_pose()[0]  # every arm's flange, in its own world (MjData)
     return dyn.jacobian(point), point
 
 
@@ -33,7 +33,8 @@ def test_the_jacobian_at_a_point_is_mujocos():
     J, _ = flange_jacobian(physics, ArmDynamics(physics))
     for i in range(2):
         jacp, jacr = np.zeros((3, physics.model.nv)), np.zeros((3, physics.model.nv))
-        mujoco.mj_jacSite(physics.model, physics.data, jacp, jacr, physics.layout.flange_site[i])
+        data = physics.datas[i]  # arm i's own world
+        mujoco.mj_jacSite(physics.model, data, jacp, jacr, physics.layout.flange_site[i])
         dofs = physics.layout.dof_adr[i]
         np.testing.assert_allclose(J[i], np.vstack([jacp[:, dofs], jacr[:, dofs]]), atol=1e-12)
 

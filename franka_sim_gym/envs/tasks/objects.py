@@ -32,23 +32,26 @@ def object_space() -> spaces.Box:
 
 def object_state(physics: Any, joint: str) -> np.ndarray:
     """(n, 13) every arm's object ``joint`` (a free joint of the task's scene): position
-    in its arm's base frame, quaternion (w >= 0), linear and angular velocity."""
+    in its arm's base frame (its world's origin), quaternion (w >= 0), linear and angular
+    velocity."""
     lay = physics.layout
-    qpos = physics.data.qpos[lay.scene_qpos_adr[joint][:, None] + np.arange(7)]
-    qvel = physics.data.qvel[lay.scene_dof_adr[joint][:, None] + np.arange(6)]
-    position = qpos[:, :3] - physics.base_pos
-    quat = qpos[:, 3:7] * np.where(qpos[:, 3:4] < 0, -1.0, 1.0)
-    return np.concatenate([position, quat, qvel], axis=1)
+    adr, dof = int(lay.scene_qpos_adr[joint][0]), int(lay.scene_dof_adr[joint][0])
+    state = np.empty((physics.n, 13))
+    for i, data in enumerate(physics.datas):
+        state[i, :7] = data.qpos[adr : adr + 7]
+        state[i, 7:] = data.qvel[dof : dof + 6]
+    state[:, 3:7] *= np.where(state[:, 3:4] < 0, -1.0, 1.0)
+    return state
 
 
 def place_object(physics: Any, joint: str, arm: int, position, quat=(1.0, 0.0, 0.0, 0.0)):
     """Put arm ``arm``'s object ``joint`` at ``position`` (its arm's base frame) with
-    orientation ``quat`` (w, x, y, z), at rest. The caller runs mj_forward."""
+    orientation ``quat`` (w, x, y, z), at rest. The caller runs ``physics.forward``."""
     lay = physics.layout
     adr = int(lay.scene_qpos_adr[joint][arm])
     dof = int(lay.scene_dof_adr[joint][arm])
-    physics.data.qpos[adr : adr + 3] = physics.base_pos[arm] + np.asarray(position, float)
-    physics.data.qpos[adr + 3 : adr + 7] = quat
-    physics.data.qvel[dof : dof + 6] = 0.0
-    physics.data.qacc_warmstart[dof : dof + 6] = 0.0
-
+    data = physics.datas[arm]
+    data.qpos[adr : adr + 3] = position
+    data.qpos[adr + 3 : adr + 7] = quat
+    data.qvel[dof : dof + 6] = 0.0
+    data.qacc_warmstart[dof : dof + 6] = 0.0

@@ -79,15 +79,16 @@ class PegInsertion(GoalDistanceTask):
         """The fixture at a seeded spot, the peg in the hand (its axis the hand's, its tip
         60 mm below the TCP, at rest), the fingers closed on it."""
         lay = physics.layout
-        data, model = physics.data, physics.model
-        fixture = lay.scene_body["fixture"]
+        # The fixture is a mocap body (scenes/peg_in_hole.xml): each arm's MjData places it.
+        mocap = int(physics.model.body_mocapid[lay.scene_body["fixture"][0]])
         goals = []
         for i in arms.tolist():
             goal = self.sample_goal(rngs[i])
-            model.body_pos[fixture[i]] = physics.base_pos[i] + goal
+            data = physics.datas[i]
+            data.mocap_pos[mocap] = goal
             site = lay.tcp_site[i]
             R_tcp = data.site_xmat[site].reshape(3, 3)
-            tcp = data.site_xpos[site] - physics.base_pos[i]
+            tcp = data.site_xpos[site]
             # The peg's own z axis points up the hand (its tip, local -z, down).
             R_peg = R_tcp @ np.diag([1.0, -1.0, -1.0])
             place_object(physics, self.object_joint, i, tcp + GRIP_OFFSET * R_tcp[:, 2],

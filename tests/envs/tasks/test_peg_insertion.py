@@ -53,6 +53,18 @@ def test_the_fixture_is_seeded_within_2_cm_and_is_the_goal():
     assert env.reset(seed=3)[0]["desired_goal"].tobytes() == goals[3]
 
 
+def test_every_arm_of_a_batched_env_has_its_fixture_at_its_own_goal():
+    envs = gym.make_vec("FrankaFCIPegInsertion-v0", num_envs=3,
+                        vectorization_mode="vector_entry_point")  # fmt: skip
+    physics = envs.unwrapped.core.controller.physics
+    body = physics.layout.scene_body["fixture"][0]
+    obs, _ = envs.reset(seed=7)
+    goals = obs["desired_goal"]
+    assert len({g.tobytes() for g in goals}) == 3
+    for data, goal in zip(physics.datas, goals, strict=True):  # each arm's own world
+        np.testing.assert_allclose(data.xpos[body], goal, atol=1e-6)
+
+
 def test_success_is_the_tip_at_the_bottom_of_the_hole():
     task = PegInsertion()
     hole = np.zeros((3, 3))
