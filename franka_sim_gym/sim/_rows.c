@@ -9,6 +9,11 @@
  *       targets[rows[k]] = values[k]: ``targets`` a tuple of C-contiguous float64 arrays
  *       of the values' row size, ``values`` C-contiguous float64 rows, ``rows`` an int64
  *       array of robot indices (None: every robot in order)
+ *   Gathers(pairs)
+ *       a gathering planned once: ``pairs`` a tuple of (sources, out) as gather takes
+ *       them, whose buffers it holds (the arrays stay alive and in place while it
+ *       lives); its ``gather()`` copies every pair, in order, with no look-up per call
+ *       (the rows of all the robots' MjData the cycle reads, in one call after a step)
  *
  * Copies only, so the same bits as the numpy loops. No rule of the robot lives here. */
 #define PY_SSIZE_T_CLEAN
@@ -141,10 +146,133 @@ static PyObject *scatter(PyObject *self, PyObject *const *args, Py_ssize_t nargs
     return result ? Py_NewRef(result) : NULL;
 }
 
+/* A planned gathering: every buffer held, every copy's pointers and size kept. */
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t nbuffers; /* buffers held (each out and each source) */
+    Py_buffer *buffers;
+    Py_ssize_t ncopies;
+    const double **src;
+    double **dst;
+    size_t *bytes;
+} GathersObject;
+
+static void Gathers_dealloc(GathersObject *self)
+{
+    for (Py_ssize_t k = 0; k < self->nbuffers; k++) PyBuffer_Release(&self->buffers[k]);
+    PyMem_Free(self->buffers);
+    PyMem_Free(self->src);
+    PyMem_Free(self->dst);
+    PyMem_Free(self->bytes);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *Gathers_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    PyObject *pairs;
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "Gathers() takes no keyword arguments");
+        return NULL;
+    }
+    if (!PyArg_ParseTuple(args, "O!:Gathers", &PyTuple_Type, &pairs)) return NULL;
+    Py_ssize_t npairs = PyTuple_GET_SIZE(pairs), ncopies = 0;
+    for (Py_ssize_t p = 0; p < npairs; p++) {
+        PyObject *pair = PyTuple_GET_ITEM(pairs, p);
+        if (!PyTuple_Check(pair) || PyTuple_GET_SIZE(pair) != 2 ||
+            !PyTuple_Check(PyTuple_GET_ITEM(pair, 0))) {
+            PyErr_SetString(PyExc_TypeError, "Gathers: each pair must be (sources tuple, out)");
+            return NULL;
+        }
+        ncopies += PyTuple_GET_SIZE(PyTuple_GET_ITEM(pair, 0));
+    }
+    GathersObject *self = (GathersObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->buffers = PyMem_Calloc((size_t)(ncopies + npairs) + 1, sizeof(Py_buffer));
+    self->src = PyMem_Calloc((size_t)ncopies + 1, sizeof(double *));
+    self->dst = PyMem_Calloc((size_t)ncopies + 1, sizeof(double *));
+    self->bytes = PyMem_Calloc((size_t)ncopies + 1, sizeof(size_t));
+    if (!self->buffers || !self->src || !self->dst || !self->bytes) {
+        Py_DECREF(self);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t p = 0; p < npairs; p++) {
+        PyObject *pair = PyTuple_GET_ITEM(pairs, p);
+        PyObject *sources = PyTuple_GET_ITEM(pair, 0);
+        Py_buffer *out = &self->buffers[self->nbuffers];
+        Py_ssize_t n, size;
+        if (row_shape(PyTuple_GET_ITEM(pair, 1), out, &n, &size, 1, "out") < 0) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        self->nbuffers++;
+        if (PyTuple_GET_SIZE(sources) != n) {
+            PyErr_Format(PyExc_ValueError, "Gathers: %zd sources for %zd rows",
+                         PyTuple_GET_SIZE(sources), n);
+            Py_DECREF(self);
+            return NULL;
+        }
+        for (Py_ssize_t i = 0; i < n; i++) {
+            Py_buffer *src = &self->buffers[self->nbuffers];
+            if (contiguous(PyTuple_GET_ITEM(sources, i), src, size, 0, "sources[i]") < 0) {
+                Py_DECREF(self);
+                return NULL;
+            }
+            self->nbuffers++;
+            self->src[self->ncopies] = (const double *)src->buf;
+            self->dst[self->ncopies] = (double *)out->buf + i * size;
+            self->bytes[self->ncopies] = (size_t)size * 8;
+            self->ncopies++;
+        }
+    }
+    return (PyObject *)self;
+}
+
+static PyObject *Gathers_gather(GathersObject *self, PyObject *unused)
+{
+    (void)unused;
+    for (Py_ssize_t k = 0; k < self->ncopies; k++)
+        memcpy(self->dst[k], self->src[k], self->bytes[k]);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef GATHERS_METHODS[] = {
+    {"gather", (PyCFunction)Gathers_gather, METH_NOARGS,
+     "Copy every pair's sources into its out (out[i] = sources[i])."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject GathersType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.sim._rows.Gathers",
+    .tp_basicsize = sizeof(GathersObject),
+    .tp_dealloc = (destructor)Gathers_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Gathers(pairs): the rows of (sources, out) pairs, copied by gather().",
+    .tp_methods = GATHERS_METHODS,
+    .tp_new = Gathers_new,
+};
+
 static PyMethodDef METHODS[] = {
     METHOD(gather, "views.ArmRows.gather's loop: out[i] = sources[i]."),
     METHOD(scatter, "views.ArmRows.scatter's loop: targets[rows[k]] = values[k]."),
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_rows, "C replacement of the loops over the robots' MjData rows (sim/views.py).")
+static struct PyModuleDef _rows_definition = {
+    PyModuleDef_HEAD_INIT, "_rows",
+    "C replacement of the loops over the robots' MjData rows (sim/views.py).", -1, METHODS,
+    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__rows(void)
+{
+    if (PyType_Ready(&GathersType) < 0) return NULL;
+    PyObject *m = kernel_module(&_rows_definition);
+    if (!m) return NULL;
+    Py_INCREF(&GathersType);
+    if (PyModule_AddObject(m, "Gathers", (PyObject *)&GathersType) < 0) {
+        Py_DECREF(&GathersType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -25,7 +25,7 @@ import numpy as np
 
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
-from .views import ArmRows
+from .views import ArmRows, Gathering
 from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world, repeat_layout
 
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
@@ -125,8 +125,15 @@ class ArmPhysics:
             self._flange_pos.out,
             self._flange_mat.out.reshape(n_arms, 3, 3).transpose(0, 2, 1),
         )
-        #: the joints' axes and anchors are gathered when a Jacobian first needs them
-        self._frames_fresh = False
+        # Every slice the cycle reads after a step, copied in one call (sim/_rows.c):
+        # the measured state, the bias forces, the joints' axes and anchors of the
+        # Jacobians, the link contact sensors, and what the readers added (gather_also).
+        self._after_step = [self._qpos, self._qvel, self._actuator, self._flange_pos]
+        self._after_step += [self._flange_mat, self._bias, self._gravcomp, self._axes]
+        self._after_step += [self._anchors, self._link_contacts]
+        if self._payload is not None:
+            self._after_step.append(self._payload)
+        self._gathering = Gathering(self._after_step)
         self._effective_inertia, self._cartesian_inertia = self._home_inertia()
         self._nullspace_damping = damping_for(NULLSPACE_STIFFNESS, self._effective_inertia)
         self.set_stiffness(np.arange(n_arms), DEFAULT_STIFFNESS)
@@ -212,23 +219,27 @@ class ArmPhysics:
             force = self._applied_force = float(self.finger_force[i])
             self.model.actuator_forcerange[self._finger_act] = (-force, force)
 
+    def gather_also(self, *rows: ArmRows) -> None:
+        """Refresh ``rows`` (slices of these arms' MjData, e.g. sim/dynamics.py's model
+        terms) with the measured state after every step, reset and forward, in the same
+        call; gathered once now."""
+        self._after_step.extend(rows)
+        self._gathering = Gathering(self._after_step)
+        for r in rows:
+            r.gather()
+
     def _refresh(self) -> None:
         """Gather the measured quantities of every robot's MjData into the (n, ...) arrays
-        (in place: references to ``q``, ``dq``, ``tau_J``, ``flange_views`` stay valid)."""
-        self._qpos.gather()
-        self._qvel.gather()
-        # qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone.
-        self._actuator.gather()
-        self._flange_pos.gather()
-        self._flange_mat.gather()
-        self._frames_fresh = False
+        (in place: references to ``q``, ``dq``, ``tau_J``, ``flange_views`` stay valid).
+        qfrc_actuator is what mj_step2 applied; mj_step1 leaves it alone."""
+        self._gathering.gather()
         self._update_coriolis()
 
     def _update_coriolis(self) -> None:
         """C(q, dq) dq of the new state: the bias forces without the gravity MuJoCo's
         actuators compensate; a payload nobody configured (gravcomp 0) is not in that
         compensation, and its weight is not Coriolis: it is left to sag the arm."""
-        np.subtract(self._bias.gather(), self._gravcomp.gather(), out=self.coriolis)
+        np.subtract(self._bias.out, self._gravcomp.out, out=self.coriolis)
         if self._payload is not None:
             self.payload_weight[...] = self._payload_weight()
             self.coriolis -= self.payload_weight
@@ -236,23 +247,19 @@ class ArmPhysics:
     def _payload_weight(self) -> np.ndarray:
         """(n, 7) the joint torques that would hold the payloads against gravity."""
         lay = self.layout
-        J = self.jacobian(self._payload.gather())
+        J = self.jacobian(self._payload.out)
         return weight_torque(J, self.model.body_mass[lay.payload_body], self.model.opt.gravity)
 
     def jacobian(self, point: np.ndarray) -> np.ndarray:
         """(n, 6, 7) geometric Jacobian of ``point`` (n, 3, each arm's base frame) on each
         arm's last link, from the joints' axes and anchors of the current state."""
-        if not self._frames_fresh:
-            self._axes.gather()
-            self._anchors.gather()
-            self._frames_fresh = True
         return jacobian_at(self._axes.out, self._anchors.out, point)
 
     def link_contacts(self) -> np.ndarray:
         """(n,) bool: arm i's world reports a contact of a link with a link three or more
         further down the chain, or with the hand (world.py's contact sensors): the arms
         whose contact list a self-collision check must read."""
-        return self._link_contacts.gather().any(axis=1)
+        return self._link_contacts.out.any(axis=1)
 
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo

@@ -84,11 +84,13 @@ class ArmDynamics:
         # the arm's stretch of M, gathered as rows; the block indexed out of it
         self._qM = ArmRows([d.M for d in datas], np.arange(lo, hi))
         self._block = block - lo
+        # refreshed by the arms with their measured state, after every step
+        physics.gather_also(self._qfrc_bias, self._passive, self._qM)
 
     def mass_matrix(self) -> np.ndarray:
         """(n, 7, 7) each arm's own block of MuJoCo's joint-space inertia (armature
-        included), gathered from every arm's MjData."""
-        return self._qM.gather()[:, self._block]
+        included), gathered from every arm's MjData after the last step."""
+        return self._qM.out[:, self._block]
 
     def mass_times(self, x: np.ndarray) -> np.ndarray:
         """(n, 7) M(q) x per arm: the joint-space inertia of each arm times ``x`` (n, 7).
@@ -110,7 +112,7 @@ class ArmDynamics:
         the robot being told (``ArmPhysics(payload=...)``) is not in the robot's model:
         its weight is left out (its inertia stays in M, a small error in fast motions).
         """
-        bias = np.subtract(self._qfrc_bias.gather(), self._passive.gather(), out=self._bias)
+        bias = np.subtract(self._qfrc_bias.out, self._passive.out, out=self._bias)
         if self._payload is not None:  # a payload the robot is not told of: not its model
             bias -= self.physics.payload_weight
         return bias

@@ -5,7 +5,7 @@ out one after another, so arm i's entries of a data array sit at evenly spaced r
 strided view of them replaces a fancy-index copy on every read and write of the 1 kHz
 path (:func:`strided_rows`). Where every robot steps its own MjData of one model
 (sim/arm.py), :class:`ArmRows` gathers robot i's rows of each into one (n, ...) array
-and writes rows back.
+and writes rows back, and :class:`Gathering` refreshes several of them in one call.
 """
 
 from __future__ import annotations
@@ -86,12 +86,19 @@ class ArmRows:
             and all(v.flags.c_contiguous for v in self.views)
         ):
             self._sources = tuple(self.views)
+        # the copies planned once (their buffers held): a gather is then one call
+        self._plan = None if self._sources is None else ROWS_KERNEL.Gathers(self.pairs())
+
+    def pairs(self) -> tuple[tuple[tuple[np.ndarray, ...], np.ndarray], ...]:
+        """The (sources, out) pair sim/_rows.c's ``Gathers`` copies (empty where the C
+        loop does not apply: no kernel, rows not evenly spaced, not float64)."""
+        return () if self._sources is None else ((self._sources, self.out),)
 
     def gather(self) -> np.ndarray:
         """``out`` refreshed from every robot's MjData."""
         out = self.out
-        if self._sources is not None:
-            ROWS_KERNEL.gather(self._sources, out)
+        if self._plan is not None:
+            self._plan.gather()
         elif self.views is not None:
             for i, view in enumerate(self.views):
                 out[i] = view
@@ -123,3 +130,27 @@ class ArmRows:
         rows = range(len(self.arrays)) if arms is None else np.asarray(arms).tolist()
         for k, i in enumerate(rows):
             self.set(i, values[k])
+
+
+class Gathering:
+    """Several :class:`ArmRows` refreshed together: one C call copying all of them where
+    sim/_rows.c is built and every one of them takes its C loop, else each one's gather.
+
+    Args:
+        rows: the slices, gathered in this order.
+    """
+
+    def __init__(self, rows) -> None:
+        self.rows: tuple[ArmRows, ...] = tuple(rows)
+        pairs = tuple(pair for r in self.rows for pair in r.pairs())
+        self._plan = None
+        if ROWS_KERNEL is not None and len(pairs) == len(self.rows):
+            self._plan = ROWS_KERNEL.Gathers(pairs)
+
+    def gather(self) -> None:
+        """Every slice's ``out`` refreshed from every robot's MjData."""
+        if self._plan is not None:
+            self._plan.gather()
+        else:
+            for rows in self.rows:
+                rows.gather()

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.sim import views
-from franka_sim_gym.sim.views import ArmRows
+from franka_sim_gym.sim.arm import ArmPhysics
+from franka_sim_gym.sim.dynamics import ArmDynamics
+from franka_sim_gym.sim.views import ArmRows, Gathering
 from franka_sim_gym.sim.world import build_world
 
 
@@ -37,3 +39,45 @@ def test_rows_gather_and_scatter_each_robots_own_mjdata(kernel, monkeypatch):
     assert not datas[0].ctrl.any() and not datas[2].ctrl.any()
     ctrl.scatter(np.ones((4, 7)))
     assert all(np.all(d.ctrl[:7] == 1.0) for d in datas)
+
+
+@pytest.mark.parametrize("kernel", [True, False])
+def test_gathering_refreshes_every_slice_of_every_robot(kernel, monkeypatch):
+    if kernel and views.ROWS_KERNEL is None:
+        pytest.skip("the C kernels are not built")
+    if not kernel:
+        monkeypatch.setattr(views, "ROWS_KERNEL", None)
+    model, layout = build_world(1, hand=True)
+    datas = [mujoco.MjData(model) for _ in range(3)]
+    q = ArmRows([d.qpos for d in datas], layout.qpos_adr[0])
+    mat = ArmRows([d.site_xmat for d in datas], layout.flange_site[0])
+    gathering = Gathering([q, mat])
+    rng = np.random.default_rng(1)
+    for _ in range(2):  # the same buffers, refreshed in place every time
+        for d in datas:
+            d.qpos[:] = rng.normal(size=model.nq)
+            mujoco.mj_kinematics(model, d)
+        gathering.gather()
+        np.testing.assert_array_equal(q.out, [d.qpos[layout.qpos_adr[0]] for d in datas])
+        np.testing.assert_array_equal(mat.out, [d.site_xmat[layout.flange_site[0]] for d in datas])
+
+
+def test_the_model_terms_are_those_of_the_state_just_reached():
+    """ArmDynamics reads the rows the arms gather after each step: M, the bias forces and
+    the Jacobian of the new state, as read from every arm's own MjData."""
+    physics = ArmPhysics(n_arms=2)
+    dynamics = ArmDynamics(physics)
+    q = physics.q.copy()
+    q[:, 3] += 0.05
+    for _ in range(3):
+        physics.step(q, None)
+    lay = physics.layout
+    dofs = np.asarray(lay.dof_adr[0])
+    for i, d in enumerate(physics.datas):
+        full = np.zeros((physics.model.nv, physics.model.nv))
+        mujoco.mj_fullM(physics.model, d, full)
+        np.testing.assert_array_equal(dynamics.mass_matrix()[i], full[np.ix_(dofs, dofs)])
+        np.testing.assert_array_equal(dynamics.bias()[i], d.qfrc_bias[dofs] - d.qfrc_passive[dofs])
+        joints = physics.model.dof_jntid[dofs]
+        axes = dynamics.jacobian(physics.flange_pose()[0])[i, 3:]
+        np.testing.assert_array_equal(axes, d.xaxis[joints].T)
