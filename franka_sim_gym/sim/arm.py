@@ -261,6 +261,11 @@ class ArmPhysics:
         whose contact list a self-collision check must read."""
         return self._link_contacts.out.any(axis=1)
 
+    def any_link_contact(self) -> bool:
+        """Whether any arm's world reports a link contact (:meth:`link_contacts`): the
+        usual answer, no, in one look."""
+        return bool(np.count_nonzero(self._link_contacts.out))
+
     def set_finger_width(self, arms: np.ndarray, width: np.ndarray) -> None:
         """Target opening width [m] of the hands of ``arms`` (the fingers' position servo
         takes half of it per finger: models/hand.xml)."""

@@ -23,7 +23,6 @@ if TYPE_CHECKING:
     from .arm import ArmPhysics
 
 
-
 def close_link_pairs(physics: ArmPhysics, distance: float = SELF_COLLISION_DISTANCE) -> np.ndarray:
     """(n,) bool: arm i (its own MjData ``physics.datas[i]``) has a monitored link pair
     closer than ``distance``.
@@ -32,9 +31,9 @@ def close_link_pairs(physics: ArmPhysics, distance: float = SELF_COLLISION_DISTA
     (``physics.link_contacts``: none, the usual case) and judges them in one pass.
     """
     close = np.zeros(physics.n, dtype=bool)
-    arms = np.flatnonzero(physics.link_contacts())
-    if not len(arms):
+    if not physics.any_link_contact():
         return close
+    arms = np.flatnonzero(physics.link_contacts())
     geoms, dists, rows = [], [], []
     for i in arms.tolist():
         contact = physics.datas[i].contact
