@@ -1,8 +1,9 @@
 """Build the optional C kernels: every ``franka_sim_gym/**/_<name>.c``.
 
 Everything else is in pyproject.toml. Each kernel sits next to the numpy rule it replaces
-whole (sim/: the IK solve and the Jacobian at a point, envs/: the libfranka client's
-filters, fci/limits/: the joint rules, fci/: the contact estimate's filter and wrench)
+whole (sim/: the IK solve, the Jacobian at a point and the copies of every robot's
+MjData rows, envs/: the libfranka client's filters, fci/limits/: the joint rules, fci/:
+the contact estimate's filter and wrench, the frame K and the whole sensing step)
 and becomes the extension ``franka_sim_gym.<package>._<name>``; franka_sim_gym/native/ holds
 the loader and the shared C header. The kernels are optional: a machine without a C
 compiler still installs, and the package runs on its numpy reference paths
