@@ -1,19 +1,17 @@
 /* The C replacement of sim/views.py ArmRows' loops over the robots, chosen by the backend
  * switch (native.load, views.py ROWS_KERNEL):
  *
- *   gather(sources, out)
- *       out[i] = sources[i] for each robot i: ``sources`` a tuple of n C-contiguous
- *       float64 arrays (robot i's rows of its own MjData) of out's row size, ``out`` a
- *       C-contiguous float64 array of n rows
  *   scatter(values, targets, rows)
  *       targets[rows[k]] = values[k]: ``targets`` a tuple of C-contiguous float64 arrays
  *       of the values' row size, ``values`` C-contiguous float64 rows, ``rows`` an int64
  *       array of robot indices (None: every robot in order)
  *   Gathers(pairs)
- *       a gathering planned once: ``pairs`` a tuple of (sources, out) as gather takes
- *       them, whose buffers it holds (the arrays stay alive and in place while it
- *       lives); its ``gather()`` copies every pair, in order, with no look-up per call
- *       (the rows of all the robots' MjData the cycle reads, in one call after a step)
+ *       a gathering planned once: ``pairs`` a tuple of (sources, out), ``sources`` a
+ *       tuple of n C-contiguous float64 arrays (robot i's rows of its own MjData) of
+ *       out's row size, ``out`` a C-contiguous float64 array of n rows; it holds their
+ *       buffers (the arrays stay alive and in place while it lives), and its
+ *       ``gather()`` sets out[i] = sources[i] for every pair, in order, with no look-up
+ *       per call (the rows of all the robots' MjData the cycle reads, in one call)
  *
  * Copies only, so the same bits as the numpy loops. No rule of the robot lives here. */
 #define PY_SSIZE_T_CLEAN
@@ -63,37 +61,6 @@ static int row_shape(PyObject *obj, Py_buffer *view, Py_ssize_t *n, Py_ssize_t *
     *n = view->shape[0];
     *size = *n ? view->len / 8 / *n : 0;
     return 0;
-}
-
-static PyObject *gather(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    (void)self;
-    if (check_nargs(nargs, 2, "gather") < 0) return NULL;
-    if (!PyTuple_Check(args[0])) {
-        PyErr_SetString(PyExc_TypeError, "gather: sources must be a tuple");
-        return NULL;
-    }
-    Py_buffer out;
-    Py_ssize_t n, size;
-    if (row_shape(args[1], &out, &n, &size, 1, "out") < 0) return NULL;
-    if (PyTuple_GET_SIZE(args[0]) != n) {
-        PyErr_Format(PyExc_ValueError, "gather: %zd sources for %zd rows",
-                     PyTuple_GET_SIZE(args[0]), n);
-        PyBuffer_Release(&out);
-        return NULL;
-    }
-    double *dst = (double *)out.buf;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        Py_buffer src;
-        if (contiguous(PyTuple_GET_ITEM(args[0], i), &src, size, 0, "sources[i]") < 0) {
-            PyBuffer_Release(&out);
-            return NULL;
-        }
-        memcpy(dst + i * size, src.buf, (size_t)size * 8);
-        PyBuffer_Release(&src);
-    }
-    PyBuffer_Release(&out);
-    return Py_NewRef(args[1]);
 }
 
 static PyObject *scatter(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
@@ -253,7 +220,6 @@ static PyTypeObject GathersType = {
 };
 
 static PyMethodDef METHODS[] = {
-    METHOD(gather, "views.ArmRows.gather's loop: out[i] = sources[i]."),
     METHOD(scatter, "views.ArmRows.scatter's loop: targets[rows[k]] = values[k]."),
     {NULL, NULL, 0, NULL},
 };

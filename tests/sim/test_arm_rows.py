@@ -81,3 +81,17 @@ def test_the_model_terms_are_those_of_the_state_just_reached():
         joints = physics.model.dof_jntid[dofs]
         axes = dynamics.jacobian(physics.flange_pose()[0])[i, 3:]
         np.testing.assert_array_equal(axes, d.xaxis[joints].T)
+
+
+def test_a_planned_gathering_refuses_rows_that_do_not_fit_naming_them():
+    if views.ROWS_KERNEL is None:
+        pytest.skip("the C kernels are not built")
+    out = np.zeros((2, 7))
+    with pytest.raises(ValueError, match="2 sources for 3 rows"):
+        views.ROWS_KERNEL.Gathers((((np.zeros(7), np.zeros(7)), np.zeros((3, 7))),))
+    with pytest.raises(ValueError, match="sources\\[i\\]: expected 7 float64 values"):
+        views.ROWS_KERNEL.Gathers((((np.zeros(7), np.zeros(6)), out),))
+    with pytest.raises(ValueError, match="out: expected a C-contiguous writable float64"):
+        views.ROWS_KERNEL.Gathers((((np.zeros(7), np.zeros(7)), out.T),))
+    with pytest.raises(TypeError, match="each pair must be"):
+        views.ROWS_KERNEL.Gathers(((np.zeros(7), out, 1),))
