@@ -19,9 +19,9 @@
 
 #include "_arrays.h"
 
-/* Borrow ``obj`` as a C-contiguous float64 buffer of ``count`` doubles. */
-static int contiguous(PyObject *obj, Py_buffer *view, Py_ssize_t count, int writable,
-                      const char *name)
+/* Borrow ``obj`` as a C-contiguous float64 buffer; 0 when it is one, else -1 with a
+ * ValueError naming ``name``. */
+static int float64_buffer(PyObject *obj, Py_buffer *view, int writable, const char *name)
 {
     int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
     if (PyObject_GetBuffer(obj, view, flags) < 0) {
@@ -32,7 +32,20 @@ static int contiguous(PyObject *obj, Py_buffer *view, Py_ssize_t count, int writ
     }
     const char *f = view->format;
     if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
-    if (!f || strcmp(f, "d") != 0 || view->itemsize != 8 || view->len != count * 8) {
+    if (!f || strcmp(f, "d") != 0 || view->itemsize != 8) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a float64 array", name);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* Borrow ``obj`` as a C-contiguous float64 buffer of ``count`` doubles. */
+static int contiguous(PyObject *obj, Py_buffer *view, Py_ssize_t count, int writable,
+                      const char *name)
+{
+    if (float64_buffer(obj, view, writable, name) < 0) return -1;
+    if (view->len != count * 8) {
         PyErr_Format(PyExc_ValueError, "%s: expected %zd float64 values", name, count);
         PyBuffer_Release(view);
         return -1;
@@ -44,16 +57,8 @@ static int contiguous(PyObject *obj, Py_buffer *view, Py_ssize_t count, int writ
 static int row_shape(PyObject *obj, Py_buffer *view, Py_ssize_t *n, Py_ssize_t *size,
                      int writable, const char *name)
 {
-    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, view, flags) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_ValueError, "%s: expected a C-contiguous%s float64 array", name,
-                     writable ? " writable" : "");
-        return -1;
-    }
-    const char *f = view->format;
-    if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
-    if (!f || strcmp(f, "d") != 0 || view->itemsize != 8 || view->ndim < 1) {
+    if (float64_buffer(obj, view, writable, name) < 0) return -1;
+    if (view->ndim < 1) {
         PyErr_Format(PyExc_ValueError, "%s: expected a float64 array of rows", name);
         PyBuffer_Release(view);
         return -1;
