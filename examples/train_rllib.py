@@ -181,9 +181,14 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
         args.algo,
     )
     algo = config.build_algo()
-    nodes = algo.env_runner_group.foreach_env_runner(
-        lambda runner: ray.util.get_node_ip_address(), local_env_runner=False
+    # Each runner's node, by the address the node was started with (ray start
+    # --node-ip-address): the machine's own address is the same for every node of a
+    # cluster on one machine's loopback addresses (docs/scaling.md).
+    node_ids = algo.env_runner_group.foreach_env_runner(
+        lambda runner: ray.get_runtime_context().get_node_id(), local_env_runner=False
     )
+    addresses = {node["NodeID"]: node["NodeManagerAddress"] for node in ray.nodes()}
+    nodes = [addresses.get(node_id, node_id) for node_id in node_ids]
     print(f"env runners on nodes: {', '.join(sorted(nodes))}", flush=True)
     steps = seconds = 0.0
     episode_return = float("nan")

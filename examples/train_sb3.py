@@ -13,11 +13,17 @@ Every cycle runs the full FCI at 1 kHz: the libfranka client's filters, every
 motion-limit check including the IK joint side, the safety controller. Reflexes
 terminate episodes, as on the robot. docs/training.md tells the settings and figures.
 
+``--normalize`` trains behind SB3's observation normalisation (``VecNormalize``, rewards
+left as they are), saved beside the model where examples/evaluate.py finds it.
+``--eval-every N`` evaluates every N samples (instead of ``--evals`` times), and
+``--time-limit S`` stops at the first evaluation after S seconds, saving what it has.
+
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
 examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger;
 TensorBoard events too with ``--tensorboard``: ``tensorboard --logdir DIR``), eval.csv
-and success_reflex.png (when matplotlib is installed). A progress bar on stderr
-(``--no-progress``). Ends with one line
+(rewritten after every evaluation: samples, success and reflex rates, the reflexes by
+error, wall seconds) and success_reflex.png (when matplotlib is installed). A progress
+bar on stderr (``--no-progress``). Ends with one line
 ``eval: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
 """
 
@@ -34,6 +40,7 @@ import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.training.evaluation import evaluate
+from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
 
 #: The default reach: a 3-D twist (orientation held) at 10 Hz, 2 s episodes.
 DEFAULT_ENV_KWARGS = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
@@ -143,7 +150,15 @@ def progress_bar(total: int, enabled: bool = True):
     return _Progress()
 
 
-def plot(out: Path, rows: list[dict]) -> None:
+def write_curve(out: Path, rows: list[dict]) -> None:
+    """eval.csv: one row per evaluation (the reflexes by error as JSON)."""
+    with open(out / "eval.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def plot(out: Path, rows: list[dict], title: str = "FrankaFCI reach") -> None:
     try:
         import matplotlib
 
@@ -159,7 +174,7 @@ def plot(out: Path, rows: list[dict]) -> None:
     ax.set_xlabel("environment steps")
     ax.set_ylim(-0.05, 1.05)
     ax.legend()
-    ax.set_title("FrankaFCI reach")
+    ax.set_title(title)
     fig.tight_layout()
     fig.savefig(out / "success_reflex.png", dpi=100)
 
@@ -169,6 +184,20 @@ def main() -> None:
     parser.add_argument("--algo", default="sac", choices=("sac", "td3", "ppo"))
     parser.add_argument("--steps", type=int, default=12000, help="environment steps")
     parser.add_argument("--evals", type=int, default=4, help="evaluations during training")
+    parser.add_argument(
+        "--eval-every", type=int, default=None, help="samples between evaluations (over --evals)"
+    )
+    parser.add_argument(
+        "--time-limit",
+        type=float,
+        default=None,
+        help="seconds: stop at the first evaluation past it and save the model",
+    )
+    parser.add_argument(
+        "--normalize",
+        action="store_true",
+        help="observation normalisation (SB3's VecNormalize, rewards left as they are)",
+    )
     parser.add_argument("--eval-episodes", type=int, default=32)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
@@ -214,6 +243,15 @@ def main() -> None:
         env = FrankaFCISB3VecEnv(args.num_envs, **{**gym.spec(args.env_id).kwargs, **kwargs})
     else:
         env = gym.make(args.env_id, **kwargs)
+    if args.normalize:
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        if args.num_envs <= 1:
+            single = env
+            env = DummyVecEnv([lambda: single])
+        # Every key, goals too, as rl-zoo3's FetchReach and the shipped sac.yml: HER
+        # stores the raw observations and normalises the relabelled ones at sampling.
+        env = VecNormalize(env, norm_obs=True, norm_reward=False, gamma=0.95)
     (args.out / "train_config.json").write_text(
         json.dumps({"algo": args.algo, "env_id": args.env_id, "env_kwargs": kwargs}, indent=2)
     )
@@ -221,7 +259,7 @@ def main() -> None:
         kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
     )
     learning_starts = max(300, args.num_envs * (episode_steps + 1))
-    chunk = max(1, args.steps // args.evals)
+    chunk = args.eval_every or max(1, args.steps // args.evals)
     # SB3 collects whole vector steps: each learn call's samples round up to the arms.
     chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
     arms = max(1, args.num_envs)
@@ -249,23 +287,36 @@ def main() -> None:
         n = min(chunk, args.steps - done)
         model.learn(total_timesteps=n, reset_num_timesteps=False, callback=bar)
         done += n
-        result = evaluate(model, args.env_id, kwargs, args.eval_episodes, seed=10_000)
+        # the model behind the statistics as they stand (frozen for the evaluation only)
+        policy = NormalizedPolicy(model, env, freeze=False) if args.normalize else model
+        result = evaluate(policy, args.env_id, kwargs, args.eval_episodes, seed=10_000)
         rows.append(
-            {"steps": done, **{k: v for k, v in result.items() if k != "reflexes_by_error"}}
+            {
+                "steps": done,
+                **{k: v for k, v in result.items() if k != "reflexes_by_error"},
+                "reflexes_by_error": json.dumps(result["reflexes_by_error"], sort_keys=True),
+                "wall_s": round(time.perf_counter() - start, 1),
+            }
         )
+        write_curve(args.out, rows)
         print(
             f"steps {done}: success {result['success_rate']:.2f} "
-            f"reflexes {result['reflex_rate']:.2f} {result['reflexes_by_error']}"
+            f"reflexes {result['reflex_rate']:.2f} {result['reflexes_by_error']}",
+            flush=True,
         )
+        if args.time_limit is not None and time.perf_counter() - start > args.time_limit:
+            print(f"time limit of {args.time_limit:.0f} s reached at {done} samples")
+            break
     wall = time.perf_counter() - start
     if bar is not None:
         bar.bar.close()
     model.save(args.out / "model.zip")
-    with open(args.out / "eval.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    plot(args.out, rows)
+    if args.normalize:
+        # where examples/evaluate.py (franka_sim_gym.training.sb3_zoo) looks for it
+        stats = normalization_file(args.out / "model.zip")
+        stats.parent.mkdir(exist_ok=True)
+        env.save(str(stats))
+    plot(args.out, rows, args.env_id)
     final = rows[-1]
     print(
         f"eval: success_rate={final['success_rate']:.3f} "

@@ -29,12 +29,17 @@ def normalization_file(model_path: str | Path) -> Path:
 
 
 class NormalizedPolicy:
-    """An SB3 model behind saved ``VecNormalize`` statistics (frozen: no updates)."""
+    """An SB3 model behind ``VecNormalize`` statistics.
 
-    def __init__(self, model, normalization: VecNormalize) -> None:
+    ``freeze`` (default) stops the statistics' updates for good (saved ones); with
+    ``freeze=False`` they stay live, for an evaluation in the middle of a training run
+    (``predict`` reads them and never updates them either way)."""
+
+    def __init__(self, model, normalization: VecNormalize, freeze: bool = True) -> None:
         self.model = model
         self.normalization = normalization
-        normalization.training = False
+        if freeze:
+            normalization.training = False
 
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[np.ndarray, Any]:
         """The model's actions for the normalised observation (one or a batch)."""

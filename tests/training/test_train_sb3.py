@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 
 import gymnasium as gym
@@ -69,3 +70,33 @@ def test_train_sb3_runs_end_to_end_and_evaluate_reads_what_it_saved(tmp_path, ar
     assert proc.returncode == 0, proc.stderr[-2000:]
     last = proc.stdout.strip().splitlines()[-1]
     assert last.startswith("evaluate: success_rate=") and "link_success_rate=" in last
+
+
+def test_train_sb3_normalizes_observations_and_stops_at_its_time_limit(tmp_path):
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, with_normalization
+
+    out = tmp_path / "run"
+    args = ["--steps", "640", "--eval-every", "320", "--time-limit", "0", "--eval-episodes", "2"]
+    args += ["--normalize", "--no-progress", "--out", str(out)]
+    proc = run_python(
+        ROOT / "examples" / "train_sb3.py", *args, "--env-kwargs", '{"max_episode_steps": 10}'
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert "time limit of 0 s reached at 320 samples" in lines
+    assert lines[-1].startswith("eval: success_rate=")
+    # one evaluation (the time limit stopped the run after it), its reflexes by error
+    rows = list(csv.DictReader((out / "eval.csv").open()))
+    assert [row["steps"] for row in rows] == ["320"]
+    assert isinstance(json.loads(rows[0]["reflexes_by_error"]), dict)
+    assert float(rows[0]["wall_s"]) > 0
+    # the statistics where examples/evaluate.py looks for them, updated by the training
+    config = json.loads((out / "train_config.json").read_text())
+    env = gym.make(config["env_id"], **config["env_kwargs"])
+    stats = VecNormalize.load(str(out / "model" / "vecnormalize.pkl"), DummyVecEnv([lambda: env]))
+    assert stats.norm_obs and not stats.norm_reward
+    assert stats.obs_rms["observation"].count > 320
+    model = sb3.SAC.load(out / "model.zip", env=env)
+    assert isinstance(with_normalization(model, out / "model.zip", env), NormalizedPolicy)
