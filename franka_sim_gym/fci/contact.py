@@ -64,11 +64,9 @@ ESTIMATE_TIME_CONSTANT = 0.01
 #: The filter's per-cycle gain: y += ALPHA (x - y), the discrete first-order low-pass.
 ALPHA = DELTA_T / (ESTIMATE_TIME_CONSTANT + DELTA_T)
 #: Decimals the estimate is published with: 0.1 mNm and 0.1 mN (a choice, far below
-#: any threshold). MuJoCo computes in world coordinates, and n arms stand 2 m apart in
-#: one world: their model terms round differently from a lone arm's at the last bits
-#: (1e-16 relative), which the differentiated velocity lifts to ~1e-14 Nm. Rounded,
-#: an arm of a batched world publishes what the same arm alone publishes, except when
-#: a value lies within ~1e-14 of a rounding boundary (a chance of about 1e-10 a value).
+#: any threshold). The published value carries no last-bit noise of the differentiated
+#: velocity (~1e-14 Nm), so a client comparing two runs' wrenches sees what physics
+#: changed, not how the arithmetic rounded.
 RESOLUTION_DECIMALS = 4
 #: Damping of the wrench's least-squares solve [m^2 units of J J^T]: keeps the 6 x 6
 #: system solvable at a singularity; 1e-8 moves a regular pose's wrench by < 1e-6.
