@@ -66,9 +66,9 @@ def vector_rate(n: int, mode: str, seconds: float) -> float:
     return calls * n / (clock() - start)
 
 
-def bare_rate(n: int, seconds: float) -> float:
-    """Cycles/s of n one-arm worlds: mj_step on each arm's MjData in a loop."""
-    physics = ArmPhysics(n_arms=n)
+def worlds_step_rate(physics: ArmPhysics, seconds: float) -> float:
+    """Cycles/s of bare mj_step on every arm's one-arm world in turn (one cycle: each
+    arm's MjData stepped once), in this process's CPU time."""
     model, datas = physics.model, physics.datas
     calls, start = 0, clock()
     while clock() - start < seconds:
@@ -77,6 +77,11 @@ def bare_rate(n: int, seconds: float) -> float:
                 mujoco.mj_step(model, data)
         calls += 20
     return calls / (clock() - start)
+
+
+def bare_rate(n: int, seconds: float) -> float:
+    """Cycles/s of n one-arm worlds: mj_step on each arm's MjData in a loop."""
+    return worlds_step_rate(ArmPhysics(n_arms=n), seconds)
 
 
 class _Timed:

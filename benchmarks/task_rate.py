@@ -18,8 +18,8 @@ import argparse
 import time
 
 import gymnasium as gym
-import mujoco
 import numpy as np
+from env_rate import worlds_step_rate  # benchmarks/env_rate.py, beside this script
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.tasks import TASKS
@@ -65,14 +65,7 @@ def bare_rate(env_id: str, n: int, seconds: float) -> float:
     each arm's MjData stepped in turn."""
     task = TASKS[gym.spec(env_id).kwargs["task"]]
     physics = ArmPhysics(n_arms=n, hand=True, scene=task.scene)
-    model, datas = physics.model, physics.datas
-    calls, start = 0, clock()
-    while clock() - start < seconds:
-        for _ in range(20):
-            for data in datas:
-                mujoco.mj_step(model, data)
-        calls += 20
-    return calls * n / (clock() - start)
+    return worlds_step_rate(physics, seconds) * n
 
 
 def main() -> None:
