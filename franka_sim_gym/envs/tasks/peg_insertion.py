@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from ...sim.rotations import rotation_to_quaternion
 from .base import GoalDistanceTask
 from .objects import object_space, object_state, place_object
 from .push import TABLE_HOME
@@ -29,16 +30,6 @@ PEG_HALF_WIDTH, PEG_HALF_LENGTH = 0.01, 0.04
 GRIP_OFFSET = 0.02
 #: The hole is 30 mm deep; its bottom is the table (z = 0).
 HOLE_DEPTH = 0.03
-
-
-def quat_of(R: np.ndarray) -> np.ndarray:
-    """The unit quaternion (w, x, y, z) of a rotation matrix (w >= 0)."""
-    w = np.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
-    x = np.copysign(np.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2.0, R[2, 1] - R[1, 2])
-    y = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2.0, R[0, 2] - R[2, 0])
-    z = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2.0, R[1, 0] - R[0, 1])
-    q = np.array([w, x, y, z])
-    return q / np.linalg.norm(q)
 
 
 class PegInsertion(GoalDistanceTask):
@@ -92,7 +83,7 @@ class PegInsertion(GoalDistanceTask):
             # The peg's own z axis points up the hand (its tip, local -z, down).
             R_peg = R_tcp @ np.diag([1.0, -1.0, -1.0])
             place_object(physics, self.object_joint, i, tcp + GRIP_OFFSET * R_tcp[:, 2],
-                         quat_of(R_peg))  # fmt: skip
+                         rotation_to_quaternion(R_peg))  # fmt: skip
             data.qpos[lay.finger_qpos_adr[i]] = PEG_HALF_WIDTH
             data.qvel[lay.finger_dof_adr[i]] = 0.0
             goals.append(goal)
