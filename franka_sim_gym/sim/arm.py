@@ -25,8 +25,9 @@ import numpy as np
 
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
+from .layout import ArmLayout, repeat_layout
 from .views import ArmRows, Gathering
-from .world import FINGER_OPEN, HOME_Q, ArmLayout, build_world, repeat_layout
+from .world import FINGER_OPEN, HOME_Q, build_world
 
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
 #: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,

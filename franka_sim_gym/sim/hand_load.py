@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .world import HOME_Q, ArmLayout
+from .layout import ArmLayout
+from .world import HOME_Q
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,9 @@ from .ik import (
     mj_kinematics_addresses,
     pose_error,
 )
+from .layout import ArmLayout
 from .views import strided_rows
-from .world import ArmLayout, build_world
+from .world import build_world
 
 __all__ = ["IK_KERNEL", "ArmKinematics"]
 

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from .world import MIN_CHAIN_SEPARATION, SELF_COLLISION_DISTANCE, ArmLayout
+from .layout import MIN_CHAIN_SEPARATION, ArmLayout
+from .world import SELF_COLLISION_DISTANCE
 
 if TYPE_CHECKING:
     from .arm import ArmPhysics

@@ -12,20 +12,20 @@ to each arm's ``flange`` site rotated Rz(-pi/4), as franka_description mounts
 it (docs/fr3-model.md §5); ``object_width`` adds the gripper's rigid virtual object
 between each hand's fingertips (:func:`_add_object`). Every arm stands on the
 table (scene.py), and a scene fragment (``scene``) adds one copy of its bodies
-per arm. :class:`ArmLayout` holds every index the rest of the simulator needs,
-so nothing downstream looks names up.
+per arm. :class:`~.layout.ArmLayout` (sim/layout.py) holds every index the rest of the
+simulator needs, so nothing downstream looks names up.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from .scene import add_table, body_names, free_joint_names, load_scene
+from .layout import MIN_CHAIN_SEPARATION, ArmLayout, read_layout
+from .scene import add_table, load_scene
 
 MODEL_DIR: Path = Path(__file__).resolve().parent / "models"
 FR3_XML: Path = MODEL_DIR / "fr3.xml"
@@ -61,46 +61,7 @@ _OBJECT_SOLIMP = (0.99, 0.999, 0.0001, 0.5, 2.0)
 _COUPLING_SOLREF = (0.002, 1.0)
 _COUPLING_SOLIMP = (0.99, 0.999, 0.0001)
 
-_ARM_JOINTS = tuple(f"joint{k}" for k in range(1, 8))
-_ARM_LINKS = tuple(f"link{k}" for k in range(8))
 _ARM_GEOM_CLASS = "arm_collision"
-
-
-@dataclass(frozen=True)
-class ArmLayout:
-    """Indices of every arm's elements in the compiled world model.
-
-    Rows are arms (:func:`repeat_layout`: n rows of the one arm of a one-arm world, each
-    indexing that arm's own MjData); columns joints 1..7 (or links 0..7). ``geom_arm`` /
-    ``geom_link`` map every geom to the arm and link it belongs to, -1 for
-    geoms that are not arm-link geoms (the table, the hand, scene objects).
-    ``scene_body`` / ``scene_qpos_adr`` map a scene fragment's body names and its
-    free joints' names to their (n,) body ids and (n,) qpos addresses (7 values
-    each: position, then the w-x-y-z quaternion), one per arm.
-    """
-
-    n: int
-    hand: bool
-    qpos_adr: np.ndarray  # (n, 7) qpos address of joint1..7
-    dof_adr: np.ndarray  # (n, 7) dof (qvel) address of joint1..7
-    actuator_ids: np.ndarray  # (n, 7) the joint torque motors
-    flange_site: np.ndarray  # (n,) site id of libfranka's kFlange (URDF link8)
-    base_pos: np.ndarray  # (n, 3) world position of link0 (bases are not rotated)
-    link_body: np.ndarray  # (n, 8) body ids of link0..link7
-    geom_arm: np.ndarray  # (ngeom,) arm index or -1
-    geom_link: np.ndarray  # (ngeom,) link index 0..7 or -1
-    finger_qpos_adr: np.ndarray | None = None  # (n, 2) finger_joint1/2
-    finger_dof_adr: np.ndarray | None = None  # (n, 2)
-    finger_actuator: np.ndarray | None = None  # (n,) the `fingers` position servo
-    tcp_site: np.ndarray | None = None  # (n,) hand TCP site
-    hand_body: np.ndarray | None = None  # (n,) the `hand` body (the palm; fingers below it)
-    payload_body: np.ndarray | None = None  # (n,) the payload nobody configured, if any
-    scene_body: dict[str, np.ndarray] = field(default_factory=dict)
-    scene_qpos_adr: dict[str, np.ndarray] = field(default_factory=dict)
-    scene_dof_adr: dict[str, np.ndarray] = field(default_factory=dict)  # (n,) 6 dofs each
-    #: (n, 5) sensordata address of the contact sensors :func:`_add_link_contact_sensors`
-    #: adds: each counts the reported contacts of link a with link a + 3 or beyond
-    link_contact_adr: np.ndarray | None = None
 
 
 def _mujoco_version() -> tuple[int, int]:
@@ -207,14 +168,9 @@ def build_world(
         couplings = [model.equality(f"arm{i}/finger_coupling").id for i in range(n_arms)]
         model.eq_solref[couplings] = _COUPLING_SOLREF
         model.eq_solimp[couplings, :3] = _COUPLING_SOLIMP
-    layout = _layout(model, n_arms, hand, fragment, payload is not None)
+    layout = read_layout(model, n_arms, hand, fragment, payload is not None)
     _set_home(model, layout)
     return model, layout
-
-
-#: docs/fci-behaviour.md "self_collision_avoidance_violation (2)": only links at least three
-#: apart in the chain are monitored (sim/self_collision.py; the sensors below).
-MIN_CHAIN_SEPARATION = 3
 
 
 def _add_link_contact_sensors(spec: mujoco.MjSpec, prefix: str) -> None:
@@ -290,109 +246,6 @@ def _add_object(spec: mujoco.MjSpec, prefix: str, width: float) -> None:
         pair = spec.add_pair(geomname1=prefix + "object", geomname2=prefix + tip)
         pair.solref = list(_OBJECT_SOLREF)
         pair.solimp = list(_OBJECT_SOLIMP)
-
-
-def _ids(model: mujoco.MjModel, kind: str, names: list[list[str]]) -> np.ndarray:
-    lookup = getattr(model, kind)
-    return np.array([[lookup(name).id for name in row] for row in names], dtype=np.int64)
-
-
-def _layout(
-    model: mujoco.MjModel,
-    n: int,
-    hand: bool,
-    fragment: mujoco.MjSpec | None = None,
-    payload: bool = False,
-) -> ArmLayout:
-    pre = [f"arm{i}/" for i in range(n)]
-    joints = _ids(model, "joint", [[p + j for j in _ARM_JOINTS] for p in pre])
-    link_body = _ids(model, "body", [[p + b for b in _ARM_LINKS] for p in pre])
-    geom_arm = np.full(model.ngeom, -1, dtype=np.int64)
-    geom_link = np.full(model.ngeom, -1, dtype=np.int64)
-    body_arm = np.full(model.nbody, -1, dtype=np.int64)
-    body_link = np.full(model.nbody, -1, dtype=np.int64)
-    body_arm[link_body] = np.arange(n)[:, None]
-    body_link[link_body] = np.arange(8)[None, :]
-    geom_arm[:] = body_arm[model.geom_bodyid]
-    geom_link[:] = body_link[model.geom_bodyid]
-    fingers = {}
-    if hand:
-        fjoints = _ids(model, "joint", [[p + "finger_joint1", p + "finger_joint2"] for p in pre])
-        fingers = dict(
-            finger_qpos_adr=model.jnt_qposadr[fjoints],
-            finger_dof_adr=model.jnt_dofadr[fjoints],
-            finger_actuator=_ids(model, "actuator", [[p + "fingers"] for p in pre])[:, 0],
-            tcp_site=_ids(model, "site", [[p + "tcp"] for p in pre])[:, 0],
-            hand_body=_ids(model, "body", [[p + "hand"] for p in pre])[:, 0],
-        )
-    scene = {}
-    if fragment is not None:
-        scene = dict(
-            scene_body={
-                b: _ids(model, "body", [[p + b] for p in pre])[:, 0] for b in body_names(fragment)
-            },
-            scene_qpos_adr={
-                j: model.jnt_qposadr[_ids(model, "joint", [[p + j] for p in pre])[:, 0]]
-                for j in free_joint_names(fragment)
-            },
-            scene_dof_adr={
-                j: model.jnt_dofadr[_ids(model, "joint", [[p + j] for p in pre])[:, 0]]
-                for j in free_joint_names(fragment)
-            },
-        )
-    if payload:
-        scene["payload_body"] = _ids(model, "body", [[p + "payload"] for p in pre])[:, 0]
-    sensors = [[f"{p}link{a}_contacts" for a in range(8 - MIN_CHAIN_SEPARATION)] for p in pre]
-    scene["link_contact_adr"] = model.sensor_adr[_ids(model, "sensor", sensors)]
-    return ArmLayout(
-        n=n,
-        hand=hand,
-        qpos_adr=model.jnt_qposadr[joints],
-        dof_adr=model.jnt_dofadr[joints],
-        actuator_ids=_ids(model, "actuator", [[p + j for j in _ARM_JOINTS] for p in pre]),
-        flange_site=_ids(model, "site", [[p + "flange"] for p in pre])[:, 0],
-        base_pos=model.body_pos[link_body[:, 0]].copy(),
-        link_body=link_body,
-        geom_arm=geom_arm,
-        geom_link=geom_link,
-        **fingers,
-        **scene,
-    )
-
-
-def repeat_layout(layout: ArmLayout, n: int) -> ArmLayout:
-    """The layout of n robots that each step their own MjData of ``layout``'s one-arm
-    world: n rows, every one the arm's (row i indexes robot i's MjData)."""
-    if layout.n != 1:
-        raise ValueError(f"repeat_layout needs a one-arm layout, got {layout.n} arms")
-    if n < 1:
-        raise ValueError(f"n must be >= 1, got {n}")
-
-    def rows(a):
-        return None if a is None else np.repeat(a, n, axis=0)
-
-    return ArmLayout(
-        n=n,
-        hand=layout.hand,
-        qpos_adr=rows(layout.qpos_adr),
-        dof_adr=rows(layout.dof_adr),
-        actuator_ids=rows(layout.actuator_ids),
-        flange_site=rows(layout.flange_site),
-        base_pos=rows(layout.base_pos),
-        link_body=rows(layout.link_body),
-        geom_arm=layout.geom_arm,
-        geom_link=layout.geom_link,
-        finger_qpos_adr=rows(layout.finger_qpos_adr),
-        finger_dof_adr=rows(layout.finger_dof_adr),
-        finger_actuator=rows(layout.finger_actuator),
-        tcp_site=rows(layout.tcp_site),
-        hand_body=rows(layout.hand_body),
-        payload_body=rows(layout.payload_body),
-        scene_body={k: rows(v) for k, v in layout.scene_body.items()},
-        scene_qpos_adr={k: rows(v) for k, v in layout.scene_qpos_adr.items()},
-        scene_dof_adr={k: rows(v) for k, v in layout.scene_dof_adr.items()},
-        link_contact_adr=rows(layout.link_contact_adr),
-    )
 
 
 def _set_home(model: mujoco.MjModel, layout: ArmLayout) -> None:
