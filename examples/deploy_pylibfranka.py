@@ -64,7 +64,7 @@ _REST_VELOCITY, _REST_ACCELERATION = 1e-3, 5e-2
 def _start(robot, interface: str):
     """Start the motion of ``interface``; returns the control and its command type.
 
-    The controller modes are the env's (envs/core.py MOVE): joint impedance under every
+    The controller modes are the env's (envs/commands.py MOVE): joint impedance under every
     motion generator (Robot::control's default), torques under the external controller.
     """
     impedance = fr.ControllerMode.JointImpedance

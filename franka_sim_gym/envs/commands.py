@@ -42,6 +42,7 @@ import numpy as np
 
 from ..fci.frames import to_wire
 from ..fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..fci.wire import MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
 from . import client_kernel
@@ -111,6 +112,28 @@ class ActionScale:
     #: asynchronous joint position: the Move's maximum joint velocities [rad/s] (None: the
     #: robot's nameplate velocities, libfranka's documented default)
     async_max_velocity: tuple[float, ...] | None = None
+
+
+# Robot::control's default controller mode for a motion generator: kJointImpedance.
+IMPEDANCE, GENERATOR = MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode
+#: The Move each action interface starts: (controller mode, motion generator mode).
+MOVE = {
+    "joint_position": (IMPEDANCE, GENERATOR.kJointPosition),
+    "joint_velocity": (IMPEDANCE, GENERATOR.kJointVelocity),
+    "cartesian_pose": (IMPEDANCE, GENERATOR.kCartesianPosition),
+    "cartesian_velocity": (IMPEDANCE, GENERATOR.kCartesianVelocity),
+    "torque": (MoveControllerMode.kExternalController, GENERATOR.kNone),
+    "joint_position_async": (IMPEDANCE, GENERATOR.kJointPosition),  # + move_options
+}
+#: The wire field each action interface commands.
+COMMAND_FIELD = {
+    "joint_position": "q_c",
+    "joint_velocity": "dq_c",
+    "cartesian_pose": "O_T_EE_c",
+    "cartesian_velocity": "O_dP_EE_c",
+    "torque": "tau_J_d",
+    "joint_position_async": "q_c",
+}
 
 
 def move_options(interface: str, table: RobotTable, scale: ActionScale | None = None) -> dict:

@@ -28,14 +28,14 @@ from gymnasium import spaces
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
-from ..fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
+from ..fci.wire import ROBOT_COMMAND_DTYPE
 from ..sim.arm import ArmPhysics
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
-from .commands import CommandGenerator, move_options
+from .commands import COMMAND_FIELD, MOVE, CommandGenerator, move_options
 from .fci_reset import reset_through_fci
 from .hands import EnvHands, hand_choice
-from .infos import info_row, step_info
+from .infos import step_info
 from .observation import build_observation, observation_space
 from .robot_settings import RobotSettings
 from .tasks import Task, make_task
@@ -44,29 +44,10 @@ from .tasks import Task, make_task
 #: frames cleared) or "fci" (as on a robot: recovery, then a joint motion there).
 RESET_MODES = ("teleport", "fci")
 
-# Robot::control's default controller mode for a motion generator: kJointImpedance.
-IMPEDANCE, GENERATOR = MoveControllerMode.kJointImpedance, MoveMotionGeneratorMode
-#: The Move each action interface starts: (controller mode, motion generator mode).
-MOVE = {
-    "joint_position": (IMPEDANCE, GENERATOR.kJointPosition),
-    "joint_velocity": (IMPEDANCE, GENERATOR.kJointVelocity),
-    "cartesian_pose": (IMPEDANCE, GENERATOR.kCartesianPosition),
-    "cartesian_velocity": (IMPEDANCE, GENERATOR.kCartesianVelocity),
-    "torque": (MoveControllerMode.kExternalController, GENERATOR.kNone),
-    "joint_position_async": (IMPEDANCE, GENERATOR.kJointPosition),  # + move_options
-}
-_FIELD = {
-    "joint_position": "q_c",
-    "joint_velocity": "dq_c",
-    "cartesian_pose": "O_T_EE_c",
-    "cartesian_velocity": "O_dP_EE_c",
-    "torque": "tau_J_d",
-    "joint_position_async": "q_c",
-}
 #: libfranka reads states after Move until the modes switch, and one more, sending nothing.
 SILENT_CYCLES = 2
 
-__all__ = ["FciBatch", "draw_episode", "info_row", "start_pose"]  # info_row: envs/infos.py
+__all__ = ["FciBatch", "draw_episode", "start_pose"]
 
 
 def draw_episode(rng: np.random.Generator, noise: float, task: Task) -> tuple[np.ndarray, ...]:
@@ -311,7 +292,8 @@ class FciBatch:
         # Only the id and the active field change from cycle to cycle (the rest of the
         # command stays zero, as libfranka sends it).
         command = self._command
-        command_id, command_field = command["message_id"], command[_FIELD[self.action_interface]]
+        command_id = command["message_id"]
+        command_field = command[COMMAND_FIELD[self.action_interface]]
         published = state["message_id"]
         sending = active & ~fresh
         everyone = bool(sending.all())

@@ -22,7 +22,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
-from franka_sim_gym.envs.core import info_row
+from franka_sim_gym.envs.infos import info_row
 from franka_sim_gym.envs.vector_env import FrankaFCIVectorEnv
 
 
