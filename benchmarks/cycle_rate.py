@@ -162,7 +162,7 @@ def motion_rate(n: int, seconds: float) -> float:
     sensing = rate(lambda: contact.sense(in_motion, None), seconds / 4)
     SENSING_SHARE[n] = cycles / sensing
     dynamics = contact.dynamics
-    bias, m_ddq = dynamics.bias().copy(), dynamics.mass_times(np.zeros((n, 7))).copy()
+    bias, m_ddq = dynamics.bias().copy(), np.zeros((n, 7))
     jacobian = dynamics.jacobian(contact.k_point).copy()
     tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
     if KERNEL is not None:
@@ -194,7 +194,7 @@ PIECES = (
     ("write_measured", "state writer: measured fields", lambda c: c.writer),
     ("sense", "contact sensing", lambda c: c.contact),
     ("bias", "  model terms C dq + g (sim)", lambda c: c.contact.dynamics),
-    ("mass_times", "  model term M ddq (sim)", lambda c: c.contact.dynamics),
+    ("mass_matrix", "  model term M (sim)", lambda c: c.contact.dynamics),
     ("jacobian", "  Jacobian at K (sim)", lambda c: c.contact.dynamics),
     ("check", "safety controller (errors 2, 3, 4)", lambda c: c.safety),
     ("close_cycle", "cycle accounting", lambda c: c.accounting),
@@ -297,7 +297,7 @@ def main() -> None:
         print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")
         print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
         print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
-        inner = {"bias", "mass_times", "jacobian"}
+        inner = {"bias", "mass_matrix", "jacobian"}
         outer = sum(t for name, t in pieces.items() if name not in inner)
         for name, label, _ in PIECES:
             print(f"{label:<50}{pieces[name]:>8.1f}{pieces[name] / total:>8.1%}")

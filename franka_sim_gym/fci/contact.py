@@ -172,20 +172,33 @@ def in_frame(wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = 
 class ExternalTorqueEstimator:
     """The filtered model residual of n robots (the one state of the estimate).
 
-    Call :meth:`update` once per cycle after physics stepped, with the model terms at
-    the new state; :meth:`reset` where a robot is teleported (a velocity jump is no
-    acceleration).
+    The residual of a cycle pairs the torque the drives applied during its step with the
+    model at the state that step started from: MuJoCo's step integrates
+    M(q_k) ddq = tau_k - bias(q_k, dq_k) + (contact) from state k to k + 1, and the torque
+    it measures (``qfrc_actuator``, gravity compensation included) is the one of state k.
+    So the estimator keeps the model terms of the last state it saw for the next cycle.
+
+    Call :meth:`update` (or :meth:`model_terms` and :meth:`filter`) once per cycle after
+    physics stepped, with the model terms at the new state; :meth:`reset` where a robot is
+    teleported (a velocity jump is no acceleration).
     """
 
     def __init__(self, n: int) -> None:
         self.dq_prev = np.zeros((n, 7))
         #: the filtered estimate, tau_ext_hat_filtered (robot convention: J^T F)
         self.tau_ext = np.zeros((n, 7))
+        #: M (n, 7, 7) and the bias C dq + g + friction (n, 7) of the state the next step
+        #: starts from
+        self.mass = np.zeros((n, 7, 7))
+        self.bias = np.zeros((n, 7))
 
-    def reset(self, robots, dq: np.ndarray) -> None:
-        """Forget ``robots``' history: their estimate restarts at zero from ``dq``."""
+    def reset(self, robots, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray) -> None:
+        """Forget ``robots``' history: their estimate restarts at zero from the state
+        with velocity ``dq`` and model terms ``mass``, ``bias`` (rows of ``robots``)."""
         self.dq_prev[robots] = dq
         self.tau_ext[robots] = 0.0
+        self.mass[robots] = mass
+        self.bias[robots] = bias
 
     def acceleration(self, dq: np.ndarray) -> np.ndarray:
         """(n, 7) the measured acceleration of the cycle: ``dq`` (the new velocity)
@@ -193,6 +206,18 @@ class ExternalTorqueEstimator:
         ddq = (dq - self.dq_prev) / DELTA_T
         self.dq_prev[...] = dq
         return ddq
+
+    def model_terms(
+        self, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(M ddq, bias) of the cycle that ended at velocity ``dq``, both at the state its
+        step started from; keeps ``mass`` (n, 7, 7) and ``bias`` (n, 7), the new state's,
+        for the next cycle."""
+        m_ddq = np.matmul(self.mass, self.acceleration(dq)[..., None])[..., 0]
+        bias_k = self.bias
+        self.mass = np.array(mass, dtype=np.float64)
+        self.bias = np.array(bias, dtype=np.float64)
+        return m_ddq, bias_k
 
     def filter(
         self, tau_J: np.ndarray, m_ddq: np.ndarray, bias: np.ndarray, out: np.ndarray
@@ -205,16 +230,17 @@ class ExternalTorqueEstimator:
 
     def update(
         self,
-        mass_times,
+        mass: np.ndarray,
         bias: np.ndarray,
         tau_J: np.ndarray,
         dq: np.ndarray,
         out: np.ndarray | None = None,
     ) -> np.ndarray:
-        """One cycle: ``mass_times(x)`` is M(q) x at the new state, ``bias`` C dq + g,
+        """One cycle: ``mass`` M(q) (n, 7, 7) and ``bias`` C dq + g at the new state,
         ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
         Returns the filtered estimate (n, 7), at the published resolution (in ``out``
         where given, e.g. the state's own field)."""
         if out is None:
             out = np.empty_like(self.tau_ext)
-        return self.filter(tau_J, mass_times(self.acceleration(dq)), bias, out)
+        m_ddq, bias_k = self.model_terms(dq, mass, bias)
+        return self.filter(tau_J, m_ddq, bias_k, out)

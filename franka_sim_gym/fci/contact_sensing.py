@@ -70,7 +70,8 @@ class ContactSensing:
         self.physics = physics
         self.dynamics = ArmDynamics(physics)
         self.estimator = ExternalTorqueEstimator(n)
-        self.estimator.reset(np.arange(n), physics.dq)
+        every = np.arange(n)
+        self.estimator.reset(every, physics.dq, self.dynamics.mass_matrix(), self.dynamics.bias())
         #: SetCollisionBehavior's thresholds per robot
         self.behavior = CollisionBehavior(n)
         self.engine = engine
@@ -92,7 +93,9 @@ class ContactSensing:
         """Teleported or reconfigured ``robots``: estimate from zero, flags clear,
         thresholds back to the defaults."""
         robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
-        self.estimator.reset(robots, self.physics.dq[robots])
+        dynamics = self.dynamics
+        mass, bias = dynamics.mass_matrix()[robots], dynamics.bias()[robots]
+        self.estimator.reset(robots, self.physics.dq[robots], mass, bias)
         for name in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "K_F_ext_hat_K"):
             self.field[name][robots] = 0.0
         for name in ("joint_contact", "cartesian_contact"):
@@ -146,10 +149,15 @@ class ContactSensing:
         """Estimate, write the contact group, judge the thresholds (after the state's
         measured fields are written)."""
         physics, f = self.physics, self.field
-        bias = self.dynamics.bias()
+        # The model at the state the step started from, paired with the torque of that
+        # step (contact.py, ExternalTorqueEstimator); the load's weight is of that state
+        # too (the controller computes it before the step).
+        dynamics = self.dynamics
+        m_ddq, bias = self.estimator.model_terms(
+            physics.dq, dynamics.mass_matrix(), dynamics.bias()
+        )
         if load_weight is not None:
             bias = bias + load_weight
-        m_ddq = self.dynamics.mass_times(self.estimator.acceleration(physics.dq))
         point, rotation = self.k_point, self.k_rotation
         rules = contact.RULES  # the backend switch (contact.py)
         rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)

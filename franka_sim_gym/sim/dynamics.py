@@ -57,7 +57,7 @@ def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -
 
 
 class ArmDynamics:
-    """M(q) x, C(q, dq) dq + g(q) and the Jacobian of n arms, at the current state.
+    """M(q), C(q, dq) dq + g(q) and the Jacobian of n arms, at the current state.
 
     Args:
         physics: the arms (after a step, mj_step1 has left M and the bias forces of
@@ -91,16 +91,6 @@ class ArmDynamics:
         """(n, 7, 7) each arm's own block of MuJoCo's joint-space inertia (armature
         included), gathered from every arm's MjData after the last step."""
         return self._qM.out[:, self._block]
-
-    def mass_times(self, x: np.ndarray) -> np.ndarray:
-        """(n, 7) M(q) x per arm: the joint-space inertia of each arm times ``x`` (n, 7).
-
-        The arm's own 7 x 7 block of MuJoCo's inertia matrix (armature included); the
-        fingers' and objects' degrees of freedom are left at zero, as the robot's model
-        treats its end effector as a rigid load on the flange.
-        """
-        M = self.mass_matrix()
-        return np.matmul(M, np.asarray(x, dtype=np.float64)[..., None])[..., 0]
 
     def bias(self) -> np.ndarray:
         """(n, 7) C(q, dq) dq + g(q) + the joint friction: what the drives must supply

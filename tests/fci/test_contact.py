@@ -56,12 +56,12 @@ def test_a_wrench_in_the_k_frame_is_rotated_not_moved():
 def test_at_rest_in_free_space_the_estimate_is_zero():
     physics = ArmPhysics(1, hand=True)
     dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
-    est.reset([0], physics.dq)
+    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
     q = physics.q.copy()
     worst = 0.0
     for _ in range(1000):
         physics.step(q, None)
-        worst = max(worst, np.abs(est.update(dyn.mass_times, dyn.bias(), physics.tau_J,
+        worst = max(worst, np.abs(est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J,
                                              physics.dq)).max())  # fmt: skip
     assert worst < 0.05
 
@@ -88,13 +88,13 @@ def test_in_static_contact_the_estimate_is_the_contact_wrench_within_5_percent()
     physics = ArmPhysics(1, hand=True)
     dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
     physics.reset_arms([0], OVER_THE_TABLE[None])
-    est.reset([0], physics.dq)
+    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
     target = OVER_THE_TABLE.copy()
     for k in range(3000):
         if k < 2100:
             target[1] += 0.0001  # down onto the table at 0.1 rad/s, then press
         physics.step(target[None], None)
-        tau = est.update(dyn.mass_times, dyn.bias(), physics.tau_J, physics.dq)
+        tau = est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J, physics.dq)
     J, point = flange_jacobian(physics, dyn)
     estimate = wrench_from_torque(J, tau)[0]
     truth = contact_wrench_on_the_environment(physics, point[0])
@@ -105,10 +105,13 @@ def test_in_static_contact_the_estimate_is_the_contact_wrench_within_5_percent()
 
 def test_in_free_space_motion_the_estimate_stays_near_zero():
     """A smooth joint motion up to 3.1 rad/s and ~10 rad/s^2: the model explains the
-    torques (inertia, Coriolis, gravity, joint friction), so nothing external shows."""
+    torques (inertia, Coriolis, gravity, joint friction), so nothing external shows --
+    to 0.01 Nm because the estimate pairs each step's torque with the model of the
+    state that step started from (paired with the next state's, gravity alone moved it
+    by up to 0.07 Nm here)."""
     physics = ArmPhysics(1, hand=True)
     dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
-    est.reset([0], physics.dq)
+    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
     home = physics.q[0].copy()
     amplitude = np.array([0.6, 0.4, 0.5, 0.5, 0.8, 0.5, 1.0])
     worst = fastest = 0.0
@@ -117,8 +120,8 @@ def test_in_free_space_motion_the_estimate_stays_near_zero():
         q = home + amplitude * (1.0 - np.cos(phase))
         dq = amplitude * np.pi * np.sin(phase)
         physics.step(q[None], dq[None])
-        tau = est.update(dyn.mass_times, dyn.bias(), physics.tau_J, physics.dq)
+        tau = est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J, physics.dq)
         worst = max(worst, np.abs(tau).max())
         fastest = max(fastest, np.abs(physics.dq).max())
     assert fastest > 3.0  # it did move fast
-    assert worst < 0.2
+    assert worst < 0.01
