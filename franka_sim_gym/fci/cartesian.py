@@ -260,13 +260,14 @@ class CartesianGenerators:
 
     # -- what the state reports ----------------------------------------------------------------
 
-    def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None):
+    def servo(self, q_ref: np.ndarray, dq_ref: np.ndarray | None, driven=None):
         """The joint servo's target: the IK solution for robots in a Cartesian motion (a
-        late datagram's intent overrides it afterwards: ``LateIntents.servo``)."""
+        late datagram's intent overrides it afterwards: ``LateIntents.servo``), of those
+        ``driven`` (n,) by their motion where given (the others are held: fci/hold.py)."""
         h, m = self.reference, self.modes
-        if m.n_cartesian == self.n:  # every robot (copies: the history moves on)
-            return h.q_ik.copy(), h.dq_ik.copy()
-        rows = m.cartesian[:, None]
+        if driven is None and m.n_cartesian == self.n:  # every robot (copies: the
+            return h.q_ik.copy(), h.dq_ik.copy()  # history moves on)
+        rows = (m.cartesian if driven is None else m.cartesian & driven)[:, None]
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
         return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
 

@@ -40,11 +40,12 @@ from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
 from .events import Event, EventKind
-from .impedance import CartesianImpedance
+from .hold import IdleHold, held_by
+from .impedance import DEFAULT_CARTESIAN_STIFFNESS, CartesianImpedance
 from .joint_generators import JointGenerators
 from .late import LateIntents
 from .log_limit import CycleLogLimit
-from .modes import JOINT_POSITION, JOINT_VELOCITY, Modes
+from .modes import JOINT_POSITION, JOINT_VELOCITY, NONE, Modes
 from .recovery import RecoveryWait
 from .reference import JointReference
 from .requests import ControllerRequests
@@ -81,8 +82,11 @@ class FciController(ControllerRequests):
         self.reference = JointReference(w.q_d, w.dq_d, w.ddq_d)
         #: the commanded torque (without gravity): the published tau_J_d itself
         self.tau_J_d = w.tau_J_d
-        #: where the internal servo holds the arm between motions
-        self.q_hold = physics.q.copy()
+        physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
+        #: the idle hold: what holds the arm when no motion drives it (fci/hold.py)
+        self.hold = IdleHold(physics.q, physics.kp, physics.kd, DEFAULT_CARTESIAN_STIFFNESS)
+        #: the configuration it holds
+        self.q_hold = self.hold.q
         self.accounting = CycleAccounting(n)
         self.errors = np.zeros((n, ERROR_COUNT), dtype=bool)
         self.reflex_reason = np.zeros((n, ERROR_COUNT), dtype=bool)
@@ -123,7 +127,6 @@ class FciController(ControllerRequests):
             physics, w.field, self.engine, self.config.enforce_motion_limits
         )
         self._events: list[Event] = []
-        physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         for i in range(n):
             self.write_modes(i)
         self.publish()
@@ -226,22 +229,7 @@ class FciController(ControllerRequests):
             if m.n_cartesian and np.count_nonzero(started):
                 self.cartesian.advance(cycle, started)
             self._apply_verdicts()
-        # Physics: the internal joint servo tracks q_d / dq_d under a joint
-        # generator and the hold setpoint otherwise; an external controller's
-        # torque is applied with gravity added by the actuators.
-        if m.n_tracking == self.n:
-            q_ref, dq_ref = w.q_d, w.dq_d
-        elif m.n_tracking == 0:
-            q_ref, dq_ref = self.q_hold, None
-        else:
-            track = m.tracking[:, None]
-            q_ref = np.where(track, w.q_d, self.q_hold)
-            dq_ref = np.where(track, w.dq_d, 0.0)
-        if m.n_cartesian:
-            q_ref, dq_ref = self.cartesian.servo(q_ref, dq_ref)
-        # A late datagram's intent, where no fresh command superseded it (called every
-        # cycle, so an intent never outlives the cycle it arrived in).
-        q_ref, dq_ref = self.late.servo(q_ref, dq_ref, cycle.have, m.in_motion)
+        q_ref, dq_ref, external, cartesian, gains = self._servo()
         #: what the joint servo was given this cycle (for tests and viewers)
         self.servo_q = q_ref
         moving = m.n_motion > 0
@@ -250,12 +238,8 @@ class FciController(ControllerRequests):
         # The drives carry a load configured with SetLoad in every mode (the robot's
         # gravity compensation of its model); MuJoCo knows only what is physically there.
         load = self.contact.load_weight()
-        cartesian = None
-        if m.n_cartesian_impedance:
-            EE_T_K = frames.from_wire(w.field["EE_T_K"])
-            cartesian = self.impedance.target(m.cartesian_impedance, q_ref, w.F_T_EE, EE_T_K)
         self.physics.step(
-            q_ref, dq_ref, self.tau_J_d, m.external_arg, cartesian=cartesian, compensation=load
+            q_ref, dq_ref, self.tau_J_d, external, cartesian, compensation=load, gains=gains
         )
         w.write_measured(self.physics)
         self.contact.sense(m.in_motion, load)
@@ -280,6 +264,62 @@ class FciController(ControllerRequests):
                 self._events.append(Event(i, EventKind.RECOVERY_FINISHED, status))
         self._publish_rest()
         return self.take_events()
+
+    def _servo(self):
+        """What physics is given this cycle: (q_ref, dq_ref, external, cartesian, gains).
+
+        A motion drives the arm from its first command on: the internal joint servo
+        tracks q_d / dq_d under a joint generator and the IK solution under a Cartesian
+        one, the Cartesian servo (kCartesianImpedance) holds K at their forward
+        kinematics, an external controller's torque is applied with gravity added by the
+        actuators. Every other robot -- idle, or in a Move whose first command has not
+        arrived -- is held by the idle hold: its servo, gains and configuration
+        (fci/hold.py), so no switch steps what the physics sees.
+        """
+        m, w, hold = self.modes, self.writer, self.hold
+        started = self.accounting.started
+        driven = int(np.count_nonzero(started)) if m.n_motion else 0
+        cartesian_rows = stiffness = None
+        if driven == self.n:  # every robot in a motion that drives it
+            if m.n_tracking == self.n:
+                q_ref, dq_ref = w.q_d, w.dq_d
+            elif m.n_tracking == 0:
+                q_ref, dq_ref = hold.q, None
+            else:
+                track = m.tracking[:, None]
+                q_ref = np.where(track, w.q_d, hold.q)
+                dq_ref = np.where(track, w.dq_d, 0.0)
+            if m.n_cartesian:
+                q_ref, dq_ref = self.cartesian.servo(q_ref, dq_ref)
+            external, gains = m.external_arg, None
+            if m.n_cartesian_impedance:
+                cartesian_rows = m.cartesian_impedance
+        elif driven == 0:  # every robot held
+            q_ref, dq_ref, external = hold.q, None, None
+            gains = (hold.kp, hold.kd)
+            if hold.n_cartesian:
+                cartesian_rows, stiffness = hold.cartesian, hold.stiffness
+        else:
+            track = (m.tracking & started)[:, None]
+            q_ref = np.where(track, w.q_d, hold.q)
+            dq_ref = np.where(track, w.dq_d, 0.0)
+            if m.n_cartesian:
+                q_ref, dq_ref = self.cartesian.servo(q_ref, dq_ref, started)
+            external = m.external & started
+            d = started[:, None]
+            gains = (np.where(d, self.physics.kp, hold.kp), np.where(d, self.physics.kd, hold.kd))
+            rows = (m.cartesian_impedance & started) | (hold.cartesian & ~started)
+            if np.count_nonzero(rows):
+                cartesian_rows = rows
+                stiffness = np.where(d, self.impedance.stiffness, hold.stiffness)
+        # A late datagram's intent, where no fresh command superseded it (called every
+        # cycle, so an intent never outlives the cycle it arrived in).
+        q_ref, dq_ref = self.late.servo(q_ref, dq_ref, self.cycle_input.have, m.in_motion)
+        cartesian = None
+        if cartesian_rows is not None:
+            EE_T_K = frames.from_wire(w.field["EE_T_K"])
+            cartesian = self.impedance.target(cartesian_rows, q_ref, w.F_T_EE, EE_T_K, stiffness)
+        return q_ref, dq_ref, external, cartesian, gains
 
     def _apply_verdicts(self) -> None:
         """The engine's verdicts, in the order it reached them: the reflex."""
@@ -349,23 +389,32 @@ class FciController(ControllerRequests):
         self, i: int, status: MoveStatus, hold_reference: bool, robot_mode: int | None = None
     ) -> None:
         """End robot i's motion with ``status``; the idle hold takes the arm back."""
-        generator = int(self.modes.motion_generator_mode[i])
-        if hold_reference and generator in (JOINT_POSITION, JOINT_VELOCITY):
-            # A finished joint motion is held where it was commanded to end.
-            self.q_hold[i] = self.reference.q[i]
-        elif hold_reference and self.modes.cartesian[i]:
-            # ... and a finished Cartesian motion where its last pose solved to.
-            self.q_hold[i] = self.cartesian.q_ik[i]
-        else:
-            self.q_hold[i] = self.physics.q[i]
-        if self.modes.cartesian[i]:
+        m = self.modes
+        if self.accounting.started[i]:
+            # The motion drove the arm: the hold takes over from it (fci/hold.py). A
+            # finished joint motion is held where it was commanded to end, a finished
+            # Cartesian one where its last pose solved to, by the servo that ran it.
+            generator = int(m.motion_generator_mode[i])
+            reference = self.physics.q[i]
+            if generator in (JOINT_POSITION, JOINT_VELOCITY):
+                reference = self.reference.q[i]
+            elif m.cartesian[i]:
+                reference = self.cartesian.q_ik[i]
+            finished = hold_reference and generator != NONE
+            q, servo = held_by(
+                finished, not m.external[i], int(m.controller_mode[i]), reference, self.physics.q[i]
+            )
+            physics = self.physics
+            self.hold.keep(i, q, servo, physics.kp[i], physics.kd[i], self.impedance.stiffness[i])
+        # (A motion that never drove the arm leaves the hold that held it.)
+        if m.cartesian[i]:
             self.cartesian.end(i)
         if self.asynchronous.active[i]:
             self.asynchronous.end(i)
         if robot_mode is None:
-            mode = int(self.modes.robot_mode[i])
+            mode = int(m.robot_mode[i])
             robot_mode = mode if mode != RobotMode.kMove else int(RobotMode.kIdle)
-        self.modes.end(i, robot_mode)
+        m.end(i, robot_mode, int(self.hold.controller[i]))
         self.clear_commanded(i)
         accounting = self.accounting
         summary = accounting.motion_summary(i)

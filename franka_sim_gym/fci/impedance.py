@@ -66,9 +66,16 @@ class CartesianImpedance:
         return SetterStatus.kSuccess
 
     def target(
-        self, mask: np.ndarray, q_ref: np.ndarray, F_T_EE: np.ndarray, EE_T_K: np.ndarray
+        self,
+        mask: np.ndarray,
+        q_ref: np.ndarray,
+        F_T_EE: np.ndarray,
+        EE_T_K: np.ndarray,
+        stiffness: np.ndarray | None = None,
     ) -> CartesianTarget:
-        """What the servo of the ``mask`` robots holds this cycle: K at FK(q_ref)."""
+        """What the servo of the ``mask`` robots holds this cycle: K at FK(q_ref), with
+        ``stiffness`` (n, 6) (default: SetCartesianImpedance's, :attr:`stiffness`)."""
         flange_to_k = F_T_EE @ EE_T_K
         T = self.kinematics.forward(q_ref, flange_to_k)
-        return CartesianTarget(mask, T[:, :3, 3], T[:, :3, :3], flange_to_k, self.stiffness)
+        K = self.stiffness if stiffness is None else stiffness
+        return CartesianTarget(mask, T[:, :3, 3], T[:, :3, :3], flange_to_k, K)

@@ -41,11 +41,14 @@ class Modes:
         self.controller_mode[i] = controller
         self.regroup()
 
-    def end(self, i: int, robot_mode: int = int(RobotMode.kIdle)) -> None:
-        """Robot i's motion ended; the internal joint impedance servo holds it."""
+    def end(
+        self, i: int, robot_mode: int = int(RobotMode.kIdle), hold: int = JOINT_IMPEDANCE
+    ) -> None:
+        """Robot i's motion ended; the internal servo ``hold`` holds it (fci/hold.py),
+        reported as the controller mode between motions."""
         self.robot_mode[i] = robot_mode
         self.motion_generator_mode[i] = IDLE
-        self.controller_mode[i] = JOINT_IMPEDANCE
+        self.controller_mode[i] = hold
         self.regroup()
 
     def set_robot_mode(self, i: int, robot_mode: int) -> None:

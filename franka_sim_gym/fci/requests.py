@@ -23,8 +23,9 @@ from .cartesian import CartesianGenerators
 from .config import ControllerConfig
 from .contact_sensing import ContactSensing
 from .cycle_input import CycleInput
+from .hold import IdleHold
 from .impedance import CartesianImpedance
-from .modes import Modes
+from .modes import JOINT_IMPEDANCE, Modes
 from .recovery import RecoveryWait
 from .reference import JointReference
 from .state import StateWriter
@@ -54,7 +55,7 @@ class ControllerRequests(ABC):
     writer: StateWriter
     reference: JointReference
     tau_J_d: np.ndarray
-    q_hold: np.ndarray
+    hold: IdleHold
     errors: np.ndarray
     reflex_reason: np.ndarray
     accounting: CycleAccounting
@@ -115,8 +116,9 @@ class ControllerRequests(ABC):
             self.end_motion(i, MoveStatus.kPreempted, hold_reference=False)
         q = self.physics.q[i].copy()
         self.modes.start(i, int(state_motion_generator_mode(gen)), int(ctrl))
+        # The motion starts from the measured q (what its first command is judged
+        # against); the idle hold holds the arm until that command arrives (fci/hold.py).
         self.reference.seed(i, q, int(self.writer.message_id[i]))
-        self.q_hold[i] = q
         self.tau_J_d[i] = 0.0
         # A new motion starts with last_motion_errors clear: it describes the
         # motion that was aborted, not the connection (as the robot does).
@@ -146,6 +148,7 @@ class ControllerRequests(ABC):
         Returns None: the reply is deferred (an event) until the measured
         |dq| < 0.005 rad/s for 50 consecutive cycles or 0.7 s have passed
         (docs/fci-behaviour.md "Enabling the violation"). Refused during a running motion.
+        The idle hold that caught the reflex holds on (fci/hold.py).
         """
         i = robot
         if self.modes.in_motion[i]:
@@ -153,7 +156,6 @@ class ControllerRequests(ABC):
         self.errors[i] = False
         self.contact.clear(i)
         self.accounting.rearm(i)
-        self.q_hold[i] = self.physics.q[i]
         self.modes.set_robot_mode(i, int(RobotMode.kAutomaticErrorRecovery))
         self.recovery.begin(i)
         self.write_modes(i)
@@ -233,7 +235,6 @@ class ControllerRequests(ABC):
         for k, i in enumerate(robots.tolist()):
             self.modes.end(i)
             self.asynchronous.end(i)
-            self.q_hold[i] = q[k]
             self.clear_commanded(i)
             self.errors[i] = False
             self.reflex_reason[i] = False
@@ -241,6 +242,9 @@ class ControllerRequests(ABC):
             self.accounting.stop_motion(i)
             self.writer.reset_configuration(i)
             self.impedance.reset(i)
+            physics = self.physics
+            stiffness = self.impedance.stiffness[i]
+            self.hold.keep(i, q[k], JOINT_IMPEDANCE, physics.kp[i], physics.kd[i], stiffness)
             self.write_modes(i)
         self.contact.reset(robots)
         self.cycle_input.have[robots] = False

@@ -297,6 +297,7 @@ class ArmPhysics:
         external: np.ndarray | bool | None = None,
         cartesian: CartesianTarget | None = None,
         compensation: np.ndarray | None = None,
+        gains: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Advance the world by one 1 ms cycle.
 
@@ -312,17 +313,21 @@ class ArmPhysics:
                 ``q_ref`` is the nullspace's joint target.
             compensation: (n, 7) a torque the drives add in every mode (the weight
                 of a load configured with SetLoad, which MuJoCo does not know of).
+            gains: (K, D), (n, 7) each: the joint servo's stiffness and damping this
+                cycle instead of :meth:`set_stiffness`'s (the controller's idle hold
+                keeps the gains it was captured with).
         """
         tau, tmp = self._tau, self._tmp
+        kp, kd = (self.kp, self.kd) if gains is None else gains
         # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
         np.subtract(q_ref, self.q, out=tau)
-        tau *= self.kp
+        tau *= kp
         if dq_ref is None:
-            np.multiply(self.kd, self.dq, out=tmp)
+            np.multiply(kd, self.dq, out=tmp)
             tau -= tmp
         else:
             np.subtract(dq_ref, self.dq, out=tmp)
-            tmp *= self.kd
+            tmp *= kd
             tau += tmp
         if cartesian is not None:
             tau = np.where(cartesian.mask[:, None], self._cartesian_servo(cartesian, q_ref), tau)
