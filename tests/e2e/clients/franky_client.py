@@ -27,6 +27,15 @@ def connect(host: str) -> franky.Robot:
     return franky.Robot(host, realtime_config=franky.RealtimeConfig.Ignore)
 
 
+def attempt(robot: franky.Robot, motion) -> str | None:
+    """``robot.move(motion)``; the exception a client sees, as "Type: text", or None."""
+    try:
+        robot.move(motion)
+    except Exception as exc:  # reported to the test
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
 def affine_matrix(affine) -> list[list[float]]:
     """A franky `Affine` as a row-major 4x4 nested list."""
     return np.asarray(affine.matrix, dtype=float).tolist()

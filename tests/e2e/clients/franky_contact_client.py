@@ -10,6 +10,7 @@ import math
 import franky
 import numpy as np
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
+from franky_client import attempt
 
 #: The flange pointing down 18 cm above the table (tests/sim/test_scene.py OVER_THE_TABLE).
 OVER_THE_TABLE = [0.0, 0.6, 0.0, -1.9, 0.0, 2.5, math.pi / 4]
@@ -42,11 +43,7 @@ def scenario_reaction(host: str) -> dict:
     reaction = franky.CartesianPoseReaction(franky.Measure.FORCE_Z < -5.0, retreat)
     reaction.register_callback(on_contact)
     motion.add_reaction(reaction)
-    error = None
-    try:
-        robot.move(motion)
-    except Exception as exc:  # reported to the test
-        error = f"{type(exc).__name__}: {exc}"
+    error = attempt(robot, motion)
     state = robot.state
     return {
         "error": error,

@@ -16,6 +16,7 @@ import time
 import franky
 import numpy as np
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
+from franky_client import attempt
 
 #: The flange pointing down 18 cm above the table (tests/sim/test_scene.py OVER_THE_TABLE).
 OVER_THE_TABLE = [0.0, 0.6, 0.0, -1.9, 0.0, 2.5, math.pi / 4]
@@ -86,11 +87,7 @@ def scenario_press_then_move(host: str) -> dict:
     lifting: list[dict] = []
     motion = franky.JointMotion(franky.JointState(q), relative_dynamics_factor=0.1)
     motion.register_callback(lambda state, *_: lifting.append(sample(state)))
-    error = None
-    try:
-        robot.move(motion)
-    except Exception as exc:  # reported to the test
-        error = f"{type(exc).__name__}: {exc}"
+    error = attempt(robot, motion)
     state = robot.state
     return {
         "press": pressing[-1],

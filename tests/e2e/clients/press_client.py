@@ -46,32 +46,43 @@ def sample(state) -> dict:
     }
 
 
+def run(control, command_at, until: float) -> tuple[list, str | None]:
+    """A readOnce / writeOnce loop: ``command_at(state, t)`` is the command answering the
+    state at time t; the motion finishes at ``until`` [s]. Every state read, and the
+    ControlException's text (None when the motion finished)."""
+    t, states = 0.0, []
+    try:
+        while True:
+            state, period = control.readOnce()
+            t += period.to_sec()
+            states.append(state)
+            command = command_at(state, t)
+            command.motion_finished = t >= until
+            control.writeOnce(command)
+            if command.motion_finished:
+                return states, None
+    except fr.ControlException as exc:
+        return states, str(exc)
+
+
 def press(robot: fr.Robot, servo: str) -> dict:
     """Move over the table, configure, press DEPTH[servo] under it and hold; the motion's
     last state and its error (None when it finished)."""
     move_to(robot, OVER_THE_TABLE, 1.5)
     robot.set_collision_behavior([100.0] * 7, [100.0] * 7, [100.0] * 6, [100.0] * 6)
     robot.set_cartesian_impedance([500.0] * 3 + [150.0] * 3)
-    control = robot.start_cartesian_pose_control(SERVO[servo])
     start: list[float] = []
-    t, state, error = 0.0, None, None
-    try:
-        while True:
-            state, period = control.readOnce()
-            t += period.to_sec()
-            if not start:
-                start.extend(state.O_T_EE_c)
-            pose = list(start)
-            drop = start[14] + DEPTH[servo]  # to DEPTH under the table's plane z = 0
-            pose[14] -= drop * 0.5 * (1 - math.cos(math.pi * min(t / DESCENT, 1.0)))
-            command = fr.CartesianPose(pose)
-            command.motion_finished = t >= HOLD
-            control.writeOnce(command)
-            if command.motion_finished:
-                break
-    except fr.ControlException as exc:
-        error = str(exc)
-    return {"press_error": error, "press": sample(state)}
+
+    def pose_at(state, t: float):
+        if not start:
+            start.extend(state.O_T_EE_c)
+        pose = list(start)
+        drop = start[14] + DEPTH[servo]  # to DEPTH under the table's plane z = 0
+        pose[14] -= drop * 0.5 * (1 - math.cos(math.pi * min(t / DESCENT, 1.0)))
+        return fr.CartesianPose(pose)
+
+    states, error = run(robot.start_cartesian_pose_control(SERVO[servo]), pose_at, HOLD)
+    return {"press_error": error, "press": sample(states[-1])}
 
 
 def idle(robot: fr.Robot) -> list[dict]:
@@ -91,29 +102,23 @@ def scenario_press_then_move(host: str) -> dict:
     robot = connect(host)
     result = press(robot, os.environ.get("SERVO", "cartesian"))
     result["idle"] = idle(robot)
-    t, q0, first, error = 0.0, None, [], None
+    q0: list[float] = []
+
+    def lift(state, t: float):
+        if not q0:
+            q0.extend(state.q)
+        q = list(q0)
+        q[1] -= 0.1 * 0.5 * (1 - math.cos(math.pi * min(t, 1.0)))
+        return fr.JointPositions(q)
+
     try:  # (a reflex at the motion's first cycle already raises from the start)
-        control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
-        while True:
-            state, period = control.readOnce()
-            t += period.to_sec()
-            if q0 is None:
-                q0 = list(state.q)
-            if len(first) < 3:
-                first.append(sample(state))
-            q = list(q0)
-            q[1] -= 0.1 * 0.5 * (1 - math.cos(math.pi * min(t, 1.0)))
-            command = fr.JointPositions(q)
-            command.motion_finished = t >= 1.0
-            control.writeOnce(command)
-            if command.motion_finished:
-                break
+        states, error = run(robot.start_joint_position_control(SERVO["joint"]), lift, 1.0)
     except fr.ControlException as exc:
-        error = str(exc)
+        states, error = [], str(exc)
     time.sleep(0.05)
     after = robot.read_once()
     result.update(
-        first=first,
+        first=[sample(s) for s in states[:3]],
         error=error,
         after=sample(after),
         last_motion_errors=str(after.last_motion_errors),
@@ -127,21 +132,11 @@ def scenario_press_then_torque(host: str) -> dict:
     robot = connect(host)
     result = press(robot, os.environ.get("SERVO", "cartesian"))
     result["idle"] = idle(robot)
-    t, states, error = 0.0, [], None
     try:
-        control = robot.start_torque_control()
-        while True:
-            state, period = control.readOnce()
-            t += period.to_sec()
-            states.append(sample(state))
-            command = fr.Torques([0.0] * 7)
-            command.motion_finished = t >= 0.2
-            control.writeOnce(command)
-            if command.motion_finished:
-                break
+        states, error = run(robot.start_torque_control(), lambda *_: fr.Torques([0.0] * 7), 0.2)
     except fr.ControlException as exc:
-        error = str(exc)
-    result.update(torque=states, error=error)
+        states, error = [], str(exc)
+    result.update(torque=[sample(s) for s in states], error=error)
     return result
 
 
