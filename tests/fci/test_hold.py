@@ -66,21 +66,32 @@ def test_a_move_changes_nothing_until_its_first_command():
     np.testing.assert_allclose(client.state["tau_J"], tau - press, atol=0.1)
 
 
-def test_the_joint_servo_takes_over_a_press_where_its_first_command_puts_it():
-    """Under JointImpedance the first command (the measured q, as libfranka's examples
-    start) releases the press gradually: no reflex at the 100 N thresholds, and no
-    state reads more force than the press had."""
-    ctrl, client = pressed()
+@pytest.mark.parametrize(
+    ("first", "then"),
+    [(CI, IMP), (CI, CI), (IMP, CI), (IMP, IMP)],
+    ids=["cartesian-joint", "cartesian-cartesian", "joint-cartesian", "joint-joint"],
+)
+def test_the_next_servo_takes_over_a_press_where_its_first_command_puts_it(first, then):
+    """A press under one internal servo, then a motion under either, whose commands
+    hold the measured q (a joint-position motion under JointImpedance) or the measured
+    pose (a pose motion under CartesianImpedance), as libfranka's examples start: the
+    press is released as the new servo takes over -- no reflex at the 100 N thresholds,
+    no state reads more force than the press had."""
+    ctrl, client = pressed(first, 0.02 if first == CI else 0.002)
     press = client.state["O_F_ext_hat_K"][2]
-    assert client.start(JP, IMP) == MoveStatus.kMotionStarted
-    q = client.state["q"].copy()
+    client.idle(50)  # a client reading idle states, then starting the next motion
+    generator = JP if then == IMP else POSE
+    assert client.start(generator, then) == MoveStatus.kMotionStarted
+    command = {"q_c": client.state["q"].copy()}
+    if then == CI:
+        command = {"O_T_EE_c": client.state["O_T_EE"].astype(np.float64)}
     worst = 0.0
-    for _ in range(200):
-        client.send(q_c=q)
+    for _ in range(300):
         worst = min(worst, client.state["O_F_ext_hat_K"][2])
+        client.send(**command)
     assert client.move_statuses() == [MoveStatus.kSuccess]  # the press's only
     assert worst >= press - 0.5
-    assert table_contacts(ctrl.physics)[0] < 1.0  # released
+    assert table_contacts(ctrl.physics)[0] < 0.2 * -press  # released
 
 
 def test_a_motion_that_never_commanded_leaves_the_hold_as_it_was():
