@@ -191,6 +191,7 @@ class ExternalTorqueEstimator:
         #: starts from
         self.mass = np.zeros((n, 7, 7))
         self.bias = np.zeros((n, 7))
+        self._spare_bias = np.zeros((n, 7))
 
     def reset(self, robots, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray) -> None:
         """Forget ``robots``' history: their estimate restarts at zero from the state
@@ -211,12 +212,14 @@ class ExternalTorqueEstimator:
         self, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """(M ddq, bias) of the cycle that ended at velocity ``dq``, both at the state its
-        step started from; keeps ``mass`` (n, 7, 7) and ``bias`` (n, 7), the new state's,
-        for the next cycle."""
+        step started from; keeps ``mass`` (n, 7, 7, kept as given: pass an array nothing
+        else writes) and a copy of ``bias`` (n, 7), the new state's, for the next cycle.
+        The returned bias is valid until the next call."""
         m_ddq = np.matmul(self.mass, self.acceleration(dq)[..., None])[..., 0]
         bias_k = self.bias
-        self.mass = np.array(mass, dtype=np.float64)
-        self.bias = np.array(bias, dtype=np.float64)
+        self.mass = mass
+        self.bias, self._spare_bias = self._spare_bias, bias_k
+        np.copyto(self.bias, bias)
         return m_ddq, bias_k
 
     def filter(
