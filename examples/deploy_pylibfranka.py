@@ -118,9 +118,15 @@ class NumpyActor:
 
     @classmethod
     def of(cls, model, samples: int = 8):
-        """The numpy actor of ``model``, or ``model`` when it has no such actor."""
+        """The numpy actor of ``model``, or ``model`` when it has no such actor. A model
+        behind observation normalisation (train_sb3.py's default) keeps it: the numpy
+        actor of the model behind the same statistics."""
         import torch.nn as nn
 
+        from franka_sim_gym.training.sb3_zoo import NormalizedPolicy
+
+        if isinstance(model, NormalizedPolicy):
+            return NormalizedPolicy(cls.of(model.model, samples), model.normalization)
         actor = getattr(model.policy, "actor", None)
         extractor = getattr(actor, "features_extractor", None)
         if actor is None or getattr(actor, "use_sde", False) or extractor is None:

@@ -5,16 +5,19 @@
     python examples/train_sb3.py --algo ppo --num-envs 1 --steps 50000 --out runs/ppo
 
 The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientation held,
-10 Hz policy, 2 s episodes) in 16 arms of one MuJoCo world (the native batched env,
-franka_sim_gym.training.sb3_vec_env), SB3's SAC, one gradient step per sample on one
-torch thread, 12,000 samples, HER through the buffer that keeps the reflex charge of
-relabelled steps (franka_sim_gym.training.sb3_her), SAC's entropy weight tuned from 0.02.
+10 Hz policy, 2 s episodes) in 16 batched arms (the native batched env,
+franka_sim_gym.training.sb3_vec_env), behind SB3's observation normalisation, SB3's SAC,
+one gradient step per sample on one torch thread, 6,000 samples, HER through the buffer
+that keeps the reflex charge of relabelled steps (franka_sim_gym.training.sb3_her), SAC's
+entropy weight tuned from 0.02.
 Every cycle runs the full FCI at 1 kHz: the libfranka client's filters, every
 motion-limit check including the IK joint side, the safety controller. Reflexes
 terminate episodes, as on the robot. docs/training.md tells the settings and figures.
 
-``--normalize`` trains behind SB3's observation normalisation (``VecNormalize``, rewards
-left as they are), saved beside the model where examples/evaluate.py finds it.
+Observations are normalised by SB3's ``VecNormalize`` (rewards left as they are; the
+statistics saved beside the model, where examples/evaluate.py and
+examples/deploy_pylibfranka.py find them); ``--no-normalize`` trains on the raw ones.
+Without it the policy learns to ignore the goal (docs/training.md, "Why normalise").
 ``--eval-every N`` evaluates every N samples (instead of ``--evals`` times), and
 ``--time-limit S`` stops at the first evaluation after S seconds, saving what it has.
 
@@ -182,8 +185,8 @@ def plot(out: Path, rows: list[dict], title: str = "FrankaFCI reach") -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--algo", default="sac", choices=("sac", "td3", "ppo"))
-    parser.add_argument("--steps", type=int, default=12000, help="environment steps")
-    parser.add_argument("--evals", type=int, default=4, help="evaluations during training")
+    parser.add_argument("--steps", type=int, default=6000, help="environment steps")
+    parser.add_argument("--evals", type=int, default=3, help="evaluations during training")
     parser.add_argument(
         "--eval-every", type=int, default=None, help="samples between evaluations (over --evals)"
     )
@@ -195,8 +198,9 @@ def main() -> None:
     )
     parser.add_argument(
         "--normalize",
-        action="store_true",
-        help="observation normalisation (SB3's VecNormalize, rewards left as they are)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="observation normalisation (SB3's VecNormalize, rewards left as they are; default on)",
     )
     parser.add_argument("--eval-episodes", type=int, default=32)
     parser.add_argument("--seed", type=int, default=0)

@@ -1,14 +1,22 @@
-"""An rl-zoo3 run's model as a policy: with the observation normalisation it trained behind.
+"""rl-zoo3 and this package: the batched env under an rl-zoo3 run, and the run's model as a
+policy with the observation normalisation it trained behind.
 
+    # the shipped file's entries name it as their vec_env_wrapper:
+    #   vec_env_wrapper: franka_sim_gym.training.sb3_zoo.BatchedArms
     from franka_sim_gym.training.sb3_zoo import with_normalization
     policy = with_normalization(model, "logs/sac/FrankaFCI-v0_1/FrankaFCI-v0.zip", env)
 
-rl-zoo3 trains an entry with ``normalize`` (the shipped file's ``FrankaFCI-v0``) behind
-SB3's ``VecNormalize`` and saves its statistics as ``<run>/<env id>/vecnormalize.pkl``
-beside the model ``<run>/<env id>.zip``; the model alone expects normalised
-observations. ``with_normalization`` returns the model itself when there is no such
-file, else a policy that normalises each observation with the saved statistics before
-the model's ``predict`` (what ``rl_zoo3.enjoy`` does), for
+rl-zoo3 steps an entry's ``n_envs`` arms as a ``DummyVecEnv`` of single envs: one
+controller call and one MuJoCo step per arm per cycle. ``BatchedArms``, named as the
+entry's ``vec_env_wrapper``, hands it the native batched env of the same id, arguments
+and number of arms instead (one controller call per cycle for all of them: docs/env.md),
+with SB3's ``VecMonitor`` for the episode statistics rl-zoo3 logs.
+
+rl-zoo3 trains an entry with ``normalize`` behind SB3's ``VecNormalize`` and saves its
+statistics as ``<run>/<env id>/vecnormalize.pkl`` beside the model ``<run>/<env id>.zip``;
+the model alone expects normalised observations. ``with_normalization`` returns the model
+itself when there is no such file, else a policy that normalises each observation with
+the saved statistics before the model's ``predict`` (what ``rl_zoo3.enjoy`` does), for
 ``franka_sim_gym.training.evaluation.evaluate`` and examples/evaluate.py.
 """
 
@@ -19,7 +27,15 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import (
+    DummyVecEnv,
+    VecEnv,
+    VecEnvWrapper,
+    VecMonitor,
+    VecNormalize,
+)
+
+from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv
 
 
 def normalization_file(model_path: str | Path) -> Path:
@@ -56,3 +72,33 @@ def with_normalization(model, model_path: str | Path, env: gym.Env):
     if not path.is_file():
         return model
     return NormalizedPolicy(model, VecNormalize.load(str(path), DummyVecEnv([lambda: env])))
+
+
+class BatchedArms(VecEnvWrapper):
+    """The native batched env in place of the vector env rl-zoo3 built (its
+    ``vec_env_wrapper``).
+
+    rl-zoo3 builds ``n_envs`` single envs of the entry's id and ``env_kwargs`` (each
+    behind its ``Monitor``) and hands their vector env to the wrapper; this one reads the
+    id's arguments from the first env's spec, closes the single envs, and steps
+    ``FrankaFCISB3VecEnv`` of as many arms with the same arguments behind SB3's
+    ``VecMonitor`` (the episode returns, lengths and successes rl-zoo3 logs). The seeds SB3
+    gives the model reach the arms as they would the single envs (arm i: seed + i).
+    rl-zoo3's per-env ``monitor.csv`` files stay empty.
+    """
+
+    def __init__(self, venv: VecEnv) -> None:
+        spec = venv.get_attr("spec", [0])[0]
+        kwargs = dict(spec.kwargs)
+        if spec.max_episode_steps is not None:  # gym.make's own argument, not in kwargs
+            kwargs["max_episode_steps"] = spec.max_episode_steps
+        arms = venv.num_envs
+        venv.close()
+        batched = FrankaFCISB3VecEnv(arms, **kwargs)
+        super().__init__(VecMonitor(batched, info_keywords=("is_success",)))
+
+    def reset(self):
+        return self.venv.reset()
+
+    def step_wait(self):
+        return self.venv.step_wait()

@@ -44,6 +44,30 @@ def test_the_numpy_actor_acts_as_predict(algo):
         np.testing.assert_allclose(got, expected, atol=1e-5)
 
 
+def test_the_numpy_actor_keeps_the_observation_normalisation():
+    """train_sb3.py's default trains behind VecNormalize: the deployed actor must see the
+    observations normalised by the saved statistics, as the model did in training."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from franka_sim_gym.training.sb3_zoo import NormalizedPolicy
+
+    model = _model("sac")
+    stats = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID, **KWARGS)]), norm_reward=False)
+    for key, space in model.observation_space.spaces.items():  # statistics far from (0, 1)
+        samples = np.stack([space.sample() for _ in range(50)])
+        stats.obs_rms[key].update(3.0 * samples + 1.0)
+    policy = NormalizedPolicy(model, stats)
+    actor = deploy.NumpyActor.of(policy)
+    assert isinstance(actor, NormalizedPolicy) and isinstance(actor.model, deploy.NumpyActor)
+    for _ in range(20):
+        obs = model.observation_space.sample()
+        got, _ = actor.predict(obs)
+        expected, _ = policy.predict(obs, deterministic=True)
+        np.testing.assert_allclose(got, expected, atol=1e-5)
+        raw, _ = model.predict(obs, deterministic=True)
+        assert not np.allclose(got, raw, atol=1e-3)  # the statistics matter
+
+
 def test_a_policy_without_a_deterministic_actor_is_kept():
     model = _model("ppo")
     assert deploy.NumpyActor.of(model) is model

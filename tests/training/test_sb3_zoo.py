@@ -1,5 +1,6 @@
-"""An rl-zoo3 run's model evaluated behind the normalisation rl-zoo3 saved beside it
-(training/sb3_zoo.py, examples/evaluate.py), and the shipped file's path."""
+"""rl-zoo3 and the package (training/sb3_zoo.py): the batched env under an rl-zoo3 run, a
+run's model evaluated behind the normalisation rl-zoo3 saved beside it
+(examples/evaluate.py), and the shipped file."""
 
 from __future__ import annotations
 
@@ -18,7 +19,12 @@ pytest.importorskip("stable_baselines3")
 from stable_baselines3 import SAC  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize  # noqa: E402
 
-from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, with_normalization  # noqa: E402
+from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
+from franka_sim_gym.training.sb3_zoo import (  # noqa: E402
+    BatchedArms,
+    NormalizedPolicy,
+    with_normalization,
+)
 from tests.conftest import load_example  # noqa: E402
 
 KWARGS = {"policy_hz": 10, "max_episode_steps": 4}
@@ -38,6 +44,39 @@ def zoo_run(directory, normalize: bool):
         (directory / "FrankaFCI-v0").mkdir()
         venv.save(str(directory / "FrankaFCI-v0" / "vecnormalize.pkl"))
     return model, venv, path
+
+
+def test_batched_arms_steps_an_entrys_arms_as_the_batched_env_with_its_arguments():
+    """What rl-zoo3 does with an entry (SB3's make_vec_env of the id's single envs with
+    the entry's env_kwargs, each behind a Monitor, then the entry's vec_env_wrapper),
+    wrapped: the batched env of as many arms, the same episodes as the single envs (arm i
+    seeded seed + i), the episode length rl-zoo3 asked for, VecMonitor's statistics."""
+    from stable_baselines3.common.env_util import make_vec_env
+
+    spec = gym.spec("FrankaFCI-v0")
+    venv = make_vec_env(lambda **kwargs: spec.make(**kwargs), n_envs=3, env_kwargs=KWARGS)
+    batched = BatchedArms(venv)
+    assert batched.num_envs == 3 and isinstance(batched.venv.venv, FrankaFCISB3VecEnv)
+    batched.seed(5)  # what SB3's model does with its seed
+    obs = batched.reset()
+    singles = [gym.make("FrankaFCI-v0", **KWARGS) for _ in range(3)]
+    first = [env.reset(seed=5 + i)[0] for i, env in enumerate(singles)]
+    for i in range(3):
+        for key in obs:
+            assert np.array_equal(obs[key][i], first[i][key])
+    actions = np.tile(np.linspace(-0.5, 0.5, 7, dtype=np.float32), (3, 1))
+    for _ in range(KWARGS["max_episode_steps"]):
+        obs, _, dones, infos = batched.step(actions)
+        expected = [env.step(actions[i]) for i, env in enumerate(singles)]
+        for i in range(3):
+            if not dones[i]:
+                assert np.array_equal(obs["observation"][i], expected[i][0]["observation"])
+    assert dones.all(), "rl-zoo3's episode length (env_kwargs' max_episode_steps)"
+    for info, single in zip(infos, expected, strict=True):
+        assert info["episode"]["l"] == KWARGS["max_episode_steps"]  # VecMonitor's
+        assert info["is_success"] == single[4]["is_success"]
+        assert np.array_equal(info["terminal_observation"]["observation"], single[0]["observation"])
+    batched.close()
 
 
 def test_a_normalized_run_is_evaluated_on_normalized_observations(tmp_path):
@@ -75,8 +114,10 @@ def test_the_shipped_file_is_found_and_names_its_ids():
     with pytest.raises(ValueError, match="no shipped rl-zoo3 file for 'ppo'"):
         hyperparams_file("ppo")
     import yaml  # the test extra's (rl-zoo3 reads the file with it)
+
     entries = yaml.safe_load(path.read_text())
     assert {"FrankaFCI-v0", "FrankaFCICartesianVelocity-v0"} <= set(entries)
     for settings in entries.values():
+        assert settings["vec_env_wrapper"] == "franka_sim_gym.training.sb3_zoo.BatchedArms"
         assert settings["replay_buffer_class"] == "HerReplayBuffer"
         assert "copy_info_dict=True" in settings["replay_buffer_kwargs"]
