@@ -49,13 +49,23 @@ def datasets_dir(tmp_path_factory):
         yield path
 
 
+class HalfStill(RandomPolicy):
+    """Random unfiltered joint targets (a reflex within a few steps) on odd arms; the
+    even arms hold still until the time limit."""
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        actions = super().__call__(obs)
+        actions[::2] = 0.0
+        return actions
+
+
 @pytest.fixture(scope="module")
 def demos(datasets_dir):
-    """Reach episodes of random unfiltered joint targets: many end in a reflex."""
+    """Reach episodes: half end in a reflex, half at the time limit."""
     return record(
         "tests/demos-v0",
         "FrankaFCI-v0",
-        RandomPolicy(7, seed=1),
+        HalfStill(7, seed=1),
         12,
         env_kwargs=REFLEXES,
         num_envs=12,
@@ -121,6 +131,12 @@ def test_relabelled_demonstrations_keep_their_reflex_charge(demos):
     assert charges and all(c < 0 for c in charges), "random unfiltered actions trip reflexes"
     stored = buffer.demos.infos.penalty[: buffer.demos.pos, 0]
     assert sorted(stored[stored != 0].tolist()) == sorted(charges)
+    # an episode cut by the time limit is no terminal transition (SB3's timeouts)
+    ends = buffer.demos.dones[: buffer.demos.pos, 0] > 0
+    timeouts = buffer.demos.timeouts[: buffer.demos.pos, 0] > 0
+    assert ends.sum() == demos.total_episodes
+    assert timeouts.sum() == demos.total_episodes - len(charges) > 0
+    assert np.array_equal(ends & ~timeouts, stored != 0)
     relabelled, rewards = sampled_reflex_steps(buffer)  # all demonstrations (no online yet)
     assert np.all(rewards[relabelled] < -1.0)
     assert set(rewards[relabelled].tolist()) <= set(np.float32(charges).tolist())
