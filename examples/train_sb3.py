@@ -319,7 +319,8 @@ def main() -> None:
         model.gamma = args.gamma
     if args.tau is not None:
         model.tau = args.tau
-    if args.demos:
+    start = time.perf_counter()
+    if args.demos:  # (in the run's time)
         from franka_sim_gym.training.sb3_demos import add_behaviour_cloning, behaviour_cloning
 
         normalize = env.normalize_obs if args.normalize else None
@@ -327,7 +328,6 @@ def main() -> None:
             behaviour_cloning(model.policy, demos["demos"], args.bc_steps, normalize=normalize)
         if args.bc_weight:
             add_behaviour_cloning(model, demos["demos"], args.bc_weight, normalize, args.seed)
-    start = time.perf_counter()
     rows = []
     bar = progress_bar(collected, enabled=not args.no_progress)
     done = 0
