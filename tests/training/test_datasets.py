@@ -39,14 +39,6 @@ class RandomPolicy:
 
 
 @pytest.fixture(scope="module")
-def datasets_dir(tmp_path_factory):
-    with pytest.MonkeyPatch.context() as patch:
-        path = tmp_path_factory.mktemp("minari")
-        patch.setenv("MINARI_DATASETS_PATH", str(path))
-        yield path
-
-
-@pytest.fixture(scope="module")
 def reflex_dataset(datasets_dir):
     return record(
         "tests/reflexes-v0",

@@ -41,14 +41,6 @@ def one_thread():
     th.set_num_threads(threads)
 
 
-@pytest.fixture(scope="module")
-def datasets_dir(tmp_path_factory):
-    with pytest.MonkeyPatch.context() as patch:
-        path = tmp_path_factory.mktemp("minari")
-        patch.setenv("MINARI_DATASETS_PATH", str(path))
-        yield path
-
-
 class HalfStill(RandomPolicy):
     """Random unfiltered joint targets (a reflex within a few steps) on odd arms; the
     even arms hold still until the time limit."""
