@@ -4,7 +4,8 @@
         runs/push_rl/eval.csv:"SAC + HER" --level 0.06:"behaviour cloning" \
         --title FrankaFCIPush-v0 --note "published: ..." --out docs/img/push_demos.png
 
-Each CSV is train_sb3.py's eval.csv (samples, success rate, reflex rate, ...): its
+Each CSV is train_sb3.py's eval.csv (steps, success rate, reflex rate, ...) or one of
+docs/data's (samples, ...): its
 success rate is drawn solid against samples, its reflex rate dashed in the same colour.
 ``--level VALUE:LABEL`` draws a horizontal line (a baseline measured once, e.g. the
 behaviour-cloning policy or the scripted solver); ``--note`` writes a text under the
@@ -22,7 +23,7 @@ def read(path: Path) -> tuple[list[float], list[float], list[float]]:
     with open(path) as f:
         rows = list(csv.DictReader(f))
     return (
-        [float(r["steps"]) for r in rows],
+        [float(r["samples"] if "samples" in r else r["steps"]) for r in rows],
         [float(r["success_rate"]) for r in rows],
         [float(r["reflex_rate"]) for r in rows],
     )

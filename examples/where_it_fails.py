@@ -6,9 +6,11 @@ Runs the saved model (examples/evaluate.py's loading: train_config.json, the
 normalisation beside it) on N episodes side by side, seeds 10,000 on (the training
 runs' evaluation episodes), and sorts every episode by how it ended: success; a
 reflex, with the robot's error names, the step, the TCP's height above the table, and
-whether the object had moved yet (for Push and PickAndPlace: > 1 cm from its start,
-i.e. before or after the hand reached it; for PegInsertion: the peg tip's height over
-the hole's bottom); or the time limit with the object's last distance to its goal.
+whether the object had moved yet (> 1 cm from its start: for Push and PickAndPlace,
+before or after the hand reached it; the held peg moves with the hand), and where the
+achieved goal was (the object's centre, the peg's tip) relative to the goal (the
+hole's bottom for PegInsertion); or the time limit with the object's last distance to
+its goal.
 """
 
 from __future__ import annotations
@@ -44,15 +46,16 @@ def run(policy, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> list
         for i in np.flatnonzero(terminated | truncated).tolist():
             if rows[i] is not None:
                 continue
-            o = before["observation"][i] if terminated[i] else obs["observation"][i]
-            moved = float(np.linalg.norm(o[at : at + 2] - start[i, :2]))
+            last = before if terminated[i] else obs  # (a reflex's final obs is the reset's)
+            o = last["observation"][i]
+            offset = last["achieved_goal"][i] - last["desired_goal"][i]
             row = {
                 "step": step,
                 "tcp_z": float(o[EE][2]),
-                "object_moved": moved,
-                "goal_distance": float(
-                    np.linalg.norm(obs["achieved_goal"][i] - obs["desired_goal"][i])
-                ),
+                "object_moved": float(np.linalg.norm(o[at : at + 2] - start[i, :2])),
+                "goal_distance": float(np.linalg.norm(offset)),
+                "goal_xy": float(np.linalg.norm(offset[:2])),
+                "goal_dz": float(offset[2]),
             }
             if terminated[i]:
                 row["end"] = "reflex"
@@ -85,9 +88,12 @@ def main() -> None:
         names = Counter(name for r in reflexes for name in r["errors"])
         print(f"reflexes: {dict(names)}; {dict(phases)}")
         print(
-            "  at step (median) {:.0f}, TCP height (median) {:.3f} m".format(
-                np.median([r["step"] for r in reflexes]),
-                np.median([r["tcp_z"] for r in reflexes]),
+            "  medians at the reflex: step {:.0f}, TCP height {:.3f} m, achieved goal "
+            "{:.3f} m off the goal in xy and {:+.3f} m in z".format(
+                *(
+                    np.median([r[k] for r in reflexes])
+                    for k in ("step", "tcp_z", "goal_xy", "goal_dz")
+                )
             )
         )
     late = [r for r in rows if r["end"] == "time limit"]
