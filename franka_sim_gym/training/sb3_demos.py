@@ -44,10 +44,16 @@ def check_spaces(dataset, observation_space, action_space) -> None:
     """A ``ValueError`` when the dataset's spaces are not the learner's env's."""
     if dataset.observation_space != observation_space or dataset.action_space != action_space:
         raise ValueError(
-            f"dataset {dataset.id!r} was recorded on {dataset.env_spec.id} with spaces "
-            f"{dataset.observation_space} / {dataset.action_space}; the env has "
-            f"{observation_space} / {action_space}"
+            f"dataset {dataset.id!r} was recorded on {dataset.env_spec.id} with arguments "
+            f"{dataset.env_spec.kwargs}: observations {shapes(dataset.observation_space)}, "
+            f"actions {dataset.action_space.shape}; the env has observations "
+            f"{shapes(observation_space)}, actions {action_space.shape} (bounds are compared "
+            "too): train on the dataset's id and arguments"
         )
+
+
+def shapes(space) -> dict:
+    return {key: sub.shape for key, sub in space.spaces.items()}
 
 
 def fill(buffer: ReflexChargedHerReplayBuffer, dataset) -> None:
