@@ -193,7 +193,9 @@ def test_train_sb3_learns_from_a_dataset_and_saves_a_model_that_loads_without_it
 ):
     train_sb3 = load_example("train_sb3")
     env_kwargs = {**train_sb3.DEFAULT_ENV_KWARGS, **REFLEXES}
-    record("tests/train-v0", "FrankaFCI-v0", RandomPolicy(7, seed=2), 4, env_kwargs=env_kwargs)
+    recorded = record(
+        "tests/train-v0", "FrankaFCI-v0", RandomPolicy(7, seed=2), 4, env_kwargs=env_kwargs
+    ).total_steps
     out = tmp_path / "run"
     argv = ["train_sb3.py", "--env-id", "FrankaFCI-v0", "--env-kwargs", json.dumps(REFLEXES)]
     argv += ["--demos", "tests/train-v0", "--bc-weight", "1", "--bc-steps", "5", "--normalize"]
@@ -209,4 +211,9 @@ def test_train_sb3_learns_from_a_dataset_and_saves_a_model_that_loads_without_it
     model = sb3.SAC.load(out / "model.zip", env=env)
     assert model.replay_buffer_class is ReflexChargedHerReplayBuffer
     assert model.gamma == 0.9
+    # the normalisation's statistics started from every recorded observation
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    stats = VecNormalize.load(str(out / "model" / "vecnormalize.pkl"), DummyVecEnv([lambda: env]))
+    assert stats.obs_rms["observation"].count > recorded + 24
     env.close()
