@@ -19,6 +19,7 @@ from franka_sim_gym.training.datasets import names, record  # noqa: E402
 from franka_sim_gym.training.sb3_demos import (  # noqa: E402
     BehaviourCloningAdam,
     DemoMixedHerReplayBuffer,
+    add_behaviour_cloning,
     behaviour_cloning,
     demo_arrays,
 )
@@ -185,6 +186,28 @@ def test_behaviour_cloning_fits_the_actor_to_the_recorded_actions(demos):
             optimizer.zero_grad()
             optimizer.step()
         assert (error(fresh) < 0.5 * start) == moves
+    env.close()
+
+
+def test_sacs_actor_steps_carry_the_behaviour_cloning_term(demos):
+    env = FrankaFCISB3VecEnv(2, **ENV_KWARGS)
+    model = sb3.SAC(
+        "MultiInputPolicy",
+        env,
+        learning_starts=2,
+        batch_size=32,
+        seed=0,
+        buffer_size=100,
+        replay_buffer_class=DemoMixedHerReplayBuffer,
+        replay_buffer_kwargs=dict(demos=demos, **HER),
+        policy_kwargs=dict(net_arch=[16]),
+    )
+    lr = model.actor.optimizer.param_groups[0]["lr"]
+    optimizer = add_behaviour_cloning(model, demos, weight=2.0)
+    assert model.actor.optimizer is optimizer and optimizer.param_groups[0]["lr"] == lr
+    assert np.isnan(optimizer.last_loss)
+    model.learn(8)  # SAC's own train(): its actor steps are this optimizer's
+    assert np.isfinite(optimizer.last_loss) and optimizer.last_loss > 0
     env.close()
 
 
