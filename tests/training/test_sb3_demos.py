@@ -240,3 +240,20 @@ def test_train_sb3_learns_from_a_dataset_and_saves_a_model_that_loads_without_it
     stats = VecNormalize.load(str(out / "model" / "vecnormalize.pkl"), DummyVecEnv([lambda: env]))
     assert stats.obs_rms["observation"].count > recorded + 24
     env.close()
+
+
+def test_train_bc_saves_a_policy_that_evaluate_and_where_it_fails_read(
+    datasets_dir, tmp_path, monkeypatch, capsys
+):
+    record("tests/bc-v0", "FrankaFCI-v0", Smooth(), 3, env_kwargs=REFLEXES, num_envs=3)
+    out = tmp_path / "bc"
+    argv = ["train_bc.py", "--demos", "tests/bc-v0", "--steps", "20", "--net", "16"]
+    monkeypatch.setattr("sys.argv", [*argv, "--eval-episodes", "2", "--out", str(out)])
+    load_example("train_bc").main()
+    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("bc: success_rate=")
+    model, config = load_example("evaluate").load_model(out / "model.zip")
+    assert config == {"algo": "sac", "env_id": "FrankaFCI-v0", "env_kwargs": REFLEXES}
+    rows = load_example("where_it_fails").run(model, "FrankaFCI-v0", REFLEXES, 3, seed=0)
+    assert len(rows) == 3 and {r["end"] for r in rows} <= {"success", "reflex", "time limit"}
+    for row in rows:
+        assert (row["end"] == "reflex") == ("errors" in row) and row["step"] <= 6
