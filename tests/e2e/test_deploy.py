@@ -35,10 +35,9 @@ CASES = {
 
 @pytest.mark.parametrize("env_kwargs", list(CASES.values()), ids=list(CASES))
 def test_deploy_runs_reaches_through_pylibfranka_without_reflexes(serve, env_kwargs):
-    # The server as `franka-sim-gym serve` runs by default (violations logged, not
-    # enforced): a lost socket cycle on a loaded machine must not fail the test, and the
-    # log still shows every violation the reaches would have tripped.
-    server = serve()
+    # The robot as it stands in a lab: a motion-limit violation or 20 lost cycles abort
+    # the motion (a reflex the client sees), and the log names any violation at all.
+    server = serve("--enforce-motion-limits", "--enforce-comm-constraints")
     proc = run_python(
         CLIENTS / "deploy_runner.py", server.host, "3", json.dumps(env_kwargs), timeout=180
     )
@@ -51,3 +50,4 @@ def test_deploy_runs_reaches_through_pylibfranka_without_reflexes(serve, env_kwa
     log = server.log()
     assert log.count("motion ended: kSuccess") == 6, log[-3000:]
     assert "kReflexAborted" not in log
+    assert "motion limit violated" not in log, log[-3000:]
