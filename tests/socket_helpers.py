@@ -81,6 +81,30 @@ def run_client(
     return json.loads(lines[-1])
 
 
+class HeldClient:
+    """A client scenario that holds its connection until released (the 'first client' of
+    a second-client test; tests/e2e/clients/scenario_main.py hold_until_told)."""
+
+    def __init__(self, kind: str, scenario: str, host: str, timeout: float = 60.0) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, str(CLIENTS / f"{kind}_client.py"), scenario, host],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+        )
+        line = self.process.stdout.readline()  # once a state came, or the result on failure
+        if line.strip() != "holding":
+            self.process.kill()
+            raise AssertionError(f"{kind} {scenario} did not hold a connection: {line!r}")
+        self.timeout = timeout
+
+    def release(self) -> dict:
+        """Tell it to stop holding; its result (JSON)."""
+        out, _ = self.process.communicate("release\n", timeout=self.timeout)
+        return json.loads(out.strip().splitlines()[-1])
+
+
 @pytest.fixture
 def serve(franka_sim_factory):
     """``serve(*flags, env=None)``: a ready `franka-sim-gym serve` on its own loopback

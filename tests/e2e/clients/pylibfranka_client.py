@@ -234,14 +234,12 @@ def scenario_reconnect_and_move(host: str) -> dict:
 
 
 def scenario_hold_connection(host: str) -> dict:
-    """Connect and keep reading states for a while (the 'first client' of a second-client test)."""
+    """Connect and keep reading states until told on stdin, then 100 more (the 'first
+    client' of a second-client test; scenario_main.hold_until_told)."""
     robot = connect(host)
-    t0 = time.monotonic()
-    reads = 0
-    while time.monotonic() - t0 < float(os.environ.get("HOLD_SECONDS", "3")):
-        robot.read_once()
-        reads += 1
-    return {"reads": reads}
+    return scenario_main.hold_until_told(
+        lambda: round(robot.read_once().time.to_sec() * 1000), more=100
+    )
 
 
 def scenario_connect_only(host: str) -> dict:
