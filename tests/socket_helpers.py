@@ -32,6 +32,12 @@ def motion_summaries(log: str) -> list[tuple[str, int, int]]:
     return [(m[1], int(m[2]), int(m[3])) for m in re.finditer(pattern, log)]
 
 
+def recovery_cycles(log: str) -> int:
+    """The cycles the one AutomaticErrorRecovery a server logged waited for standstill."""
+    [cycles] = re.findall(r"recovery answered after (\d+) cycles", log)
+    return int(cycles)
+
+
 def unstarved(
     serve, run: Callable[[SimServer], dict], *flags: str, attempts: int = 3
 ) -> tuple[SimServer, dict]:
