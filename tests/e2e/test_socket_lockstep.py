@@ -26,7 +26,9 @@ def test_a_5_s_motion_finishes_in_a_fraction_of_5_s(serve, client):
     assert r["states"] == 5001
     assert r["min_success_rate_after_100"] == 1.0
     assert r["final_mode"] == "Idle"
-    # ... in less wall time than the robot's 5 s (on the 1 kHz clock it takes 5.0 s).
+    # ... in less wall time than the robot's 5 s (on the 1 kHz clock it takes 5.0 s, and
+    # longer on a loaded machine). A bound that holds at a load of 8: lockstep ran 2.1x
+    # real time there (benchmarks/RESULTS.md, lockstep_rate.py at load 8.5).
     assert r["wall_seconds"] < r["robot_seconds"], r["wall_seconds"]
     server.stop()
     assert motion_summaries(server.log()) == [("kSuccess", 0, 0)]
@@ -57,7 +59,8 @@ def test_a_client_that_stops_answering_meets_the_reflex_in_bounded_wall_time(ser
     assert r.get("error") is not None, r
     assert '["communication_constraints_violation"]' in r["error"]
     assert r["mode_after"] == "Reflex"
-    # Each unanswered state waited the bound, and no longer: 20 lost cycles, ~1 s.
+    # Each unanswered state waited the bound, and no longer: 20 lost cycles (the robot's
+    # count), ~1 s. A load only adds wake-up latency to the 20 waits: 2 s of slack.
     assert r["robot_ms_silent"] == MAX_LOST_CYCLES
     bound = MAX_LOST_CYCLES * DEFAULT_TIMEOUT_S
     assert 0.9 * bound <= r["wall_seconds"] < bound + 2.0, r["wall_seconds"]
@@ -92,5 +95,5 @@ def test_frankys_callback_loop_runs_in_lockstep(serve, client):
     [(status, lost, _)] = motion_summaries(log)
     assert (status, lost) == ("kSuccess", 0)
     cycles = int(log.split("motion ended: kSuccess after ")[1].split()[0])
-    # The motion's robot time passed faster than the wall clock.
+    # The motion's robot time passed faster than the wall clock (2.1x at a load of 8).
     assert r["duration"] < cycles / 1000.0, (r["duration"], cycles)
