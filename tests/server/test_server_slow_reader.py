@@ -47,6 +47,9 @@ def test_a_client_that_stops_reading_gets_its_reflex_on_time_and_is_dropped(serv
     move, state = client.start_joint_position_move()
     q = state["q_d"].astype(float)
     client.hold(q, 20)
+    # Building 600 replies holds the server busy a while on a loaded machine (at a load
+    # of 10 the stream paused over a second): wait for states longer than usual.
+    client.udp.settimeout(5.0)
     for _ in range(UNREAD_REQUESTS):  # replies never read from here on
         client.request(p.Command.kGetRobotModel)
     answered = int(client.hold(q, 100)["message_id"])  # the replies back up meanwhile
