@@ -11,7 +11,7 @@ import time
 
 import pylibfranka as fr
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
-from pylibfranka_client import connect, move_to
+from pylibfranka_client import connect, move_to, read_after_recovery
 
 #: The flange pointing down 18 cm above the table (tests/sim/test_scene.py OVER_THE_TABLE).
 OVER_THE_TABLE = [0.0, 0.6, 0.0, -1.9, 0.0, 2.5, math.pi / 4]
@@ -68,7 +68,7 @@ def scenario_descend(host: str) -> dict:
         "O_F_ext_hat_K_after": list(after.O_F_ext_hat_K),
     }
     robot.automatic_error_recovery()
-    recovered = robot.read_once()
+    recovered = read_after_recovery(robot)
     result["mode_recovered"] = recovered.robot_mode.name
     result["cartesian_collision_recovered"] = list(recovered.cartesian_collision)
     return result

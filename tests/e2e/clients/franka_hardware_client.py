@@ -25,6 +25,7 @@ import math
 import numpy as np
 import pylibfranka as fr
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
+from pylibfranka_client import read_after_recovery
 
 #: franka_ros2's joint_impedance_example_controller gains.
 K_GAINS = np.array([24.0, 24.0, 24.0, 24.0, 10.0, 6.0, 2.0])
@@ -113,7 +114,7 @@ def scenario_replay(host: str) -> dict:
     result["mode_after_reflex"] = robot.read_once().robot_mode.name
     # ... the error-recovery action, and the controller started again.
     robot.automatic_error_recovery()
-    result["mode_recovered"] = robot.read_once().robot_mode.name
+    result["mode_recovered"] = read_after_recovery(robot).robot_mode.name
     control, recovered = start_torque_control(robot)
     result["again"] = impedance_cycles(control, model, 300)
     result["again"]["recovered_to_start"] = recovered

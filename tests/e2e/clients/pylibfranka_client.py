@@ -55,6 +55,22 @@ def state_dict(state) -> dict:
     return out
 
 
+def read_after_recovery(robot: fr.Robot):
+    """The first state that shows the robot after AutomaticErrorRecovery answered.
+
+    While the server deferred the reply (until the arm stood still), its 1 kHz states
+    queued in the client's UDP socket, the oldest first; libfranka's read_once returns
+    the next queued one. Skip the ones still published during the recovery (a bounded
+    count: 3,000 states are 3 s of the robot's clock) and return the first after it.
+    """
+    state = robot.read_once()
+    for _ in range(3000):
+        if state.robot_mode != fr.RobotMode.AutomaticErrorRecovery:
+            break
+        state = robot.read_once()
+    return state
+
+
 def cosine_motion(robot: fr.Robot, duration: float = 3.0, amplitude: float = math.pi / 8) -> dict:
     """The shape of libfranka's generate_joint_position_motion: joints 4, 5, 7 move by
     amplitude * (1 - cos(2 pi t / duration)), starting and ending at rest."""

@@ -13,7 +13,7 @@ import time
 
 import pylibfranka as fr
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
-from pylibfranka_client import connect, cosine_motion, move_to, state_dict
+from pylibfranka_client import connect, cosine_motion, move_to, read_after_recovery, state_dict
 
 #: Start pose of the fold: shoulder forward (q2 = 0.3), so that folding joint 4 brings
 #: the wrist down onto the base within 50 mm before joint 4 reaches its stop.
@@ -87,13 +87,7 @@ def scenario_reflex(host: str) -> dict:
     t0 = time.monotonic()
     robot.automatic_error_recovery()
     recovery_s = time.monotonic() - t0
-    # States queued while the reply was deferred are stale (the UDP buffer kept the
-    # oldest ones): read until the stream shows the recovered robot.
-    recovered = robot.read_once()
-    for _ in range(3000):
-        if recovered.robot_mode != fr.RobotMode.AutomaticErrorRecovery:
-            break
-        recovered = robot.read_once()
+    recovered = read_after_recovery(robot)
     try:
         motion = cosine_motion(robot, duration=0.5, amplitude=0.02)
         next_error = None
