@@ -283,14 +283,14 @@ class DrawnLinks:
     def transmit(self, command: np.ndarray, sending: np.ndarray):
         """(the sending arms whose datagram arrives now and alone, {arm: the datagrams
         delivered to it this cycle, oldest first} for the others that send)."""
-        u = self.ahead.current()
-        self.ahead.advance()
+        u = self.ahead.current()  # this cycle's draws (a view until the advance below)
         now = self._now
         self._now += 1
         lost = u[:, 0] < self.loss
         late = u[:, 1] < self.jitter
         busy = sending & (lost | late | self._queued)
         if not busy.any():
+            self.ahead.advance()
             return sending, {}
         deliveries = {}
         for i in np.flatnonzero(busy).tolist():
@@ -307,6 +307,7 @@ class DrawnLinks:
                 delivered.append(queue.popleft()[1])
             deliveries[i] = delivered
             self._queued[i] = bool(queue)
+        self.ahead.advance()
         return sending & ~busy, deliveries
 
 

@@ -212,7 +212,7 @@ class FciBatch:
             draws = DrawBatch.stack(
                 draw(self.reality, episode_seed(rngs[i])) for i in arms.tolist()
             )
-            ctrl.apply_reality(arms, draws)
+            ctrl.apply_reality(arms, draws, scene=not self.reality.scene_is_ideal)
         q = np.stack([start_pose(rngs[i], noise, home) for i in arms.tolist()])
         if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
             reset_through_fci(ctrl, q[0])

@@ -136,15 +136,19 @@ class FciController(ControllerRequests):
             self.write_modes(i)
         self.publish()
 
-    def apply_reality(self, robots, draws: DrawBatch) -> None:
+    def apply_reality(self, robots, draws: DrawBatch, scene: bool | None = None) -> None:
         """``robots`` become their draws' robots (rows of ``draws``): their arms and worlds
-        (the physics), their sensors, their model's errors (docs/reality.md). An ideal draw
-        on a controller that never had another changes nothing; the next reset or
-        publish reads the new arms."""
+        (the physics), their sensors (docs/reality.md). An ideal draw on a controller that
+        never had another changes nothing; the next reset or publish reads the new arms.
+        ``scene``: the draws change the world's scene (a world with objects; None: if
+        any of these draws does), decided at the first draw that is not ideal."""
         if self.reality is None:
             if all(d.robot_is_ideal for d in draws.draws):
                 return
-            self.reality = RobotReality(self.physics, self.writer)
+            if scene is None:
+                scene = not all(d.scene_is_ideal for d in draws.draws)
+            scene = bool(scene and self.physics.layout.scene_body)
+            self.reality = RobotReality(self.physics, self.writer, scene)
             # The estimate reads the torque sensors' measurement.
             self.contact.tau_J = self.writer.tau_J
         self.reality.apply(robots, draws)

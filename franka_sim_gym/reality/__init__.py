@@ -2,7 +2,7 @@
 sensors and from a perfect link, drawn per episode from a seeded generator
 (docs/reality.md).
 
-The physics holds the true arm and world (``franka_sim_gym.sim``: masses, inertias,
+The physics holds the true arm and world (``franka_sim_gym.sim``: masses,
 friction in the drives, objects); the controller holds the robot's own model and what
 its sensors report (``franka_sim_gym.fci``); the env's channel the link. One draw is
 given to all of them. numpy only: every layer may import it.

@@ -46,6 +46,11 @@ class RealityDraw:
         return ideal_sections(self.values, ROBOT_SECTIONS)
 
     @property
+    def scene_is_ideal(self) -> bool:
+        """The scene is the task's."""
+        return ideal_sections(self.values, ("scene",))
+
+    @property
     def link_is_ideal(self) -> bool:
         """The link loses and delays nothing."""
         return ideal_sections(self.values, ("communication",))

@@ -52,9 +52,6 @@ ENTRIES: Mapping[str, Mapping[str, Entry]] = MappingProxyType(
             "com_offset": Entry(
                 (7, 3), "any", 0.0, "m", "centre of mass: the arm's - the model's (link frame)"
             ),
-            "inertia_scale": Entry(
-                (7,), "positive", 1.0, "", "rotational inertia: the arm's / the model's"
-            ),
         },
         "friction": {
             "scale": Entry(
@@ -109,6 +106,11 @@ class RealityProfile:
         """Every entry fixed at the ideal robot's value: the physics is the model, the
         sensors are exact, the link is perfect (the simulation runs as without one)."""
         return ideal_sections(self.low, SECTIONS) and ideal_sections(self.high, SECTIONS)
+
+    @property
+    def scene_is_ideal(self) -> bool:
+        """The scene section is the task's in every episode."""
+        return ideal_sections(self.low, ("scene",)) and ideal_sections(self.high, ("scene",))
 
     @property
     def link_is_ideal(self) -> bool:
@@ -171,8 +173,9 @@ def entries():
 
 
 def load_profile(profile: str | Path | Mapping | RealityProfile | None) -> RealityProfile:
-    """A profile from a shipped name ("ideal", "fr3", "randomized"), a JSON file's path, a
-    mapping (see the module docstring), or a profile; None is "ideal".
+    """A profile from a shipped name ("ideal", "fr3", "randomized"), a JSON file's path or
+    a JSON object's text, a mapping (see the module docstring), or a profile; None is
+    "ideal".
 
     Raises:
         ValueError: an unknown name or key, a file that is not a JSON object, a value
@@ -189,6 +192,11 @@ def load_profile(profile: str | Path | Mapping | RealityProfile | None) -> Reali
         text = str(profile)
         if isinstance(profile, str) and text in PROFILES:
             name, profile = text, PROFILES[text]
+        elif isinstance(profile, str) and text.lstrip().startswith("{"):
+            try:
+                profile = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"reality profile {text!r}: not JSON ({exc})") from None
         elif Path(text).is_file():
             name = Path(text).stem
             try:

@@ -82,6 +82,7 @@ class ArmPhysics:
         #: the true arms and worlds of a reality draw (sim/truth.py); None: the model is
         #: the arm (the ideal robot)
         self.truth: ArmTruth | None = None
+        self._own_models = False
         self.n = n_arms
         self.hand = hand
         #: (n, 3) every base at its world's origin (zeros, read-only)
@@ -178,15 +179,18 @@ class ArmPhysics:
         self.kp[arms] = stiffness
         self.kd[arms] = 2.0 * np.sqrt(stiffness * self._effective_inertia)
 
-    def enable_truth(self) -> ArmTruth:
-        """Give every robot its own copy of the world's model, for reality draws to change
-        (sim/truth.py); the shared ``model`` stays the nominal one. Idempotent."""
+    def enable_truth(self, scene: bool = False) -> ArmTruth:
+        """The arms become their reality draws' (sim/truth.py): extra joint forces every
+        step, and with ``scene`` every robot its own copy of the world's model for its
+        draw's scene (the shared ``model`` stays the nominal one). Once."""
         if self.truth is None:
-            self.truth = ArmTruth(self)
-            self.models = self.truth.models
-            if self.finger_force is not None:
-                for i in range(self.n):
-                    self._set_model_finger_force(i)
+            self.truth = ArmTruth(self, scene)
+            if self.truth.models is not None:
+                self.models = self.truth.models
+                self._own_models = True
+                if self.finger_force is not None:
+                    for i in range(self.n):
+                        self._set_model_finger_force(i)
         return self.truth
 
     def sense_with(self, q: np.ndarray, dq: np.ndarray) -> None:
@@ -239,7 +243,7 @@ class ArmPhysics:
         if self.finger_force is None:
             raise ValueError("no hand is mounted (ArmPhysics(hand=True) mounts one)")
         self.finger_force[arms] = force
-        if self.truth is not None:  # every arm's own model holds its own limit
+        if self._own_models:  # every arm's own model holds its own limit
             for i in np.atleast_1d(np.arange(self.n)[arms]).tolist():
                 self._set_model_finger_force(i)
 
@@ -249,7 +253,7 @@ class ArmPhysics:
 
     def _apply_finger_force(self, i: int) -> None:
         """The shared model's finger force range set to arm i's (only when it differs)."""
-        if self.truth is not None:
+        if self._own_models:
             return
         if self.finger_force is not None and self.finger_force[i] != self._applied_force:
             force = self._applied_force = float(self.finger_force[i])
@@ -387,11 +391,12 @@ class ArmPhysics:
         self._ctrl.scatter(tau)
         if self.truth is not None:
             self.truth.before_step()
-            for model, data in zip(self.models, self.datas, strict=True):
-                mujoco.mj_step2(model, data)
-                mujoco.mj_step1(model, data)
-            self._refresh()
-            return
+            if self._own_models:
+                for model, data in zip(self.models, self.datas, strict=True):
+                    mujoco.mj_step2(model, data)
+                    mujoco.mj_step1(model, data)
+                self._refresh()
+                return
         model = self.model
         if self.finger_force is None:
             for data in self.datas:

@@ -4,6 +4,8 @@ visible where the robot shows it, none of it under the ideal profile."""
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -46,22 +48,36 @@ def rest(ctrl: FciController, cycles: int) -> dict[str, np.ndarray]:
     return result
 
 
-def gravity(model: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
-    """The torques holding the arm of ``model`` at ``q`` at rest (MuJoCo's own)."""
+def gravity(model: mujoco.MjModel, q: np.ndarray, mass_scale=None, com_offset=None):
+    """The torques holding the arm of ``model`` at ``q`` at rest (MuJoCo's own), its links
+    made ``mass_scale`` times heavier and their centres of mass moved by ``com_offset``."""
+    model = copy.copy(model)
+    links = np.arange(2, 9)  # link1..link7 of the one-arm world (link0 is body 1)
+    assert [model.body(b).name for b in links] == [f"arm0/link{k}" for k in range(1, 8)]
+    if mass_scale is not None:
+        model.body_mass[links] *= mass_scale
+        model.body_ipos[links] += com_offset
     data = mujoco.MjData(model)
     data.qpos[:7] = q
     mujoco.mj_forward(model, data)
     return data.qfrc_bias[:7].copy()
 
 
+def weight_difference(ctrl: FciController) -> np.ndarray:
+    """MuJoCo's gravity torques of robot 0's drawn arm minus its model's, at its q."""
+    d, physics = ctrl.reality.draws[0], ctrl.physics
+    q = physics.q[0]
+    arm = gravity(physics.model, q, d["model.mass_scale"], d["model.com_offset"])
+    return arm - gravity(physics.model, q)
+
+
 @pytest.mark.parametrize("pose", list(POSES))
-def test_the_models_gravity_error_is_the_difference_of_the_two_models_gravity(pose):
-    """GravityResidual's formula against MuJoCo's gravity of the drawn and the nominal
-    worlds: the same torques to rounding."""
+def test_the_links_weight_difference_is_the_two_arms_gravity_difference(pose):
+    """sim/truth.py LinkWeights against MuJoCo's gravity of the drawn and the nominal arms:
+    the same torques to rounding."""
     ctrl = robot("randomized", POSES[pose], seed=4)
-    physics = ctrl.physics
-    expected = gravity(physics.models[0], physics.q[0]) - gravity(physics.model, physics.q[0])
-    np.testing.assert_allclose(ctrl.reality.gravity.residual()[0], expected, atol=1e-12)
+    expected = weight_difference(ctrl)
+    np.testing.assert_allclose(ctrl.physics.truth.weights.torque()[0], expected, atol=1e-12)
     assert np.abs(expected).max() > 0.05  # a real difference, not a zero compared to zero
 
 
@@ -97,7 +113,7 @@ def test_fr3_estimate_at_rest_is_its_models_gravity_error():
     """What the estimate reads at rest is dg(q): the model's error, not noise."""
     ctrl = robot("fr3", POSES["forward"])
     got = rest(ctrl, 1000)
-    residual = ctrl.reality.gravity.residual()[0]
+    residual = weight_difference(ctrl)
     estimate = got["tau_ext_hat_filtered"][-300:, 0].mean(axis=0)
     np.testing.assert_allclose(estimate, residual, atol=0.01)
 
@@ -109,7 +125,7 @@ def test_the_drives_carry_the_models_weight_so_a_heavier_arm_sags():
     ctrl = robot(heavy, POSES["forward"])
     rest(ctrl, 800)
     sag = ctrl.physics.q[0] - POSES["forward"]
-    expected = -ctrl.reality.gravity.residual()[0] / ctrl.physics.kp[0]
+    expected = -weight_difference(ctrl) / ctrl.physics.kp[0]
     np.testing.assert_allclose(sag, expected, atol=2e-5)
     assert np.abs(sag).max() > 1e-4
 

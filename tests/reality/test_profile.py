@@ -71,6 +71,13 @@ def test_a_user_profile_from_a_json_file(tmp_path):
     assert load_profile(path).randomized == ("model.mass_scale",)
 
 
+def test_a_user_profile_from_json_text():
+    p = load_profile('{"base": "fr3", "communication": {"loss": 0.01}}')
+    np.testing.assert_array_equal(p.low["communication.loss"], 0.01)
+    with pytest.raises(ValueError, match="not JSON"):
+        load_profile('{"base": ')
+
+
 def test_a_profile_reads_back_from_its_spec_and_survives_copies():
     randomized = load_profile("randomized")
     again = load_profile(randomized.spec())
@@ -93,7 +100,7 @@ def test_a_profile_reads_back_from_its_spec_and_survives_copies():
             {"model": {"com_offset": [0.0, 0.0]}},
             "model.com_offset: expected a number or shape (7, 3)",
         ),
-        ({"model": {"inertia_scale": {"uniform": [1.2, 1.1]}}}, "model.inertia_scale: low"),
+        ({"model": {"mass_scale": {"uniform": [1.2, 1.1]}}}, "model.mass_scale: low"),
         ({"communication": {"loss": 1.5}}, "communication.loss must be in [0, 1]"),
         ({"communication": {"jitter_cycles": 2.5}}, "communication.jitter_cycles must be a whole"),
         ({"sensors": {"q_noise": float("nan")}}, "sensors.q_noise must be finite"),
