@@ -170,6 +170,7 @@ class Links:
         self.lost_run = np.zeros(n, dtype=np.int64)
         self.longest_lost = np.zeros(n, dtype=np.int64)
         self._rounds: list[np.ndarray] = []  # the k-th datagram delivered to each arm
+        self._in_run = False  # some arm's run of lost cycles is open
 
     def reset(self, arms: np.ndarray, rngs: list) -> None:
         """New episodes on ``arms`` (arm i's channel draws from ``rngs[i]``)."""
@@ -177,6 +178,12 @@ class Links:
             self.channels[i].reset(rngs[i])
         self.lost_run[arms] = 0
         self.longest_lost[arms] = 0
+        self._in_run = bool(self.lost_run.any())
+
+    def begin_step(self, cycles: int) -> None:
+        """A policy step of ``cycles`` cycles begins (the drawn links draw them at once)."""
+        if self.drawn is not None:
+            self.drawn.begin_step(cycles)
 
     def transmit(self, command: np.ndarray, sending: np.ndarray, lost: np.ndarray, receive) -> None:
         """Send ``command`` (n rows) of the ``sending`` arms through their channels and
@@ -212,7 +219,8 @@ class Links:
         direct, deliveries = self.drawn.transmit(command, sending)
         if not deliveries:
             receive(command, direct)
-            self._account(sending, direct, lost)
+            if self._in_run:  # else every sending arm answered, and no run is open
+                self._account(sending, direct, lost)
             return
         open_ids = command["message_id"].copy()
         answered = direct.copy()
@@ -246,6 +254,7 @@ class Links:
         lost += missed
         self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)
         np.maximum(self.longest_lost, self.lost_run, out=self.longest_lost)
+        self._in_run = bool(self.lost_run.any())
 
 
 class DrawnLinks:
@@ -267,6 +276,7 @@ class DrawnLinks:
         self.ahead = Ahead(n, 2, lambda rng, i, count: rng.random((count, 2)))
         self._queues: list[deque] = [deque() for _ in range(n)]
         self._queued = np.zeros(n, dtype=bool)
+        self._any_queued = False
         self._now = 0
 
     def apply(self, arms, draws) -> None:
@@ -279,26 +289,36 @@ class DrawnLinks:
         for i in arms.tolist():
             self._queues[i].clear()
         self._queued[arms] = False
+        self._any_queued = bool(self._queued.any())
+
+    def begin_step(self, cycles: int) -> None:
+        """The losses and delays of the next ``cycles`` cycles of every arm, drawn at once
+        (the streams move on by ``cycles`` whether or not all of them are used)."""
+        u = self.ahead.take(cycles)
+        self._lost = u[..., 0] < self.loss
+        self._late = u[..., 1] < self.jitter
+        self._delay = u[..., 1]
+        self._event = (self._lost | self._late).any(axis=1).tolist()
+        self._k = 0
 
     def transmit(self, command: np.ndarray, sending: np.ndarray):
         """(the sending arms whose datagram arrives now and alone, {arm: the datagrams
         delivered to it this cycle, oldest first} for the others that send)."""
-        u = self.ahead.current()  # this cycle's draws (a view until the advance below)
+        k = self._k
+        self._k += 1
         now = self._now
         self._now += 1
-        lost = u[:, 0] < self.loss
-        late = u[:, 1] < self.jitter
-        busy = sending & (lost | late | self._queued)
-        if not busy.any():
-            self.ahead.advance()
+        if not (self._event[k] or self._any_queued):
             return sending, {}
+        lost, late = self._lost[k], self._late[k]
+        busy = sending & (lost | late | self._queued)
         deliveries = {}
         for i in np.flatnonzero(busy).tolist():
             queue = self._queues[i]
             if not lost[i]:
                 due = now
                 if late[i]:  # u / jitter is uniform in [0, 1) given u < jitter
-                    due += 1 + int(u[i, 1] / self.jitter[i] * self.cycles[i])
+                    due += 1 + int(self._delay[k, i] / self.jitter[i] * self.cycles[i])
                 if queue:
                     due = max(due, queue[-1][0])  # FIFO: never overtake
                 queue.append((due, command[i : i + 1].copy()))
@@ -307,7 +327,7 @@ class DrawnLinks:
                 delivered.append(queue.popleft()[1])
             deliveries[i] = delivered
             self._queued[i] = bool(queue)
-        self.ahead.advance()
+        self._any_queued = bool(self._queued.any())
         return sending & ~busy, deliveries
 
 

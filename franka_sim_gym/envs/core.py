@@ -303,6 +303,7 @@ class FciBatch:
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)
+        self.links.begin_step(self.cycles_per_step)
         fresh = self._fresh & active
         self._fresh[active] = False
         frozen = np.zeros(n, dtype=bool)

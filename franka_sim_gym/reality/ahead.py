@@ -60,6 +60,15 @@ class Ahead:
                 self._fill(i)
             self._next = int(self._refill.min())
 
+    def take(self, count: int) -> np.ndarray:
+        """(count, n, width): every robot's samples of this cycle and the ``count - 1``
+        next, a copy; afterwards the stream is ``count`` cycles on (as many advances)."""
+        out = np.empty((count, *self._ring.shape[1:]))
+        for k in range(count):
+            out[k] = self._ring[self._cycle % BLOCK]
+            self.advance()
+        return out
+
     def current(self) -> np.ndarray:
         """(n, width) every robot's sample of this cycle (a view, valid until the next
         :meth:`advance`)."""
