@@ -144,7 +144,15 @@ class RealityProfile:
         return self  # immutable
 
     def __reduce__(self):
-        return load_profile, (self.spec(),)
+        return _restore, (self.name, dict(self.low), dict(self.high))
+
+
+def _restore(name: str, low: dict, high: dict) -> RealityProfile:
+    """A pickled profile, as it was (its name kept, its arrays read-only)."""
+    for values in (low, high):
+        for array in values.values():
+            array.flags.writeable = False
+    return RealityProfile(name, MappingProxyType(low), MappingProxyType(high))
 
 
 #: The sections of the robot and its world (the rest is the link's).

@@ -6,6 +6,7 @@ its draw says, a bad profile is a ValueError naming it."""
 from __future__ import annotations
 
 import copy
+import pickle
 
 import gymnasium as gym
 import numpy as np
@@ -100,14 +101,17 @@ def test_a_copy_continues_exactly_as_the_original():
     actions = np.random.default_rng(4).uniform(-1, 1, size=(12, 3)).astype(np.float32)
     for a in actions[:4]:
         env.step(a)
-    clone = copy.deepcopy(env)
+    clones = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
     for a in actions[4:]:
-        original, copied = env.step(a), clone.step(a)
-        assert_same(
-            ({k: v[None] for k, v in original[0].items()}, *original[1:4], {}),
-            ({k: v[None] for k, v in copied[0].items()}, *copied[1:4], {}),
-        )
-        assert original[-1]["reality"] == copied[-1]["reality"]
+        original = env.step(a)
+        for clone in clones:
+            copied = clone.step(a)
+            assert_same(
+                ({k: v[None] for k, v in original[0].items()}, *original[1:4], {}),
+                ({k: v[None] for k, v in copied[0].items()}, *copied[1:4], {}),
+            )
+            assert original[-1]["reality"] == copied[-1]["reality"]
+            assert copied[-1]["reality"].profile == "randomized"
 
 
 def test_the_link_loses_what_its_draw_says():
@@ -119,6 +123,12 @@ def test_the_link_loses_what_its_draw_says():
     late = {"communication": {"jitter": 0.2, "jitter_cycles": 2}}
     run = episode(reality=late, steps=6, **REACH)
     assert sum(step[-1]["lost_cycles"] for step in run[1:]) > 30  # late answers nothing
+    # the losses are the episode's: the same seed loses the same cycles, another others
+    pattern = [
+        [step[-1]["lost_cycles"] for step in episode(seed=s, reality=lossy, steps=6, **REACH)[1:]]
+        for s in (3, 3, 4)
+    ]
+    assert pattern[0] == pattern[1] != pattern[2]
 
 
 def test_a_profile_and_a_lossy_channel_together_are_refused():

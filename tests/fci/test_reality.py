@@ -203,3 +203,22 @@ def test_a_state_published_again_reads_the_same_sensors():
         np.testing.assert_array_equal(
             np.frombuffer(before, dtype=ctrl.states.dtype)[name], after[name][None], err_msg=name
         )
+
+
+def test_each_sensor_reports_the_truth_with_its_own_noise_and_offset():
+    """What the sensors add to the physics' true q, dq and tau_J: zero-mean noise of the
+    drawn standard deviation on each, and the torque's drawn offset."""
+    sensors = {"q_noise": 1e-5, "dq_noise": 2e-3, "tau_J_noise": 0.005, "tau_J_offset": 0.03}
+    ctrl = robot({"sensors": sensors})
+    physics, w = ctrl.physics, ctrl.writer
+    error = {"q": [], "dq": [], "tau_J": []}
+    for _ in range(2000):
+        ctrl.step()
+        for name, true in (("q", physics.q), ("dq", physics.dq), ("tau_J", physics.tau_J)):
+            error[name].append(getattr(w, name)[0] - true[0])
+    for name, std, mean in (("q", 1e-5, 0.0), ("dq", 2e-3, 0.0), ("tau_J", 0.005, 0.03)):
+        e = np.array(error[name])
+        np.testing.assert_allclose(e.std(axis=0), std, rtol=0.1, err_msg=name)
+        np.testing.assert_allclose(e.mean(axis=0), mean, atol=4 * std / np.sqrt(2000), err_msg=name)
+    # the published state carries the measurement, float32 on the wire
+    np.testing.assert_array_equal(ctrl.states["tau_J"][0], w.tau_J[0].astype(np.float32))

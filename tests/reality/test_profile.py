@@ -85,7 +85,9 @@ def test_a_profile_reads_back_from_its_spec_and_survives_copies():
         np.testing.assert_array_equal(again.low[key], randomized.low[key])
         np.testing.assert_array_equal(again.high[key], randomized.high[key])
     assert copy.deepcopy(randomized) is randomized
-    assert pickle.loads(pickle.dumps(randomized)).randomized == randomized.randomized
+    pickled = pickle.loads(pickle.dumps(randomized))
+    assert pickled.randomized == randomized.randomized and pickled.name == "randomized"
+    assert draw(pickled, 5) == draw(randomized, 5)
 
 
 @pytest.mark.parametrize(
