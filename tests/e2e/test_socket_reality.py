@@ -22,7 +22,7 @@ pytestmark = pytest.mark.socket
 def test_a_pylibfranka_client_sees_the_fr3_profile(serve, client):
     """At rest: tau_J's standard deviation over 1 s within 0.002-0.5 Nm on some joint, the
     external force off by 0.2-5 N, no contact flag. The joint impedance example's torque
-    error (tau_d + gravity - tau_J): 0.01-2 Nm RMS (on the ideal robot, under 0.01)."""
+    error (tau_d + gravity - tau_J): 0.01-2 Nm RMS, of it the friction compensation."""
     server = serve("--reality", "fr3", "--reality-seed", "1", "--lockstep", "--no-gripper")
     rest = client("reality", "rest", server.host)
     assert "exception" not in rest, rest
@@ -33,7 +33,9 @@ def test_a_pylibfranka_client_sees_the_fr3_profile(serve, client):
     impedance = client("reality", "joint_impedance", server.host)
     assert impedance.get("error", "exception") is None, impedance
     assert impedance["cycles"] > 2500
-    assert 0.01 <= impedance["rms"] <= 2.0, impedance
+    # issue 37's window is 0.01-2 Nm; the robot's friction compensation at the circle's
+    # speeds puts it at ~0.2 (docs/reality.md), the ideal robot at ~0.008
+    assert 0.1 <= impedance["rms"] <= 2.0, impedance
     assert not impedance["contact"]
     server.stop()
     log = server.log()
