@@ -4,10 +4,10 @@
 
 Rows: the single env and the batched env (N = 16, 64), each under ``ideal``, ``fr3`` and
 ``randomized`` (random actions, all checks on, resets counted), with the ratio to bare
-mj_step of as many bare one-arm worlds (no scene) and to ideal. Rates are in this process's CPU time;
-the profiles of a row are measured in turn, ``--rounds`` times: the rate is the best
-round's, the ratio to ideal the median over the rounds of each round's ratio (a shared
-host's load drifts between rounds, less within one).
+mj_step of as many bare one-arm worlds (no scene) and to ideal. Rates are in this
+process's CPU time; the profiles of a row are measured in turn, ``--rounds`` times: the
+rate is the best round's, the ratio to ideal the median over the rounds of each round's
+ratio (a shared host's load drifts between rounds, less within one).
 """
 
 from __future__ import annotations
