@@ -19,6 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..reality import streams
+from ..reality.ahead import Ahead
+
 
 class Channel:
     """A perfect link: every command arrives in the cycle it was sent."""
@@ -146,10 +149,20 @@ class Links:
     ``perfect``: every link is a plain ``Channel`` (the core then hands commands to the
     controller itself, one call for all arms)."""
 
-    def __init__(self, spec, n: int) -> None:
+    def __init__(self, spec, n: int, drawn: bool = False) -> None:
         self.channels = per_arm_channels(spec, n)
         self.perfect = all(type(c) is Channel for c in self.channels)
         self.n = n
+        #: the links of a reality profile's draws (None: the channels above decide)
+        self.drawn: DrawnLinks | None = None
+        if drawn:
+            if not self.perfect:
+                raise ValueError(
+                    "channel and reality's communication both model the link: give one "
+                    "(a reality profile whose communication is perfect, or channel=None)"
+                )
+            self.drawn = DrawnLinks(n)
+            self.perfect = False
         #: per arm: the robot answers every cycle itself (the asynchronous generator,
         #: docs/motion-limits.md): a datagram the link drops is a target late, no lost cycle
         self.robot_answers = np.zeros(n, dtype=bool)
@@ -157,6 +170,7 @@ class Links:
         self.lost_run = np.zeros(n, dtype=np.int64)
         self.longest_lost = np.zeros(n, dtype=np.int64)
         self._rounds: list[np.ndarray] = []  # the k-th datagram delivered to each arm
+        self._in_run = False  # some arm's run of lost cycles is open
 
     def reset(self, arms: np.ndarray, rngs: list) -> None:
         """New episodes on ``arms`` (arm i's channel draws from ``rngs[i]``)."""
@@ -164,11 +178,20 @@ class Links:
             self.channels[i].reset(rngs[i])
         self.lost_run[arms] = 0
         self.longest_lost[arms] = 0
+        self._in_run = bool(self.lost_run.any())
+
+    def begin_step(self, cycles: int) -> None:
+        """A policy step of ``cycles`` cycles begins (the drawn links draw them at once)."""
+        if self.drawn is not None:
+            self.drawn.begin_step(cycles)
 
     def transmit(self, command: np.ndarray, sending: np.ndarray, lost: np.ndarray, receive) -> None:
         """Send ``command`` (n rows) of the ``sending`` arms through their channels and
         hand what arrives to ``receive(batch, mask)`` (the controller's), round by round;
         count in ``lost`` the cycles no command answered in time."""
+        if self.drawn is not None:
+            self._transmit_drawn(command, sending, lost, receive)
+            return
         n = self.n
         open_ids = command["message_id"].copy()
         answered = np.zeros(n, dtype=bool)
@@ -187,13 +210,125 @@ class Links:
                 mask[i] = True
                 answered[i] |= bool(delivered["message_id"][0] == open_ids[i])
             receive(batch, mask)
+        self._account(sending, answered, lost)
+
+    def _transmit_drawn(self, command, sending, lost, receive) -> None:
+        """:meth:`transmit` through the drawn links: the arms with nothing lost, late or
+        queued in one batch, the others' deliveries datagram by datagram."""
+        n = self.n
+        direct, deliveries = self.drawn.transmit(command, sending)
+        if not deliveries:
+            receive(command, direct)
+            if self._in_run:  # else every sending arm answered, and no run is open
+                self._account(sending, direct, lost)
+            return
+        open_ids = command["message_id"].copy()
+        answered = direct.copy()
+        masks: list[np.ndarray] = []
+        for i, delivered in deliveries.items():
+            for r, datagram in enumerate(delivered):
+                if r == len(self._rounds):
+                    self._rounds.append(np.zeros(n, dtype=command.dtype))
+                if r == len(masks):
+                    masks.append(np.zeros(n, dtype=bool))
+                self._rounds[r][i] = datagram[0]
+                masks[r][i] = True
+                answered[i] |= bool(datagram["message_id"][0] == open_ids[i])
+        if not masks:
+            masks.append(np.zeros(n, dtype=bool))
+            if not len(self._rounds):
+                self._rounds.append(np.zeros(n, dtype=command.dtype))
+        # The on-time arms' datagrams go with the first round (each arm's own order kept).
+        first = self._rounds[0]
+        first[direct] = command[direct]
+        masks[0] |= direct
+        for r, mask in enumerate(masks):
+            receive(self._rounds[r], mask)
+        self._account(sending, answered, lost)
+
+    def _account(self, sending, answered, lost) -> None:
         # A cycle is lost when no command answering it reached the robot in time (and the
         # robot does not answer it itself).
-        answered |= self.robot_answers
+        answered = answered | self.robot_answers
         missed = sending & ~answered
         lost += missed
         self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)
         np.maximum(self.longest_lost, self.lost_run, out=self.longest_lost)
+        self._in_run = bool(self.lost_run.any())
+
+
+class DrawnLinks:
+    """The links of n arms under a reality profile's communication (docs/reality.md):
+    each episode arm i loses a command datagram with its drawn probability ``loss`` and
+    delays one with probability ``jitter`` by 1 to ``jitter_cycles`` cycles (uniformly),
+    first in, first out. Every arm's decisions of a cycle are one lookup (its own stream,
+    drawn ahead: reality/ahead.py); only arms with a datagram lost, late or still queued
+    are handled one by one.
+
+    Args:
+        n: arms.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.loss = np.zeros(n)
+        self.jitter = np.zeros(n)
+        self.cycles = np.ones(n, dtype=np.int64)
+        self.ahead = Ahead(n, 2, lambda rng, i, count: rng.random((count, 2)))
+        self._queues: list[deque] = [deque() for _ in range(n)]
+        self._queued = np.zeros(n, dtype=bool)
+        self._any_queued = False
+        self._now = 0
+
+    def apply(self, arms, draws) -> None:
+        """New episodes on ``arms`` with their draws (rows of a reality DrawBatch)."""
+        arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
+        self.loss[arms] = draws["communication.loss"]
+        self.jitter[arms] = draws["communication.jitter"]
+        self.cycles[arms] = draws["communication.jitter_cycles"].astype(np.int64)
+        self.ahead.reseed(arms, [streams(d.seed)["communication"] for d in draws.draws])
+        for i in arms.tolist():
+            self._queues[i].clear()
+        self._queued[arms] = False
+        self._any_queued = bool(self._queued.any())
+
+    def begin_step(self, cycles: int) -> None:
+        """The losses and delays of the next ``cycles`` cycles of every arm, drawn at once
+        (the streams move on by ``cycles`` whether or not all of them are used)."""
+        u = self.ahead.take(cycles)
+        self._lost = u[..., 0] < self.loss
+        self._late = u[..., 1] < self.jitter
+        self._delay = u[..., 1]
+        self._event = (self._lost | self._late).any(axis=1).tolist()
+        self._k = 0
+
+    def transmit(self, command: np.ndarray, sending: np.ndarray):
+        """(the sending arms whose datagram arrives now and alone, {arm: the datagrams
+        delivered to it this cycle, oldest first} for the others that send)."""
+        k = self._k
+        self._k += 1
+        now = self._now
+        self._now += 1
+        if not (self._event[k] or self._any_queued):
+            return sending, {}
+        lost, late = self._lost[k], self._late[k]
+        busy = sending & (lost | late | self._queued)
+        deliveries = {}
+        for i in np.flatnonzero(busy).tolist():
+            queue = self._queues[i]
+            if not lost[i]:
+                due = now
+                if late[i]:  # u / jitter is uniform in [0, 1) given u < jitter
+                    due += 1 + int(self._delay[k, i] / self.jitter[i] * self.cycles[i])
+                if queue:
+                    due = max(due, queue[-1][0])  # FIFO: never overtake
+                queue.append((due, command[i : i + 1].copy()))
+            delivered = []
+            while queue and queue[0][0] <= now:
+                delivered.append(queue.popleft()[1])
+            deliveries[i] = delivered
+            self._queued[i] = bool(queue)
+        self._any_queued = bool(self._queued.any())
+        return sending & ~busy, deliveries
 
 
 def per_arm_channels(spec, n: int) -> list[Channel]:

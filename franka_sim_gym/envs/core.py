@@ -29,13 +29,14 @@ from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE
+from ..reality import DrawBatch, RealityDraw, RealityProfile, draw, episode_seed, load_profile
 from ..sim.arm import ArmPhysics
 from ..sim.world import HOME_Q
 from .channel import Channel, Links
 from .commands import COMMAND_FIELD, MOVE, CommandGenerator, move_options
 from .fci_reset import reset_through_fci
 from .hands import EnvHands, hand_choice
-from .infos import step_info
+from .infos import objects, step_info
 from .observation import build_observation, observation_space
 from .robot_settings import RobotSettings
 from .tasks import Task, make_task
@@ -101,6 +102,7 @@ class FciBatch:
         joint_impedance=None,
         cartesian_impedance=None,
         collision_thresholds: tuple | None = None,
+        reality: str | Path | dict | RealityProfile | None = None,
         **task_kwargs,
     ) -> None:
         if int(n) < 1:
@@ -159,7 +161,12 @@ class FciBatch:
             self.hands = EnvHands(physics, task.hand, task.held_object, gripper_speed,
                                   grasp_force, configure_load)  # fmt: skip
         self.controller = FciController(physics, self.config)
-        self.links = Links(channel, n)
+        #: how the robot differs from its model, per episode (docs/reality.md)
+        self.reality = load_profile(reality)
+        #: each arm's draw of its episode (None: the ideal robot)
+        self.draws: list[RealityDraw | None] = [None] * n
+        self._draw_info = None
+        self.links = Links(channel, n, drawn=not self.reality.link_is_ideal)
         self.links.robot_answers[...] = action_interface == "joint_position_async"
         #: each arm's channel model
         self.channels = self.links.channels
@@ -199,6 +206,13 @@ class FciBatch:
         ctrl = self.controller
         noise = self.reset_noise
         home = self.task.home
+        draws = None
+        if not self.reality.is_ideal:
+            # Seeded by the arm's random state, drawing nothing from it (reality/draw.py).
+            draws = DrawBatch.stack(
+                draw(self.reality, episode_seed(rngs[i])) for i in arms.tolist()
+            )
+            ctrl.apply_reality(arms, draws, scene=not self.reality.scene_is_ideal)
         q = np.stack([start_pose(rngs[i], noise, home) for i in arms.tolist()])
         if self.reset_mode == "fci":  # recovery and a joint motion home (one arm)
             reset_through_fci(ctrl, q[0])
@@ -236,6 +250,12 @@ class FciBatch:
         self.steps[arms] = 0
         self.cycles[arms] = 0
         self.links.reset(arms, rngs)
+        if draws is not None:
+            if self.links.drawn is not None:
+                self.links.drawn.apply(arms, draws)
+            for k, i in enumerate(arms.tolist()):
+                self.draws[i] = draws.draws[k]
+            self._draw_info = objects(self.draws)
         self._fresh[arms] = True
 
     def observe(self) -> tuple[dict, dict]:
@@ -283,6 +303,7 @@ class FciBatch:
         state = ctrl.states
         gen = self.commands
         gen.begin_step(a, state)
+        self.links.begin_step(self.cycles_per_step)
         fresh = self._fresh & active
         self._fresh[active] = False
         frozen = np.zeros(n, dtype=bool)
@@ -400,6 +421,10 @@ class FciBatch:
 
     def _info(self, m, lost, violations, penalty) -> dict[str, np.ndarray]:
         is_success = np.asarray(self.task.is_success(m["achieved"], self.goals), dtype=bool)
-        return step_info(
+        info = step_info(
             m["states"], lost, self.links.longest_lost, violations, self.cycles, is_success, penalty
         )
+        if self._draw_info is not None:
+            # Every arm's draw (reality/draw.py RealityDraw: immutable, copied for free).
+            info["reality"] = self._draw_info.copy()
+        return info

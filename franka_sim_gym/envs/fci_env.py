@@ -111,6 +111,13 @@ class FrankaFCIEnv(gym.Env):
             and 6 values or scalars), set at every reset (default: the robot's,
             fci/collision.py). A force above an upper threshold is a collision reflex
             (``joint_reflex`` / ``cartesian_reflex``) that ends the episode.
+        reality: how the robot differs from its own model and from ideal sensors, per
+            episode (docs/reality.md): "ideal" (default: no difference), "fr3" (one
+            nominal imperfect FR3: its model's mass error, joint friction, sensor noise
+            at the datasheet's levels), "randomized" (a robot drawn around fr3 every
+            episode, its scene and its link too), a mapping or a JSON file's path. The
+            episode's draw is ``info["reality"]`` (a ``RealityDraw``), seeded by the
+            env's random state at reset without drawing from it.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}

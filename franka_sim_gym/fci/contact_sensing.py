@@ -68,6 +68,9 @@ class ContactSensing:
     ) -> None:
         n = physics.n
         self.physics = physics
+        #: (n, 7) the measured joint torques the estimate reads (the physics', or the
+        #: robot's sensors' under a reality draw: fci/reality/)
+        self.tau_J = physics.tau_J
         self.dynamics = ArmDynamics(physics)
         self.estimator = ExternalTorqueEstimator(n)
         every = np.arange(n)
@@ -168,7 +171,7 @@ class ContactSensing:
             # tests/fci/test_contact_parity.py): the flags written, the robots over an
             # upper threshold counted.
             over = rules.sense(
-                self.estimator.tau_ext, physics.tau_J, m_ddq, bias, jacobian, rotation,
+                self.estimator.tau_ext, self.tau_J, m_ddq, bias, jacobian, rotation,
                 f["ddq_d"], in_motion, self.behavior.thresholds,
                 ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE,
                 tau, wrench, f["K_F_ext_hat_K"], f["joint_contact"], f["cartesian_contact"],
@@ -176,7 +179,7 @@ class ContactSensing:
             if not over:
                 return
         else:
-            self.estimator.filter(physics.tau_J, m_ddq, bias, tau)
+            self.estimator.filter(self.tau_J, m_ddq, bias, tau)
             wrench_from_torque(jacobian, tau, wrench)
             in_frame(wrench, rotation, f["K_F_ext_hat_K"])
             quiet = np.abs(tau).max() <= self.lowest_torque

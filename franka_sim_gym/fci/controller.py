@@ -27,6 +27,7 @@ import logging
 
 import numpy as np
 
+from ..reality import DrawBatch
 from ..sim.arm import ArmPhysics
 from ..sim.hand_load import hand_load
 from ..sim.kinematics import ArmKinematics
@@ -46,6 +47,7 @@ from .joint_generators import JointGenerators
 from .late import LateIntents
 from .log_limit import CycleLogLimit
 from .modes import JOINT_POSITION, JOINT_VELOCITY, NONE, Modes
+from .reality import RobotReality
 from .recovery import RecoveryWait
 from .reference import JointReference
 from .requests import ControllerRequests
@@ -126,10 +128,30 @@ class FciController(ControllerRequests):
         self.contact = ContactSensing(
             physics, w.field, self.engine, self.config.enforce_motion_limits
         )
+        #: the robots' sensors, model and friction compensation under reality draws
+        #: (fci/reality/); None: the ideal robot (built at the first draw that is not)
+        self.reality: RobotReality | None = None
         self._events: list[Event] = []
         for i in range(n):
             self.write_modes(i)
         self.publish()
+
+    def apply_reality(self, robots, draws: DrawBatch, scene: bool | None = None) -> None:
+        """``robots`` become their draws' robots (rows of ``draws``): their arms and worlds
+        (the physics), their sensors (docs/reality.md). An ideal draw on a controller that
+        never had another changes nothing; the next reset or publish reads the new arms.
+        ``scene``: the draws change the world's scene (a world with objects; None: if
+        any of these draws does), decided at the first draw that is not ideal."""
+        if self.reality is None:
+            if all(d.robot_is_ideal for d in draws.draws):
+                return
+            if scene is None:
+                scene = not all(d.scene_is_ideal for d in draws.draws)
+            scene = bool(scene and self.physics.layout.scene_body)
+            self.reality = RobotReality(self.physics, self.writer, scene)
+            # The estimate reads the torque sensors' measurement.
+            self.contact.tau_J = self.writer.tau_J
+        self.reality.apply(robots, draws)
 
     # -- convenience views ----------------------------------------------------------------------
 
@@ -238,10 +260,16 @@ class FciController(ControllerRequests):
         # The drives carry a load configured with SetLoad in every mode (the robot's
         # gravity compensation of its model); MuJoCo knows only what is physically there.
         load = self.contact.load_weight()
+        reality = self.reality
+        if reality is not None:  # and the robot's friction compensation, its model's gravity
+            load = reality.model_terms(load)
         self.physics.step(
             q_ref, dq_ref, self.tau_J_d, external, cartesian, compensation=load, gains=gains
         )
-        w.write_measured(self.physics)
+        if reality is None:
+            w.write_measured(self.physics)
+        else:
+            reality.write_measured(advance=True)
         self.contact.sense(m.in_motion, load)
         if moving:
             if m.n_motion:
@@ -357,7 +385,10 @@ class FciController(ControllerRequests):
 
     def publish(self) -> None:
         """Write state k+1 from the current physics (no step) and publish it."""
-        self.writer.write_measured(self.physics)
+        if self.reality is None:
+            self.writer.write_measured(self.physics)
+        else:  # the sensors' samples of this cycle: a robot that did not move reads the same
+            self.reality.write_measured(advance=False)
         self._publish_rest()
 
     def _publish_rest(self) -> None:

@@ -138,9 +138,17 @@ class StateWriter:
         self.theta[...] = q  # no joint elasticity is modelled: motor side reads the link side
         self.dq[...] = dq
         self.dtheta[...] = dq
+        self.write_torque(tau)
+        self.write_pose(physics, q)
+
+    def write_torque(self, tau: np.ndarray) -> None:
+        """tau_J (n, 7) measured this cycle, and dtau_J its backward difference."""
         np.subtract(tau, self.tau_J, out=self.dtau_J)
         self.dtau_J *= 1.0 / DELTA_T
         self.tau_J[...] = tau
+
+    def write_pose(self, physics: ArmPhysics, q: np.ndarray) -> None:
+        """O_T_EE from the physics' flange (and F_T_EE), the elbow from the joints ``q``."""
         pose = self.O_T_EE
         views = physics.flange_views
         if views is not None:  # straight from MjData's arrays, no gathers

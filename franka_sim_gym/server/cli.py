@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..fci.config import ControllerConfig, env_flag, env_float
 from ..fci.protocol import COMMAND_PORT
+from ..reality import RealityDraw, draw, load_profile
 from ..sim.arm import ArmPhysics
 from ..sim.finger_drive import FingerDrive
 from ..sim.gripper import FrankaHand, HandModel
@@ -141,6 +142,21 @@ def add_serve_arguments(serve: argparse.ArgumentParser) -> None:
         help="a mass [kg] fixed to the flange, centre of mass x,y,z [m] in the flange frame, "
         "that the robot is not told of: configure it with SetLoad (default: none)",
     )
+    serve.add_argument(
+        "--reality",
+        default=None,
+        metavar="PROFILE",
+        help="how the robot differs from its model and from ideal sensors: ideal (default), "
+        "fr3, randomized, or a JSON file (env FRANKA_SIM_REALITY; docs/reality.md)",
+    )
+    serve.add_argument(
+        "--reality-seed",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the seed of the profile's draw and of the sensors' noise (default 0; env "
+        "FRANKA_SIM_REALITY_SEED)",
+    )
     serve.add_argument("-v", "--vis", action="store_true", help="open the MuJoCo viewer")
     serve.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
     hand = serve.add_mutually_exclusive_group()
@@ -184,6 +200,7 @@ def serve(args: argparse.Namespace) -> int:
         return 2
     try:
         lockstep, timeout = lockstep_options(args.lockstep, args.lockstep_timeout)
+        reality = reality_draw(args.reality, args.reality_seed)
     except ValueError as exc:
         print(f"franka-sim-gym serve: {exc}", file=sys.stderr)
         return 2
@@ -193,6 +210,7 @@ def serve(args: argparse.Namespace) -> int:
         urdf=args.urdf,
         lockstep=lockstep,
         lockstep_timeout=timeout,
+        reality=reality,
     )
     try:
         server, gripper = _servers(args, config, options)
@@ -245,6 +263,24 @@ def lockstep_options(flag: bool | None, timeout_ms: float | None) -> tuple[bool,
             f"{MAX_LOCKSTEP_TIMEOUT_MS:g} ms (libfranka gives up on a state after 1 s)"
         )
     return lockstep, timeout_ms / 1e3
+
+
+def reality_draw(profile: str | None, seed: int | None) -> RealityDraw | None:
+    """The served robot's draw from --reality PROFILE / --reality-seed N, else from
+    FRANKA_SIM_REALITY / FRANKA_SIM_REALITY_SEED (the flag wins); None for the ideal
+    robot. ValueError for a bad profile (named) or a seed that is not a whole number."""
+    if profile is None:
+        profile = os.environ.get("FRANKA_SIM_REALITY", "").strip() or "ideal"
+    if seed is None:
+        text = os.environ.get("FRANKA_SIM_REALITY_SEED", "").strip()
+        try:
+            seed = int(text) if text else 0
+        except ValueError:
+            raise ValueError(f"FRANKA_SIM_REALITY_SEED={text!r} is not a whole number") from None
+    if seed < 0:
+        raise ValueError(f"--reality-seed {seed}: expected a whole number >= 0")
+    chosen = load_profile(profile)
+    return None if chosen.is_ideal else draw(chosen, seed)
 
 
 def _object_width(args: argparse.Namespace) -> float | None:

@@ -40,6 +40,7 @@ from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
+from ..reality import DrawBatch, RealityDraw
 from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH
 from .client_slot import ClientSlot, stop_serving
@@ -64,6 +65,9 @@ class ServerOptions:
     lockstep: bool = False
     #: in lockstep, how long a state waits for its answer before the cycle is lost [s]
     lockstep_timeout: float = DEFAULT_TIMEOUT_S
+    #: the robot's draw of a reality profile (``serve --reality``, docs/reality.md);
+    #: None: the ideal robot
+    reality: RealityDraw | None = None
 
 
 class RobotServer:
@@ -88,6 +92,8 @@ class RobotServer:
         self.physics = physics or ArmPhysics(n_arms=1)
         self._tick_hooks: list[Callable[[], None]] = []
         self.controller = FciController(self.physics, self.config)
+        if self.options.reality is not None:
+            self._apply_reality(self.options.reality)
         self._requests: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._slot = ClientSlot("", lambda sock, peer: ClientSession(self, sock, peer))
         self._client_addr: tuple[str, int] | None = None
@@ -106,6 +112,19 @@ class RobotServer:
         self.ticks = 0
         self._viewer = None
         self._answer_wait: AnswerWait | None = None
+
+    def _apply_reality(self, draw: RealityDraw) -> None:
+        """The served robot is ``draw``'s for the server's life (before any tick): its arm,
+        sensors and model (docs/reality.md); logged whole."""
+        ctrl = self.controller
+        ctrl.apply_reality([0], DrawBatch.stack([draw]))
+        ctrl.reset([0], self.physics.q[0].copy())  # the first state from the drawn robot
+        log.info("reality: %s", draw.json())
+        if not draw.link_is_ideal:
+            log.info(
+                "reality: the profile's communication (loss, jitter) is the env's channel "
+                "model; over sockets the network between the client and this server is the link"
+            )
 
     # -- lifecycle ----------------------------------------------------------------------------
 

@@ -26,6 +26,7 @@ import numpy as np
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
 from .layout import ArmLayout, repeat_layout
+from .truth import ArmTruth
 from .views import ArmRows, Gathering
 from .world import FINGER_OPEN, HOME_Q, build_world
 
@@ -75,6 +76,13 @@ class ArmPhysics:
         )
         #: robot 0's MjData (the socket server's one robot; rendering)
         self.data = self.datas[0]
+        #: the model robot i steps: the shared one, or its own under a reality draw
+        #: (:meth:`enable_truth`)
+        self.models: tuple[mujoco.MjModel, ...] = (self.model,) * n_arms
+        #: the true arms and worlds of a reality draw (sim/truth.py); None: the model is
+        #: the arm (the ideal robot)
+        self.truth: ArmTruth | None = None
+        self._own_models = False
         self.n = n_arms
         self.hand = hand
         #: (n, 3) every base at its world's origin (zeros, read-only)
@@ -113,6 +121,9 @@ class ArmPhysics:
         self.q = self._qpos.out
         self.dq = self._qvel.out
         self.tau_J = self._actuator.out
+        # What the internal servos read of the joints: the true state, or the robot's
+        # measurement of it under a reality draw (:meth:`sense_with`).
+        self._servo_q, self._servo_dq = self.q, self.dq
         self.kp = np.empty((n_arms, 7))
         self.kd = np.empty((n_arms, 7))
         self.coriolis = np.zeros((n_arms, 7))
@@ -168,6 +179,25 @@ class ArmPhysics:
         self.kp[arms] = stiffness
         self.kd[arms] = 2.0 * np.sqrt(stiffness * self._effective_inertia)
 
+    def enable_truth(self, scene: bool = False) -> ArmTruth:
+        """The arms become their reality draws' (sim/truth.py): extra joint forces every
+        step, and with ``scene`` every robot its own copy of the world's model for its
+        draw's scene (the shared ``model`` stays the nominal one). Once."""
+        if self.truth is None:
+            self.truth = ArmTruth(self, scene)
+            if self.truth.models is not None:
+                self.models = self.truth.models
+                self._own_models = True
+                if self.finger_force is not None:
+                    for i in range(self.n):
+                        self._set_model_finger_force(i)
+        return self.truth
+
+    def sense_with(self, q: np.ndarray, dq: np.ndarray) -> None:
+        """The internal servos read ``q``, ``dq`` (n, 7; arrays updated in place: the
+        robot's measurements) instead of the true joint state."""
+        self._servo_q, self._servo_dq = q, dq
+
     # -- state ---------------------------------------------------------------------------------
 
     def reset_arms(self, arms: np.ndarray, q: np.ndarray) -> None:
@@ -175,9 +205,9 @@ class ArmPhysics:
         arms = np.atleast_1d(np.asarray(arms, dtype=np.intp))
         q = np.asarray(q, dtype=np.float64).reshape(len(arms), 7)
         lay = self.layout
-        model = self.model
         for k, i in enumerate(arms.tolist()):
             data = self.datas[i]
+            model = self.models[i]
             data.qpos[lay.qpos_adr[i]] = q[k]
             data.qvel[lay.dof_adr[i]] = 0.0
             data.qacc_warmstart[lay.dof_adr[i]] = 0.0
@@ -204,7 +234,7 @@ class ArmPhysics:
         object placed), and the measured arrays refreshed."""
         for i in np.atleast_1d(np.asarray(arms, dtype=np.intp)).tolist():
             self._apply_finger_force(i)
-            mujoco.mj_forward(self.model, self.datas[i])
+            mujoco.mj_forward(self.models[i], self.datas[i])
         self._refresh()
 
     def set_finger_force(self, arms, force) -> None:
@@ -213,9 +243,18 @@ class ArmPhysics:
         if self.finger_force is None:
             raise ValueError("no hand is mounted (ArmPhysics(hand=True) mounts one)")
         self.finger_force[arms] = force
+        if self._own_models:  # every arm's own model holds its own limit
+            for i in np.atleast_1d(np.arange(self.n)[arms]).tolist():
+                self._set_model_finger_force(i)
+
+    def _set_model_finger_force(self, i: int) -> None:
+        force = float(self.finger_force[i])
+        self.models[i].actuator_forcerange[self._finger_act] = (-force, force)
 
     def _apply_finger_force(self, i: int) -> None:
         """The shared model's finger force range set to arm i's (only when it differs)."""
+        if self._own_models:
+            return
         if self.finger_force is not None and self.finger_force[i] != self._applied_force:
             force = self._applied_force = float(self.finger_force[i])
             self.model.actuator_forcerange[self._finger_act] = (-force, force)
@@ -250,6 +289,16 @@ class ArmPhysics:
         lay = self.layout
         J = self.jacobian(self._payload.out)
         return weight_torque(J, self.model.body_mass[lay.payload_body], self.model.opt.gravity)
+
+    @property
+    def joint_axes(self) -> np.ndarray:
+        """(n, 7, 3) the joints' unit axes in each arm's base frame (refreshed in place)."""
+        return self._axes.out
+
+    @property
+    def joint_anchors(self) -> np.ndarray:
+        """(n, 7, 3) a point of each joint's axis (its body's origin), base frame."""
+        return self._anchors.out
 
     def jacobian(self, point: np.ndarray) -> np.ndarray:
         """(n, 6, 7) geometric Jacobian of ``point`` (n, 3, each arm's base frame) on each
@@ -319,14 +368,15 @@ class ArmPhysics:
         """
         tau, tmp = self._tau, self._tmp
         kp, kd = (self.kp, self.kd) if gains is None else gains
+        q, dq = self._servo_q, self._servo_dq
         # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
-        np.subtract(q_ref, self.q, out=tau)
+        np.subtract(q_ref, q, out=tau)
         tau *= kp
         if dq_ref is None:
-            np.multiply(kd, self.dq, out=tmp)
+            np.multiply(kd, dq, out=tmp)
             tau -= tmp
         else:
-            np.subtract(dq_ref, self.dq, out=tmp)
+            np.subtract(dq_ref, dq, out=tmp)
             tmp *= kd
             tau += tmp
         if cartesian is not None:
@@ -339,6 +389,14 @@ class ArmPhysics:
         if compensation is not None:
             tau = tau + compensation
         self._ctrl.scatter(tau)
+        if self.truth is not None:
+            self.truth.before_step()
+            if self._own_models:
+                for model, data in zip(self.models, self.datas, strict=True):
+                    mujoco.mj_step2(model, data)
+                    mujoco.mj_step1(model, data)
+                self._refresh()
+                return
         model = self.model
         if self.finger_force is None:
             for data in self.datas:
@@ -364,8 +422,9 @@ class ArmPhysics:
         position = flange_p + np.einsum("nij,nj->ni", flange_R, k[:, :3, 3])
         J = self.jacobian(position)
         damping = damping_for(target.stiffness, self._cartesian_inertia)
+        q, dq = self._servo_q, self._servo_dq
         return impedance_torque(
-            J, position, rotation, target, damping, self.q, self.dq, q_ref, self._nullspace_damping
+            J, position, rotation, target, damping, q, dq, q_ref, self._nullspace_damping
         )
 
     # -- kinematics ----------------------------------------------------------------------------

@@ -44,6 +44,15 @@ def object_state(physics: Any, joint: str) -> np.ndarray:
     return state
 
 
+def on_table(physics: Any, arm: int, position: np.ndarray) -> np.ndarray:
+    """``position`` (on the nominal table, z = 0) on arm ``arm``'s table, whose height a
+    reality draw may have moved (sim/truth.py); ``position`` itself for the ideal robot."""
+    truth = physics.truth
+    if truth is None:
+        return position
+    return position + np.array([0.0, 0.0, truth.table_height[arm]])
+
+
 def place_object(physics: Any, joint: str, arm: int, position, quat=(1.0, 0.0, 0.0, 0.0)):
     """Put arm ``arm``'s object ``joint`` at ``position`` (its arm's base frame) with
     orientation ``quat`` (w, x, y, z), at rest. The caller runs ``physics.forward``."""

@@ -76,7 +76,8 @@ class PegInsertion(GoalDistanceTask):
         for i in arms.tolist():
             goal = self.sample_goal(rngs[i])
             data = physics.datas[i]
-            data.mocap_pos[mocap] = goal
+            # A reality draw's fixture sits off where the goal says, on its own table.
+            data.mocap_pos[mocap] = goal if physics.truth is None else fixture_of(physics, i, goal)
             site = lay.tcp_site[i]
             R_tcp = data.site_xmat[site].reshape(3, 3)
             tcp = data.site_xpos[site]
@@ -98,6 +99,13 @@ class PegInsertion(GoalDistanceTask):
         state = object_state(physics, self.object_joint)
         return tip_of(state), state
 
+
+
+def fixture_of(physics, arm: int, goal: np.ndarray) -> np.ndarray:
+    """Where arm ``arm``'s fixture is when its task puts it at ``goal``: moved by the
+    reality draw's fixture offset (x, y) and table height (sim/truth.py)."""
+    truth = physics.truth
+    return goal + np.append(truth.fixture_offset[arm], truth.table_height[arm])
 
 
 def tip_of(state: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .base import GoalDistanceTask
-from .objects import object_space, object_state, place_object
+from .objects import object_space, object_state, on_table, place_object
 
 #: The block's half size [m] (scenes/block.xml): its centre rests this high.
 HALF = 0.02
@@ -63,7 +63,8 @@ class Push(GoalDistanceTask):
         """The block at rest at a seeded spot, upright; then the goal (in that order)."""
         goals = []
         for i in arms.tolist():
-            place_object(physics, self.object_joint, i, self.sample_object(rngs[i]))
+            start = on_table(physics, i, self.sample_object(rngs[i]))
+            place_object(physics, self.object_joint, i, start)
             goals.append(self.sample_goal(rngs[i]))
         return np.stack(goals)
 

@@ -1,0 +1,99 @@
+"""The robot under a reality draw: what its sensors report, and its friction compensation
+(docs/reality.md).
+
+The physics is the arm (sim/truth.py: its links' differences from the model, the friction
+in its drives, its scene); this is what the robot makes of it:
+
+* what its joint sensors report (sensors.py): noisy q, dq and tau_J, the state's fields
+  that derive from them (theta, dtheta, dtau_J, the elbow; the estimate, the wrench and
+  the contact flags through tau_J), and what its servos read;
+* its compensation of the friction in its drives: Gaz et al.'s law (sim/friction.py)
+  times ``friction.compensation``, on its measured velocity, added to every torque it
+  commands and in the model its estimate runs on (libfranka docs, "Under the hood":
+  tau_c = tau_d + tau_f + tau_g), and measured by its torque sensors.
+
+Its model stays the nominal one (the physics' shared model): the drives carry the model's
+weight, not the arm's, and the estimate reads the difference. Nothing here runs for the
+ideal robot: the controller builds it at the first draw that is not ideal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...reality import DrawBatch, streams
+from ...sim.arm import ArmPhysics
+from ...sim.friction import JointFriction
+from ..state import StateWriter
+from .sensors import DQ, TAU, Q, SensorNoise
+
+__all__ = ["RobotReality", "SensorNoise"]
+
+
+class RobotReality:
+    """The sensors and the friction compensation of n robots whose arms are their draws'
+    (the module docstring).
+
+    Args:
+        physics: the arms (their truth is enabled here).
+        writer: the state writer, whose float64 fields get the measurements.
+        scene: the world has a scene the draws change (every robot its own model).
+    """
+
+    def __init__(self, physics: ArmPhysics, writer: StateWriter, scene: bool) -> None:
+        self.physics = physics
+        self.writer = writer
+        self.truth = physics.enable_truth(scene)
+        n = physics.n
+        self.sensors = SensorNoise(n)
+        #: the robot's compensation of the friction in its drives
+        self.friction = JointFriction(n)
+        self._tau = np.zeros((n, 7))
+        self._extra = np.zeros((n, 7))
+        #: the draws the robots run under (rows by robot)
+        self.draws: list = [None] * n
+        # The servos read the robot's measurements (the state's float64 fields).
+        physics.sense_with(writer.q, writer.dq)
+
+    def apply(self, robots, draws: DrawBatch) -> None:
+        """A new episode of ``robots`` (rows of ``draws``): their arms and worlds, their
+        sensors' streams and their friction compensation."""
+        robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
+        self.truth.apply(robots, draws)
+        rngs = [streams(d.seed)["sensors"] for d in draws.draws]
+        self.sensors.set(
+            robots,
+            rngs,
+            draws["sensors.q_noise"],
+            draws["sensors.dq_noise"],
+            draws["sensors.tau_J_noise"],
+            draws["sensors.tau_J_offset"],
+        )
+        self.friction.set_scale(robots, draws["friction.compensation"])
+        for k, i in enumerate(robots.tolist()):
+            self.draws[i] = draws.draws[k]
+
+    def model_terms(self, load: np.ndarray | None) -> np.ndarray:
+        """(n, 7) what the robot adds to every torque it commands besides its model's
+        gravity (which MuJoCo's actuators carry): its friction compensation on its measured
+        velocity, plus a configured load's weight (``load``, or None). The same terms are
+        in the model its estimate runs on."""
+        extra = self.friction.torque(self.writer.dq)
+        if load is not None:
+            return np.add(extra, load, out=self._extra)
+        return extra
+
+    def write_measured(self, advance: bool) -> None:
+        """The state's measured fields from the physics through the sensors (``advance``:
+        a new cycle's samples; False: the samples of this cycle again)."""
+        sensors = self.sensors
+        if advance:
+            sensors.advance()
+        noise = sensors.current()
+        physics, w = self.physics, self.writer
+        np.add(physics.q, noise[:, Q], out=w.q)
+        w.theta[...] = w.q  # no joint elasticity: the motor side reads the link side
+        np.add(physics.dq, noise[:, DQ], out=w.dq)
+        w.dtheta[...] = w.dq
+        w.write_torque(np.add(physics.tau_J, noise[:, TAU], out=self._tau))
+        w.write_pose(physics, w.q)

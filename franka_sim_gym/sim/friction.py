@@ -1,0 +1,66 @@
+"""Joint friction in the FR3's drives: the law Gaz et al. identified on the Panda.
+
+C. Gaz, M. Cognetti, A. Oliva, P. Robuffo Giordano, A. De Luca, "Dynamic Identification
+of the Franka Emika Panda Robot With Retrieval of Feasible Parameters Using Penalty-Based
+Optimization", IEEE RA-L 4(4), 2019: the measured joint torques carry, besides the rigid
+body's M ddq + C dq + g, a friction torque per joint
+
+    tau_f(dq) = A / (1 + exp(-alpha (dq + phi))) - A / (1 + exp(-alpha phi)),
+
+zero at rest, rising like a smoothed Coulomb friction of about A / 2 either way. Written
+here with 1 / (1 + e^-x) = (1 + tanh(x / 2)) / 2, the same function:
+
+    tau_f(dq) = A / 2 (tanh(alpha / 2 (dq + phi)) - tanh(alpha phi / 2)).
+
+The physics applies ``scale`` times it against the motion (sim/truth.py); the robot adds
+its own compensation, ``compensation`` times it on its measured velocity, to every torque
+it commands (libfranka docs, "Under the hood": tau_c = tau_d + tau_f + tau_g, "tau_f the
+torque to compensate the motor friction"; fci/reality/).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Gaz et al. 2019's friction parameters, joints 1..7, as the authors publish them with
+#: their model (github.com/marcocognetti/FrankaEmikaPandaDynModel,
+#: cpp/panda_dyn_model_example/include/franka_model.h, FI_1i, FI_2i, FI_3i):
+#: A [Nm], alpha [s/rad], phi [rad/s].
+GAZ_A = np.array([0.54615, 0.87224, 0.64068, 1.2794, 0.83904, 0.30301, 0.56489])
+GAZ_ALPHA = np.array([5.1181, 9.0657, 10.136, 5.5903, 8.3469, 17.133, 10.336])
+GAZ_PHI = np.array([0.039533, 0.025882, -0.04607, 0.036194, 0.026226, -0.021047, 0.0035526])
+for _a in (GAZ_A, GAZ_ALPHA, GAZ_PHI):
+    _a.flags.writeable = False
+
+
+class JointFriction:
+    """The friction law of n robots, scaled per robot and joint (:meth:`set_scale`):
+    ``torque(dq)`` is the module docstring's tau_f(dq) times the scale, in five numpy
+    calls.
+
+    Args:
+        n: robots.
+    """
+
+    def __init__(self, n: int) -> None:
+        #: (n, 7) the factor on Gaz et al.'s A / 2 (the sign and the scale)
+        self.gain = np.zeros((n, 7))
+        self._half_alpha = np.broadcast_to(GAZ_ALPHA / 2.0, (n, 7)).copy()
+        self._shift = self._half_alpha * GAZ_PHI
+        self._at_rest = np.tanh(self._shift)
+        self.out = np.zeros((n, 7))
+
+    def set_scale(self, robots, scale) -> None:
+        """The friction of ``robots`` is ``scale`` (rows, (k, 7)) times Gaz et al.'s."""
+        self.gain[robots] = np.asarray(scale) * (GAZ_A / 2.0)
+
+    def torque(self, dq: np.ndarray) -> np.ndarray:
+        """(n, 7) the friction torque at joint velocity ``dq`` (``out``, overwritten by
+        the next call)."""
+        out = self.out
+        np.multiply(dq, self._half_alpha, out=out)
+        out += self._shift
+        np.tanh(out, out=out)
+        out -= self._at_rest
+        out *= self.gain
+        return out
