@@ -42,7 +42,7 @@ import pylibfranka as fr
 from evaluate import DEFAULT_ALGO, DEFAULT_ENV_ID, load_model  # examples/evaluate.py
 
 from franka_sim_gym.envs.commands import CARTESIAN, CommandGenerator
-from franka_sim_gym.envs.core import draw_episode
+from franka_sim_gym.envs.core import draw_episode, task_box
 from franka_sim_gym.envs.observation import build_observation, observation_space
 from franka_sim_gym.envs.tasks.reach import Reach
 from franka_sim_gym.fci.tables import FER, FR3
@@ -51,6 +51,8 @@ from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
 #: The state fields the command generator reads (libfranka's ControlLoop reads the same):
 #: the joint references, and the Cartesian ones of the Cartesian interfaces.
 _REFERENCE_FIELDS = ("q_d", "dq_d", "ddq_d", "tau_J_d", "O_T_EE_c", "O_dP_EE_c", "O_ddP_EE_c")
+#: ... and what the safety box of a twist reads (envs/commands.py)
+_BOX_FIELDS = ("O_T_EE",)
 #: Cycles at the start of a motion before the success-rate window (100 cycles) is full.
 _WINDOW = 100
 #: The velocity interfaces, whose motions are brought to rest before they are finished.
@@ -190,6 +192,11 @@ class Reacher:
         self.max_steps = int(env_kwargs.get("max_episode_steps", 50))
         table = FER if env_kwargs.get("robot", "fr3") == "fer" else FR3
         limits = env_kwargs.get("cartesian_limits", "conservative")
+        self.task = Reach(
+            reward_type=env_kwargs.get("reward_type", "sparse"),
+            distance_threshold=float(env_kwargs.get("distance_threshold", 0.05)),
+        )
+        box = env_kwargs.get("safety_box")
         self.commands = CommandGenerator(
             self.interface,
             env_kwargs.get("action_filter", "limit_rate"),
@@ -198,12 +205,10 @@ class Reacher:
             cartesian_dof=int(env_kwargs.get("cartesian_dof", 6)),
             # JSON gives six numbers as a list
             cartesian_limits=limits if isinstance(limits, str) else tuple(limits),
+            # the client's workspace box, as the env's client keeps it
+            safety_box=task_box(self.task) if box == "task" else box,
         )
         self.space = observation_space(table)
-        self.task = Reach(
-            reward_type=env_kwargs.get("reward_type", "sparse"),
-            distance_threshold=float(env_kwargs.get("distance_threshold", 0.05)),
-        )
         self._state = np.zeros(1, dtype=ROBOT_STATE_DTYPE)
         #: the last reach's distance to its goal [m]: at its last step, and at rest
         self.last_distances = (math.nan, math.nan)
@@ -225,6 +230,9 @@ class Reacher:
         mirror = self._state
         for name in _REFERENCE_FIELDS:
             mirror[name][0] = getattr(state, name)
+        if self.commands.safety_box is not None:
+            for name in _BOX_FIELDS:
+                mirror[name][0] = getattr(state, name)
         return mirror
 
     def _at_rest(self, state) -> bool:

@@ -9,7 +9,11 @@ Each reproduces one piece of libfranka 0.21 (docs/limits.md §6), as
 * :func:`limit_rate_cartesian_velocity` / :func:`limit_rate_cartesian_pose` -- the
   twist and pose overloads of ``franka::limitRate`` (src/rate_limiting.cpp), which
   limit the translational and rotational 3-vectors by their norms;
-* :func:`reference_pose` -- the state's ``O_T_EE_c`` as the client reads it.
+* :func:`reference_pose` -- the state's ``O_T_EE_c`` as the client reads it;
+
+and one rule of the client's own, no libfranka piece: :func:`box_velocity_core`, the
+safety box (``CommandGenerator(safety_box=...)``), which bounds the translational
+velocity toward each wall of a workspace box before the rate limiter.
 
 Poses are row-major ``(n, 4, 4)`` numpy matrices, not the column-major 16-value wire
 layout (``fci.frames.from_wire`` / ``to_wire``); rotations go through the package's one
@@ -37,8 +41,10 @@ from ..sim.rotations import (
 from .client_filters import LOWPASS_DEFAULT_CUTOFF, check_cutoff, finite, lowpass_gain
 
 __all__ = [
+    "BOX_DECELERATION",
     "NORM_EPS",
     "ROTATION_POSE_FACTOR",
+    "box_velocity_core",
     "cartesian_lowpass_core",
     "cartesian_lowpass_filter",
     "limit_pose_core",
@@ -54,6 +60,12 @@ NORM_EPS = float(np.finfo(np.float64).eps)
 #: include/franka/rate_limiting.h kFactorCartesianRotationPoseInterface: the pose
 #: overload of limitRate scales the rotational limits by this factor.
 ROTATION_POSE_FACTOR = 0.99
+
+#: The safety box's braking deceleration [m/s^2]: half the conservative limiter's 1.0
+#: (commands.CARTESIAN_LIMITS), so the limiter behind the box follows its bound with
+#: acceleration and jerk to spare. Moving toward a wall at the box's bound the TCP
+#: brakes at this rate and stops at the wall: 0.3 m/s takes 9 cm, 0.05 m/s 2.5 mm.
+BOX_DECELERATION = 0.5
 
 #: src/lowpass_filter.cpp cartesianLowpassFilter.
 _MSG_CARTESIAN_CUTOFF = (
@@ -277,6 +289,36 @@ def limit_pose_core(
     out[..., 3, 3] = 1.0
     out[..., :3, 3] = t_last + twist[..., :3] * dt
     out[..., :3, :3] = np.where(rotating[..., None, None], rotation_exp(w * dt) @ R_last, R_last)
+    return out
+
+
+def box_velocity_core(v, p, v_last, lower, upper, deceleration=BOX_DECELERATION, out=None):
+    """The safety box: translational velocity commands (n, 3) bounded so that a TCP at
+    ``p`` (n, 3) brakes to a stop at the walls of the box ``lower`` ... ``upper`` (3,)
+    [m]; ``v_last`` (n, 3) is the last commanded velocity (the state's O_dP_EE_c).
+
+    Each component toward a wall is at most ``sqrt(2 a d)``, d the distance to that wall
+    (0 outside it), ``a`` = ``deceleration``: the speed from which braking at ``a``
+    stops exactly at the wall. Components away from the walls, and inside the bound,
+    pass unchanged; a TCP outside the box may move back in but not further out.
+
+    It bounds the command that libfranka's rate limiter then shapes
+    (commands.CommandGenerator applies it between the low-pass filter and the limiter),
+    so the stream stays as smooth as the limiter makes it: the box brakes, it does not
+    clip the position. The limiter bounds the acceleration's norm, shared by all three
+    axes; so while the last commanded velocity is past an axis's bound (braking is
+    due), the other axes hold their last velocity and the whole acceleration goes to
+    the braking (without that, a policy swerving sideways on its way down took most of
+    it and passed the floor by 1 cm). The rule is the client's (SERL's workspace box,
+    Luo et al. 2024, as a velocity bound), not the robot's: no FCI check knows of it.
+    """
+    two_a = 2.0 * deceleration
+    up = np.sqrt(two_a * np.maximum(upper - p, 0.0))
+    down = np.sqrt(two_a * np.maximum(p - lower, 0.0))
+    out = np.clip(v, -down, up, out=out)
+    past = (v_last > up) | (v_last < -down)
+    braking = past.any(axis=-1, keepdims=True)
+    np.copyto(out, v_last, where=braking & ~past)
     return out
 
 

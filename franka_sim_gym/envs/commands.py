@@ -32,6 +32,13 @@ robot solves every pose to joint space and refuses joint accelerations over 10 r
 (errors 29 / 30: docs/fci-behaviour.md, The joint side of a Cartesian command) — so
 the default, ``"conservative"``, limits the Cartesian motion to what the joint side
 accepts.
+
+``safety_box`` (Cartesian interfaces, off by default) is a rule of the client's own, not
+libfranka's and not the robot's: the TCP kept inside a workspace box by a bound on the
+translational velocity toward each wall, between the low-pass filter and the rate
+limiter (``cartesian_filters.box_velocity_core``), so a policy pushing into the table
+brakes to a stop above it through a legal command stream (SERL's workspace box, Luo
+et al. 2024).
 """
 
 from __future__ import annotations
@@ -41,11 +48,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fci.frames import to_wire
-from ..fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from ..fci.tables import DELTA_T, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from ..fci.wire import MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
 from . import client_kernel
+from .cartesian_filters import BOX_DECELERATION, box_velocity_core
 
 INTERFACES = (
     "joint_position",
@@ -161,6 +169,13 @@ class CommandGenerator:
             (translation; the orientation is held where the motion started).
         cartesian_limits: the Cartesian rate limiter's targets, a key of
             ``CARTESIAN_LIMITS`` or six numbers.
+        safety_box: None (default), or the TCP's workspace box as two corners
+            ``((x, y, z) lowest, (x, y, z) highest)`` in the base frame [m]: the
+            translational command toward each wall is bounded so that the TCP brakes
+            at ``cartesian_filters.BOX_DECELERATION`` to a stop at the wall (the
+            measured O_T_EE under the twist interface, whose O_T_EE_c the robot does
+            not update; the commanded O_T_EE_c under the pose interface). Cartesian
+            interfaces with the ``"lowpass"`` or ``"limit_rate"`` filter only.
     """
 
     def __init__(
@@ -174,6 +189,7 @@ class CommandGenerator:
         n: int = 1,
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
+        safety_box=None,
     ) -> None:
         if interface not in INTERFACES:
             raise ValueError(f"unknown action interface {interface!r}: expected {INTERFACES}")
@@ -192,6 +208,7 @@ class CommandGenerator:
                 f"cartesian_limits must be one of {tuple(CARTESIAN_LIMITS)} or six positive "
                 f"numbers, got {cartesian_limits!r}"
             )
+        self.safety_box = check_safety_box(safety_box, interface, action_filter)
         self.interface = interface
         self.cartesian_dof = int(cartesian_dof)
         self.cartesian_limits = tuple(float(x) for x in limits)
@@ -317,6 +334,11 @@ class CommandGenerator:
         rules = self._rules
         ref = rules.reference_pose(state["O_T_EE_c"], self._ref_pose)
         out = rules.cartesian_lowpass_core(target, ref, self._gain, self._pose_lowpassed)
+        if self.safety_box is not None:  # the step from the commanded pose, as a velocity
+            t_ref, t = ref[:, :3, 3], out[:, :3, 3]
+            v_last = state["O_dP_EE_c"][:, :3]
+            v = box_velocity_core((t - t_ref) / DELTA_T, t_ref, v_last, *self.safety_box)
+            t[...] = t_ref + v * DELTA_T
         if self.action_filter != "limit_rate":
             return out
         return rules.limit_pose_core(
@@ -347,6 +369,10 @@ class CommandGenerator:
             # A position motion's first command is its own reference (no q_d to filter to).
             ref = np.where(self._first[:, None], target, ref)
         x = rules.lowpass_core(target, ref, self._gain, self._lowpassed)
+        if self.safety_box is not None:  # (the twist interface: box set, see __init__)
+            p = state["O_T_EE"][:, 12:15]  # measured: O_T_EE_c stays at the motion's start
+            v_last = fields["O_dP_EE_c"][:, :3]
+            box_velocity_core(x[:, :3], p, v_last, *self.safety_box, out=x[:, :3])
         if self.action_filter != "limit_rate":
             return x
         out = self._out
@@ -367,6 +393,33 @@ class CommandGenerator:
         if interface == "joint_position":
             return rules.limit_positions_core(x, q_d, *history)
         return rules.limit_velocities_core(x, *history)
+
+
+def check_safety_box(box, interface: str, action_filter: str):
+    """``box`` as ``(lower (3,), upper (3,), deceleration)`` floats, or None; a ValueError
+    names what is wrong (not two finite corners with lower < upper, an interface or a
+    filter the box cannot bound)."""
+    if box is None:
+        return None
+    try:
+        corners = np.asarray(box, dtype=np.float64)
+    except (TypeError, ValueError):
+        corners = None
+    if corners is None or corners.shape != (2, 3) or not np.isfinite(corners).all():
+        raise ValueError(
+            f"safety_box must be two corners ((x, y, z), (x, y, z)) in metres, got {box!r}"
+        )
+    lower, upper = corners
+    if not (lower < upper).all():
+        raise ValueError(f"safety_box: each lower corner value must be below the upper: {box!r}")
+    if interface not in CARTESIAN:
+        raise ValueError(f"safety_box bounds the Cartesian interfaces, not {interface!r}")
+    if action_filter not in ("lowpass", "limit_rate"):
+        raise ValueError(
+            "safety_box needs action_filter 'limit_rate' (or 'lowpass'): it bounds the "
+            f"per-cycle velocity, which {action_filter!r} does not shape"
+        )
+    return lower, upper, BOX_DECELERATION
 
 
 #: The client filters' C replacements (envs/_client_filters.c; None: not built, or off).

@@ -66,6 +66,13 @@ def start_pose(
     return (HOME_Q if home is None else home) + rng.uniform(-noise, noise, size=7)
 
 
+def task_box(task: Task):
+    """``safety_box="task"``: the task's workspace box (a ValueError if it has none)."""
+    if task.safety_box is None:
+        raise ValueError(f"safety_box='task': {type(task).__name__} declares no box")
+    return task.safety_box
+
+
 class FciBatch:
     """n episodes of a task on n simulated FR3s, stepped together (see the module
     docstring).
@@ -96,6 +103,7 @@ class FciBatch:
         configure_load: bool = True,
         cartesian_dof: int = 6,
         cartesian_limits: str | tuple[float, ...] = "conservative",
+        safety_box=None,
         reset_mode: str = "teleport",
         scene: str | Path | None = None,
         controller_mode: str = "joint_impedance",
@@ -178,6 +186,7 @@ class FciBatch:
             n=n,
             cartesian_dof=cartesian_dof,
             cartesian_limits=cartesian_limits,
+            safety_box=task_box(self.task) if safety_box == "task" else safety_box,
         )
         self._dim = self.commands.action_dim
         #: the spaces of one arm

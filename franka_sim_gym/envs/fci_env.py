@@ -90,6 +90,12 @@ class FrankaFCIEnv(gym.Env):
             "conservative" (default: what the robot's joint-side checks accept) or
             "libfranka" (libfranka's own constants, which trip errors 29 / 30 as on
             the robot), or six numbers (m/s, m/s^2, m/s^3, rad/s, rad/s^2, rad/s^3).
+        safety_box: the client's workspace box for the TCP (Cartesian interfaces): None
+            (default: none), ``"task"`` (the task's ``safety_box``: Push,
+            PickAndPlace, PegInsertion declare one) or two corners ``[[x, y, z], [x, y,
+            z]]`` in the base frame [m]. The commanded translational velocity toward
+            each wall is bounded so the TCP brakes to a stop at it, before the rate
+            limiter (envs/commands.py; docs/env.md "The safety box").
         reset_mode: "teleport" (default: the arm is placed at the start pose; errors,
             reflex_reason and the configured frames are cleared) or "fci" (a reset a
             real robot could do: StopMove, AutomaticErrorRecovery after a reflex, then

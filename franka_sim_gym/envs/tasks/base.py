@@ -62,6 +62,9 @@ class Task(ABC):
     #: both fingertips touch it, its mass is the robot's configured load
     #: (``configure_load``). None: nothing to hold.
     held_object: ClassVar[str | None] = None
+    #: The TCP's workspace box of ``safety_box="task"``: ((x, y, z) lowest, (x, y, z)
+    #: highest) in the base frame [m] (envs/commands.py; None: the task has none).
+    safety_box: ClassVar[tuple[tuple[float, ...], tuple[float, ...]] | None] = None
 
     # -- episodes ------------------------------------------------------------------------------
 

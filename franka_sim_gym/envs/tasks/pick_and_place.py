@@ -28,6 +28,10 @@ class PickAndPlace(Push):
     id_name = "PickAndPlace"
     hand = "grasp"
     held_object = "block"
+    #: ``safety_box="task"``: Push's, with the floor at 1.6 cm (the open fingertips
+    #: touch the table with the TCP at ~1.2 cm; the solver grasps at 2 cm) and the
+    #: ceiling over the highest goal
+    safety_box = ((0.33, -0.20, 0.016), (0.70, 0.20, 0.30))
 
     def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
         xy = rng.uniform(CENTRE - RANGE, CENTRE + RANGE)

@@ -45,6 +45,14 @@ class Push(GoalDistanceTask):
     home = TABLE_HOME
     max_episode_steps = 100
     cartesian_kwargs = {"cartesian_dof": 3}
+    #: ``safety_box="task"``: the TCP no lower than 2.5 cm (the closed fingertips reach
+    #: 1.2 cm below it: a hand pressed onto the table trips cartesian_reflex there),
+    #: over the block's range and 3-5 cm beyond it (a push starts behind the block),
+    #: not nearer the base than 0.33 m (the elbow nears its stop: fast twists there
+    #: trip the IK's joint side) nor farther than 0.70 m or 0.20 m aside (the arm nears
+    #: full stretch, the same). A policy pressing into the table and the walls with
+    #: jitter trips nothing inside it (tests/envs/test_safety_box.py).
+    safety_box = ((0.33, -0.20, 0.025), (0.70, 0.20, 0.25))
     #: the block's free joint in scenes/block.xml
     object_joint = "block"
     #: the observation bounds a position to 2 m per axis (objects.object_space)
