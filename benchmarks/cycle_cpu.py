@@ -18,6 +18,7 @@ import argparse
 import time
 
 import mujoco
+import smoke  # benchmarks/smoke.py: --smoke
 from cycle_rate import (
     CARTESIAN_POSITION,
     CARTESIAN_VELOCITY,
@@ -48,7 +49,7 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=3000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--rotate", action="store_true", help="turn the Cartesian streams")
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, cycles=20, repeats=1)
     generators = {
         "joint position": JOINT_POSITION,
         "Cartesian pose": CARTESIAN_POSITION,

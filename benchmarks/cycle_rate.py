@@ -17,6 +17,7 @@ import time
 
 import mujoco
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 
 from franka_sim_gym.fci.collision import ACCELERATION_PHASE, accelerating
 from franka_sim_gym.fci.config import ControllerConfig
@@ -263,7 +264,7 @@ def main() -> None:
     parser.add_argument(
         "--breakdown", action="store_true", help="also time each piece of a cycle at n = 16"
     )
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, seconds=0.03, breakdown=True)
     rows = []
     bare = {}
     for n in (1, 16):
@@ -293,7 +294,7 @@ def main() -> None:
     for n, share in DETECTOR_SHARE.items():
         print(f"the thresholds' comparisons in numpy (no kernels, in contact), n={n}: {share:.1%}")
     if args.breakdown:
-        pieces, total, bare_us = breakdown(16)
+        pieces, total, bare_us = breakdown(16, blocks=20 if args.smoke else 500)
         print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")
         print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
         print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")

@@ -26,6 +26,7 @@ import time
 import gymnasium as gym
 import mujoco
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.envs.commands import INTERFACES, CommandGenerator
@@ -125,7 +126,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--shares", action="store_true", help="time the filters and the IK")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--arms", type=int, nargs="+", default=[16, 64], help="N of the batched rows"
+    )
+    args = smoke.parse_args(parser, seconds=0.05, shares=True, arms=[2, 4])
     physics = ArmPhysics(n_arms=1)
     calls, start = 0, clock()
     while clock() - start < args.seconds:
@@ -148,7 +152,7 @@ def main() -> None:
         f"{'vs Sync':>9}{'vs mj_step':>12}"
     )
     batched = {}
-    for n in (16, 64):
+    for n in args.arms:
         bare = bare_rate(n, args.seconds) * n  # arm-steps/s
         sync = vector_rate(n, "sync", args.seconds)
         steps = batched[n] = vector_rate(n, "vector_entry_point", args.seconds)
@@ -161,7 +165,7 @@ def main() -> None:
     print(
         f"summary: env_steps_per_s={rates['joint_position']:.0f} "
         f"cycles_per_s={rates['joint_position'] * 40:.0f} "
-        f"batched_arm_cycles_per_s={batched[64] * 40:.0f}"
+        f"batched_arm_cycles_per_s={batched[args.arms[-1]] * 40:.0f}"
     )
     if args.shares:
         print()

@@ -27,6 +27,7 @@ import time
 
 import mujoco
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 import yaml
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.env_util import make_vec_env
@@ -54,9 +55,13 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=1600, help="transitions in the buffer")
     parser.add_argument("--draws", type=int, default=200, help="batches drawn per timing")
     parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+    parser.add_argument("--arms", type=int, default=None, help="envs (default: the file's)")
+    parser.add_argument(
+        "--bare-seconds", type=float, default=1.0, help="time of the bare mj_step row"
+    )
+    args = smoke.parse_args(parser, samples=50, draws=3, repeats=1, bare_seconds=0.1, arms=2)
     settings = yaml.safe_load(hyperparams_file("sac").read_text())[ENV_ID]
-    arms = settings["n_envs"]
+    arms = args.arms or settings["n_envs"]
     env = make_vec_env(ENV_ID, n_envs=arms, seed=0, env_kwargs=settings["env_kwargs"])
     buffer = HerReplayBuffer(
         args.samples + arms,
@@ -94,7 +99,7 @@ def main() -> None:
             best[name] = min(ms, best.get(name, ms))
     physics = ArmPhysics(n_arms=1)
     calls, start = 0, time.perf_counter()
-    while time.perf_counter() - start < 1.0:
+    while time.perf_counter() - start < args.bare_seconds:
         for _ in range(100):
             mujoco.mj_step(physics.model, physics.data)
         calls += 100

@@ -21,6 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import smoke  # benchmarks/smoke.py: --smoke
+
 from franka_sim_gym.server.testing import start_server
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -63,7 +65,7 @@ def measure(seconds: float, *flags: str) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="wall time of each loop")
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, seconds=0.5)
     real_time = measure(args.seconds)
     lockstep = measure(args.seconds, "--lockstep")
     print(

@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+import smoke  # benchmarks/smoke.py: --smoke
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
 import train_rllib  # noqa: E402  (examples/train_rllib.py: the configuration)
 
@@ -125,7 +127,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed rounds")
     parser.add_argument("--seconds", type=float, default=5.0, help="bare env and mj_step time")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, steps=20, repeats=1, seconds=0.1)
     import ray
 
     load = " ".join(f"{x:.2f}" for x in os.getloadavg())

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 import torch as th
 from stable_baselines3 import SAC
 from stable_baselines3.common.logger import configure
@@ -44,8 +45,8 @@ from env_rate import bare_rate  # noqa: E402  (benchmarks/env_rate.py, beside th
 ARMS = 16
 
 
-def snapshot(directory: Path, env) -> None:
-    """The default run's model after 1,600 samples, saved with its replay buffer."""
+def snapshot(directory: Path, env, samples: int = 1_600) -> None:
+    """The default run's model after ``samples`` samples, saved with its replay buffer."""
     model = train_sb3.make_model(
         "sac",
         env,
@@ -56,7 +57,7 @@ def snapshot(directory: Path, env) -> None:
         net=(128, 128),
         buffer_size=12_016,
     )
-    model.learn(total_timesteps=1_600)
+    model.learn(total_timesteps=samples)
     model.save(directory / "model.zip")
     model.save_replay_buffer(directory / "buffer.pkl")
 
@@ -82,24 +83,27 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300, help="gradient steps per timing")
     parser.add_argument("--repeats", type=int, default=6)
     parser.add_argument(
+        "--samples", type=int, default=1_600, help="samples the snapshot was trained on"
+    )
+    parser.add_argument(
         "--threads", default=None, help="torch thread counts, comma-separated (default: 1,cores)"
     )
     parser.add_argument(
         "--busy", action="store_true", help="one other process spins on a core meanwhile"
     )
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, steps=3, repeats=1, samples=352)
     cores = max(1, os.cpu_count() or 1)
     counts = [int(c) for c in args.threads.split(",")] if args.threads else [1, cores]
     counts = list(dict.fromkeys(counts))
     spec = gym.spec("FrankaFCICartesianVelocity-v0")
     env = FrankaFCISB3VecEnv(ARMS, **{**spec.kwargs, **train_sb3.DEFAULT_ENV_KWARGS})
-    bare = 1e3 / bare_rate(ARMS, 1.0)  # ms per mj_step of the 16-arm world
+    bare = 1e3 / bare_rate(ARMS, 0.1 if args.smoke else 1.0)  # ms per mj_step, 16 arms
     best: dict[int, float] = {}
     params: dict[int, th.Tensor] = {}
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp)
         th.set_num_threads(1)
-        snapshot(directory, env)
+        snapshot(directory, env, args.samples)
         busy = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
         try:
             for _ in range(args.repeats):

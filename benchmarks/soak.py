@@ -31,6 +31,8 @@ import sys
 import time
 from pathlib import Path
 
+import smoke  # benchmarks/smoke.py: --smoke
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
@@ -139,7 +141,7 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--server-args", default="", help="extra serve flags")
     parser.add_argument("--client", metavar="HOST", help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, minutes=0.05)
     if args.client:
         run_client(args.client, args.minutes * 60)
         return

@@ -14,16 +14,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import smoke  # benchmarks/smoke.py: --smoke
+
+from franka_sim_gym.server.testing import start_server
+
 ROOT = Path(__file__).resolve().parent.parent
 CLIENT = ROOT / "tests" / "e2e" / "clients" / "pylibfranka_client.py"
-HOST = "127.0.0.91"
 
 
 def cpu_seconds(pid: int) -> float:
@@ -49,53 +50,38 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--server-args", default="", help='extra serve flags, e.g. "--no-gripper"')
-    args = parser.parse_args()
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "franka_sim_gym.server",
-            "--host",
-            HOST,
-            "--log-level",
-            "WARNING",
-            *args.server_args.split(),
-        ],
-        cwd=ROOT,
-    )
+    args = smoke.parse_args(parser, seconds=0.5)
+    # A free loopback address, ready once Connect is answered and a state arrives.
+    server = start_server("--log-level", "WARNING", *args.server_args.split(), cwd=ROOT)
+    host, pid = server.host, server.process.pid
     try:
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                socket.create_connection((HOST, 1337), timeout=0.2).close()
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise SystemExit("server did not start") from None
-                time.sleep(0.05)
-        time.sleep(0.5)
-        idle_cpu0, idle_t0 = cpu_seconds(server.pid), time.monotonic()
-        time.sleep(2.0)
-        idle_share = (cpu_seconds(server.pid) - idle_cpu0) / (time.monotonic() - idle_t0)
-        cpu0, t0 = cpu_seconds(server.pid), time.monotonic()
+        time.sleep(min(0.5, args.seconds))
+        idle_cpu0, idle_t0 = cpu_seconds(pid), time.monotonic()
+        time.sleep(min(2.0, args.seconds))
+        idle_share = (cpu_seconds(pid) - idle_cpu0) / (time.monotonic() - idle_t0)
+        cpu0, t0 = cpu_seconds(pid), time.monotonic()
         out = subprocess.run(
-            [sys.executable, str(CLIENT), "rate", HOST],
+            [sys.executable, str(CLIENT), "rate", host],
             capture_output=True,
             text=True,
             timeout=4 * args.seconds + 60,
             env={**os.environ, "RATE_SECONDS": str(args.seconds)},
         ).stdout
-        share = (cpu_seconds(server.pid) - cpu0) / (time.monotonic() - t0)
+        share = (cpu_seconds(pid) - cpu0) / (time.monotonic() - t0)
         result = json.loads(out.strip().splitlines()[-1])
     finally:
-        server.send_signal(signal.SIGINT)
-        server.wait(timeout=10)
+        server.stop()
+    sleeping = sleep_share(min(2000, int(1000 * args.seconds)))
     rows = [
         ("states/s received by pylibfranka read_once", f"{result['states_per_s']:.1f}", "1000"),
         ("states/s published (message ids over wall time)", f"{result['published_per_s']:.1f}", ""),
         ("server CPU share of one core, no client", f"{idle_share:.1%}", ""),
         ("server CPU share of one core, client reading + 1 kHz loop", f"{share:.1%}", "<= 10%"),
-        ("of which any 1 kHz sleep loop costs here (measured alone)", f"{sleep_share():.1%}", ""),
+        (
+            "of which any 1 kHz sleep loop costs here (measured alone)",
+            f"{sleeping:.1%}",
+            "",
+        ),
         (
             "readOnce/writeOnce loop success rate (mean)",
             f"{result['loop_success_rate_mean']:.3f}",

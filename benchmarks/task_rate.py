@@ -19,6 +19,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 from env_rate import worlds_step_rate  # benchmarks/env_rate.py, beside this script
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
@@ -72,7 +73,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--n", type=int, default=64, help="arms of the batched env")
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, seconds=0.05, n=4)
     print(describe())
     print(f"{'row':<40}{'env steps/s':>12}{'arm-cycles/s':>14}{'vs mj_step':>12}")
     for env_id in TASK_IDS:

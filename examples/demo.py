@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+from franka_sim_gym.server.testing import free_loopback_address
+
 HERE = Path(__file__).resolve().parent
 HOST = "127.0.0.1"
 
@@ -23,7 +25,8 @@ def port_free(host: str, port: int) -> bool:
 
 
 def main() -> int:
-    host = HOST if port_free(HOST, 1337) else "127.0.0.77"
+    # libfranka always connects to port 1337: where it is taken, another loopback address.
+    host = HOST if port_free(HOST, 1337) and port_free(HOST, 1338) else free_loopback_address()
     print(f"starting franka-sim-gym serve on {host}:1337")
     server = subprocess.Popen([sys.executable, "-m", "franka_sim_gym.server", "--host", host])
     try:

@@ -3,6 +3,8 @@ robot's rules, and a baseline for learners.
 
     python examples/scripted.py --env-id FrankaFCIPush-v0 --episodes 200
     python examples/scripted.py --env-id FrankaFCIPush-v0 --episodes 200 --naive
+    python examples/scripted.py --env-id FrankaFCIPush-v0 --episodes 50 \
+        --env-kwargs '{"policy_hz": 10, "max_episode_steps": 40}' --record franka/push-v0
 
 Each solver is what a user would write against the env's public action interface: it
 reads the observation (docs/env.md lays it out) and sends Cartesian velocities (and the
@@ -13,12 +15,19 @@ above the table — the robot's reflexes then end episodes, as they would on an 
 
 Episodes run side by side in the native batched env (episode i seeded ``seed + i``,
 the same episodes as single envs). Last line:
-``scripted: env_id=ID success_rate=x reflex_rate=y``.
+``scripted: env_id=ID success_rate=x reflex_rate=y``. ``--env-kwargs`` (JSON) are
+passed to the env (e.g. another policy rate and episode length).
+
+``--record DATASET_ID`` stores the episodes as a Minari dataset (the ``datasets``
+extra; ``$MINARI_DATASETS_PATH`` or Minari's default directory) through
+``franka_sim_gym.training.datasets.record``: observations, actions, rewards, the
+infos, each episode's seed and the env's spec (docs/demonstrations.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from collections import Counter
 
 import gymnasium as gym
@@ -310,12 +319,39 @@ def solver_for(env_id: str, n: int, naive: bool, object_at: int):
     return SOLVERS[task.id_name](n, Limits(naive), object_at)
 
 
-def run(env_id: str, episodes: int, seed: int = 0, naive: bool = False, batch: int = 50):
+class ScriptedPolicy:
+    """A solver as the policy ``franka_sim_gym.training.datasets.record`` takes: called
+    on a batch of observations; ``reset(arms)`` starts a batch of that many arms."""
+
+    def __init__(self, env_id: str, naive: bool = False, env_kwargs: dict | None = None):
+        env = gym.make(env_id, **(env_kwargs or {}))
+        self.object_at = env.observation_space["observation"].shape[0] - 13
+        env.close()
+        self.env_id, self.naive = env_id, naive
+        self.solver = None
+
+    def reset(self, arms: np.ndarray) -> None:
+        self.solver = solver_for(self.env_id, len(arms), self.naive, self.object_at)
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        return self.solver.act(obs)
+
+
+def run(
+    env_id: str,
+    episodes: int,
+    seed: int = 0,
+    naive: bool = False,
+    batch: int = 50,
+    env_kwargs: dict | None = None,
+):
     """Run ``episodes`` seeded episodes; returns (success rate, reflex rate, reflexes)."""
     successes, reflexes, reasons = 0, 0, Counter()
     for start in range(0, episodes, batch):
         n = min(batch, episodes - start)
-        envs = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+        envs = gym.make_vec(
+            env_id, num_envs=n, vectorization_mode="vector_entry_point", **(env_kwargs or {})
+        )
         space = envs.single_observation_space["observation"]
         object_at = space.shape[0] - 13  # the object's 13 entries come last
         solver = solver_for(env_id, n, naive, object_at)
@@ -342,8 +378,32 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--naive", action="store_true", help="no speed caps, no floor")
     parser.add_argument("--batch", type=int, default=50, help="arms per batched env")
+    parser.add_argument("--env-kwargs", default="{}", help="JSON: arguments of the env")
+    parser.add_argument(
+        "--record", metavar="DATASET_ID", help="store the episodes as this Minari dataset"
+    )
     args = parser.parse_args()
-    success, reflex, reasons = run(args.env_id, args.episodes, args.seed, args.naive, args.batch)
+    env_kwargs = json.loads(args.env_kwargs)
+    if args.record:
+        from franka_sim_gym.training.datasets import record, summary
+
+        dataset = record(
+            args.record,
+            args.env_id,
+            ScriptedPolicy(args.env_id, args.naive, env_kwargs),
+            args.episodes,
+            seed=args.seed,
+            env_kwargs=env_kwargs,
+            num_envs=args.batch,
+            algorithm_name="examples/scripted.py" + (" --naive" if args.naive else ""),
+            description=f"scripted solver of {args.env_id}",
+        )
+        success, reflex, reasons = summary(dataset)
+        print(f"recorded {dataset.total_episodes} episodes as {args.record}")
+    else:
+        success, reflex, reasons = run(
+            args.env_id, args.episodes, args.seed, args.naive, args.batch, env_kwargs
+        )
     if reasons:
         print("reflexes:", ", ".join(f"{name} {count}" for name, count in reasons.most_common()))
     print(f"scripted: env_id={args.env_id} success_rate={success:.3f} reflex_rate={reflex:.3f}")

@@ -21,6 +21,13 @@ Without it the policy learns to ignore the goal (docs/training.md, "Why normalis
 ``--eval-every N`` evaluates every N samples (instead of ``--evals`` times), and
 ``--time-limit S`` stops at the first evaluation after S seconds, saving what it has.
 
+``--demos DATASET_ID`` learns from demonstrations (a Minari dataset recorded on the same
+id and env arguments, e.g. by examples/scripted.py --record): SAC + HER whose batches
+are ``--demo-fraction`` demonstrations (franka_sim_gym.training.sb3_demos), learning from
+the first step, with ``--bc-weight W`` a behaviour-cloning term in the actor's loss and
+``--bc-steps N`` the actor fitted to the demonstrations first; ``--gamma`` and ``--tau``
+set SAC's. docs/demonstrations.md tells the recipe and its figures.
+
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
 examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger;
 TensorBoard events too with ``--tensorboard``: ``tensorboard --logdir DIR``), eval.csv
@@ -63,6 +70,7 @@ def make_model(
     buffer_size: int = 1_000_000,
     ent_coef: str = "auto_0.02",
     threads: int = 1,
+    demos: dict | None = None,
 ):
     """The SB3 model of the default run (``algo`` "sac"), or TD3 / PPO on the same env."""
     import torch
@@ -97,6 +105,12 @@ def make_model(
         policy_kwargs=dict(net_arch=list(net), optimizer_kwargs=dict(foreach=True)),
         gradient_steps=gradient_steps,
     )
+    if demos:
+        # --demos: every batch part demonstrations (franka_sim_gym.training.sb3_demos)
+        from franka_sim_gym.training.sb3_demos import DemoMixedHerReplayBuffer
+
+        off_policy["replay_buffer_class"] = DemoMixedHerReplayBuffer
+        off_policy["replay_buffer_kwargs"].update(demos)
     if algo == "sac":
         # gSDE: exploration noise that is smooth in time, which a rate-limited robot
         # does not average away between steps.
@@ -238,6 +252,18 @@ def main() -> None:
     parser.add_argument(
         "--tensorboard", action="store_true", help="TensorBoard events next to progress.csv"
     )
+    demo = parser.add_argument_group("learning from demonstrations (docs/demonstrations.md)")
+    demo.add_argument("--demos", metavar="DATASET_ID", help="a Minari dataset of the env")
+    demo.add_argument(
+        "--demo-fraction", type=float, default=0.5, help="demonstrations' share of a batch"
+    )
+    demo.add_argument("--bc-weight", type=float, default=0.0, help="behaviour-cloning term")
+    demo.add_argument("--bc-steps", type=int, default=0, help="actor fitted to them first")
+    demo.add_argument("--gamma", type=float, default=None, help="SAC's discount (0.95)")
+    demo.add_argument("--tau", type=float, default=None, help="SAC's target update (0.05)")
+    demo.add_argument(
+        "--learning-starts", type=int, default=None, help="samples before learning"
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
@@ -263,6 +289,15 @@ def main() -> None:
         kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
     )
     learning_starts = max(300, args.num_envs * (episode_steps + 1))
+    if args.learning_starts is not None:
+        learning_starts = args.learning_starts
+    demos = None
+    if args.demos:
+        from franka_sim_gym.training.sb3_demos import load, seed_normalization
+
+        demos = {"demos": load(args.demos), "demo_fraction": args.demo_fraction}
+        if args.normalize:  # statistics from the demonstrations before the first step
+            seed_normalization(env, demos["demos"])
     chunk = args.eval_every or max(1, args.steps // args.evals)
     # SB3 collects whole vector steps: each learn call's samples round up to the arms.
     chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
@@ -282,8 +317,21 @@ def main() -> None:
         buffer_size=min(1_000_000, collected + arms),  # the whole run, one spare step
         ent_coef=args.ent_coef,
         threads=args.threads,
+        demos=demos,
     )
+    if args.gamma is not None:
+        model.gamma = args.gamma
+    if args.tau is not None:
+        model.tau = args.tau
     start = time.perf_counter()
+    if args.demos:  # (in the run's time)
+        from franka_sim_gym.training.sb3_demos import add_behaviour_cloning, behaviour_cloning
+
+        normalize = env.normalize_obs if args.normalize else None
+        if args.bc_steps:
+            behaviour_cloning(model.policy, demos["demos"], args.bc_steps, normalize=normalize)
+        if args.bc_weight:
+            add_behaviour_cloning(model, demos["demos"], args.bc_weight, normalize, args.seed)
     rows = []
     bar = progress_bar(collected, enabled=not args.no_progress)
     done = 0
@@ -314,6 +362,13 @@ def main() -> None:
     wall = time.perf_counter() - start
     if bar is not None:
         bar.bar.close()
+    if args.demos:  # saved with the plain buffer: the model loads without the dataset
+        from franka_sim_gym.training.sb3_her import ReflexChargedHerReplayBuffer
+
+        model.replay_buffer_class = ReflexChargedHerReplayBuffer
+        model.replay_buffer_kwargs = {
+            k: v for k, v in model.replay_buffer_kwargs.items() if k not in demos
+        }
     model.save(args.out / "model.zip")
     if args.normalize:
         # where examples/evaluate.py (franka_sim_gym.training.sb3_zoo) looks for it

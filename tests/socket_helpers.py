@@ -32,6 +32,12 @@ def motion_summaries(log: str) -> list[tuple[str, int, int]]:
     return [(m[1], int(m[2]), int(m[3])) for m in re.finditer(pattern, log)]
 
 
+def recovery_cycles(log: str) -> int:
+    """The cycles the one AutomaticErrorRecovery a server logged waited for standstill."""
+    [cycles] = re.findall(r"recovery answered after (\d+) cycles", log)
+    return int(cycles)
+
+
 def unstarved(
     serve, run: Callable[[SimServer], dict], *flags: str, attempts: int = 3
 ) -> tuple[SimServer, dict]:
@@ -79,6 +85,30 @@ def run_client(
             f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
         )
     return json.loads(lines[-1])
+
+
+class HeldClient:
+    """A client scenario that holds its connection until released (the 'first client' of
+    a second-client test; tests/e2e/clients/scenario_main.py hold_until_told)."""
+
+    def __init__(self, kind: str, scenario: str, host: str, timeout: float = 60.0) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, str(CLIENTS / f"{kind}_client.py"), scenario, host],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+        )
+        line = self.process.stdout.readline()  # once a state came, or the result on failure
+        if line.strip() != "holding":
+            self.process.kill()
+            raise AssertionError(f"{kind} {scenario} did not hold a connection: {line!r}")
+        self.timeout = timeout
+
+    def release(self) -> dict:
+        """Tell it to stop holding; its result (JSON)."""
+        out, _ = self.process.communicate("release\n", timeout=self.timeout)
+        return json.loads(out.strip().splitlines()[-1])
 
 
 @pytest.fixture

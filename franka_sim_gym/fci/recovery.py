@@ -57,6 +57,8 @@ class RecoveryWait:
         for i in robots:
             if self.settled[i] < cfg.recovery_settle_cycles:
                 log.warning("robot %d: recovery answered at the 0.7 s cap before standstill", i)
+            else:
+                log.info("robot %d: recovery answered after %d cycles", i, self.waited[i])
         return robots
 
     def _recount(self) -> None:

@@ -23,7 +23,9 @@ comparison and debugging.
 
 from __future__ import annotations
 
+import functools
 import importlib
+import logging
 import os
 from types import ModuleType
 
@@ -41,17 +43,42 @@ ENABLED = os.environ.get("FRANKA_SIM_GYM_NATIVE", "1").strip().lower() not in {
 CYCLE = 1e-3
 
 
+log = logging.getLogger("franka_sim_gym.native")
+
+
+@functools.cache
 def load(name: str) -> ModuleType | None:
     """The kernel module ``franka_sim_gym.<name>`` (e.g. ``"sim._ik"``), or None
     when it was not built, the kernels are turned off, or it was built for another cycle
-    (a stale build)."""
+    (a stale build).
+
+    Not built (no such module) is silent: the numpy path is the documented fallback. A
+    module that is there but does not import (a broken or foreign build: an undefined
+    symbol, another Python's ABI) or is stale is logged once, as a warning saying why,
+    and its numpy path taken.
+    """
     if not ENABLED:
         return None
+    module_name = f"franka_sim_gym.{name}"
     try:
-        module = importlib.import_module(f"franka_sim_gym.{name}")
-    except ImportError:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name != module_name:  # the kernel is there; something it imports is not
+            log.warning("C kernel %s not loaded (numpy path taken): %s", name, exc)
         return None
-    return module if getattr(module, "DELTA_T", None) == CYCLE else None
+    except ImportError as exc:
+        log.warning("C kernel %s not loaded (numpy path taken): %s", name, exc)
+        return None
+    if getattr(module, "DELTA_T", None) != CYCLE:
+        log.warning(
+            "C kernel %s not loaded (numpy path taken): built for a cycle of %r s, not %r s "
+            "(a stale build: reinstall the package)",
+            name,
+            getattr(module, "DELTA_T", None),
+            CYCLE,
+        )
+        return None
+    return module
 
 
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).

@@ -10,7 +10,12 @@ default run and its figures.
   buffer keeping each transition's reflex charge, so that a relabelled reflex is no
   success;
 * ``franka_sim_gym.training.evaluation.evaluate`` — success and reflex rates of any
-  policy with a ``predict`` method (gymnasium and numpy only).
+  policy with a ``predict`` method (gymnasium and numpy only);
+* ``franka_sim_gym.training.datasets.record`` — any policy's episodes as a Minari
+  dataset that replays bit for bit (the ``datasets`` extra);
+* ``franka_sim_gym.training.sb3_demos`` — SAC + HER learning from such a dataset: batches
+  half demonstrations (``DemoMixedHerReplayBuffer``), a behaviour-cloning term and a
+  behaviour-cloning baseline (docs/demonstrations.md).
 
 The modules are imported one by one (this file imports none of them), so that the
 evaluation works without stable-baselines3. Nothing in ``fci``, ``sim``, ``envs`` or

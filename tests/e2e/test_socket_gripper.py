@@ -6,18 +6,13 @@ docs/wire-protocol.md §10; statuses docs/errors.md §2.4.
 
 from __future__ import annotations
 
-import json
-import os
 import socket
 import struct
-import subprocess
-import sys
-import time
 from dataclasses import dataclass
 
 import pytest
 
-from tests.socket_helpers import CLIENTS
+from tests.socket_helpers import HeldClient
 
 pytestmark = pytest.mark.socket
 
@@ -59,6 +54,17 @@ def exchange(sock: socket.socket, command: int, payload: bytes = b"", size=None)
     return reply
 
 
+def in_the_commanded_time(seconds: float, expected: float) -> bool:
+    """Whether a finger motion of ``expected`` s at the commanded speed took ``seconds``.
+
+    The hand moves on the wall clock (server/gripper_server.py steps it by the time that
+    passed), so a loaded machine only adds the wake-ups of the hand's timer, of the reply
+    and of the client: 0.3 s at most at a load of 8 on two cores. A hand twice as slow, or
+    one that jumps to the target, fails.
+    """
+    return 0.7 * expected < seconds < 1.3 * expected + 0.3
+
+
 def test_homing_returns_true_and_opens_to_8_cm(serve, client):
     server = serve()
     result = client("gripper", "homing", server.host, timeout=30)
@@ -77,7 +83,7 @@ def test_move_to_4_cm_takes_the_time_the_commanded_speed_implies(serve, client):
     assert result["ok"] is True, result
     assert result["width"] == pytest.approx(0.04, abs=1e-6)
     expected = (0.08 - 0.04) / 0.02  # 2 s
-    assert 0.7 * expected < result["seconds"] < 1.3 * expected, result
+    assert in_the_commanded_time(result["seconds"], expected), result
 
 
 def test_grasp_of_thin_air_returns_false_and_is_grasped_stays_false(serve, client, backend):
@@ -100,7 +106,7 @@ def test_grasp_closes_on_the_configured_object_and_sets_is_grasped(serve, client
     assert result["ok"] is True, result
     assert result["is_grasped"] is True
     assert result["width"] == pytest.approx(0.04, abs=1e-6)
-    assert 0.7 * 0.8 < result["seconds"] < 1.3 * 0.8  # 4 cm closed at 5 cm/s
+    assert in_the_commanded_time(result["seconds"], 0.8), result  # 4 cm closed at 5 cm/s
 
 
 def test_object_width_flag_wins_over_the_environment(serve, client):
@@ -136,7 +142,7 @@ def test_franky_gripper_homing_and_move_work(serve, client):
     result = client("franky_gripper", "homing_move", server.host, timeout=30)
     assert result["homing"] is True and result["move"] is True, result
     assert result["width_after_homing"] == pytest.approx(0.08)
-    assert 0.7 * 0.8 < result["move_seconds"] < 1.3 * 0.8  # 4 cm at 5 cm/s
+    assert in_the_commanded_time(result["move_seconds"], 0.8), result  # 4 cm at 5 cm/s
     assert result["opened"] is True and result["width"] == pytest.approx(0.08)
 
 
@@ -160,19 +166,16 @@ def test_franky_gripper_out_of_stroke_width_raises(serve, client):
 
 def test_second_gripper_client_is_refused_while_the_first_keeps_working(serve, client):
     server = serve()
-    first = subprocess.Popen(
-        [sys.executable, str(CLIENTS / "gripper_client.py"), "hold", server.host],
-        stdout=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "HOLD_SECONDS": "3"},
-    )
-    time.sleep(1.0)
+    first = HeldClient("gripper", "hold", server.host)
     second = client("gripper", "connect_only", server.host, timeout=30)
-    out, _ = first.communicate(timeout=30)
+    held = first.release()
     assert second["error"] is not None, second
     assert "a gripper client is already connected" in server.log()
-    held = json.loads(out.strip().splitlines()[-1])
-    assert held["reads"] > 60  # ~60 Hz states for 3 s
+    # The first client's 60 Hz stream ran on through the refusal (the hand's message ids)
+    # and its connection still moves the fingers.
+    assert "exception" not in held, held
+    ids = [held["told_id"], *held["after_ids"]]
+    assert ids == sorted(set(ids)), ids  # strictly increasing
     assert held["move_after"] is True
 
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from tests.socket_helpers import motion_summaries
+from franka_sim_gym.fci.config import ControllerConfig
+from tests.socket_helpers import motion_summaries, recovery_cycles
 
 pytestmark = pytest.mark.socket
 
@@ -36,7 +37,10 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
         server.stop()
         summaries = motion_summaries(server.log())
         lost_in_next = summaries[-1][1] if len(summaries) >= 2 else 0
-        if not (r.get("next_motion_error") and lost_in_next > 0):
+        # The same for the provoking motion: its first command late (a lost first cycle)
+        # is judged as a jump from the held start, a discontinuity, not a start pose.
+        lost_in_first = summaries[0][1] if summaries else 0
+        if not ((r.get("next_motion_error") and lost_in_next > 0) or lost_in_first > 0):
             break
     assert "exception" not in r, r
     assert r["error"] is not None, r
@@ -45,7 +49,9 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
     assert r["mode_after"] == "Reflex"
     assert error in r["current_errors_after"] and error in r["last_motion_errors_after"]
     assert r["refused"] is not None and "command not possible" in r["refused"]
-    assert r["recovery_s"] < 1.0
+    # Recovery is answered once the arm stood still for 50 cycles, not at the 0.7 s cap
+    # (docs/fci-behaviour.md "Enabling the violation"), by the robot's own count.
+    assert recovery_cycles(server.log()) < ControllerConfig().recovery_max_cycles
     assert r["mode_recovered"] == "Idle"
     assert r["current_errors_recovered"] == "[]"
     assert error in r["last_motion_errors_recovered"]  # kept through recovery

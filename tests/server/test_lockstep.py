@@ -196,7 +196,10 @@ def test_stop_move_during_a_wait_is_answered_without_waiting_out_the_bound(serve
     stop = client.request(p.Command.kStopMove)
     assert client.reply(stop, timeout=10).payload[0] == p.StopMoveStatus.kSuccess
     assert client.reply(move, timeout=10).payload[0] == p.MoveStatus.kPreempted
-    assert time.monotonic() - start < 0.4  # not when the 900 ms wait runs out
+    # Not when the 900 ms wait runs out (>= 0.8 s from here): no count tells the two apart
+    # (the stop ends the motion at its one cycle either way, none lost), so a bound that
+    # holds at a load of 8 judges it: two small replies, not a wait.
+    assert time.monotonic() - start < 0.6
     after = client.latest_state()
     assert after["robot_mode"] == 1 and np.all(np.isfinite(after["q"]))
     client.close()

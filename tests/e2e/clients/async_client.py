@@ -19,7 +19,11 @@ import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry poi
 MAX_VELOCITIES = [0.655, 0.655, 0.655, 0.655, 1.315, 1.315, 1.315]
 PERIOD = 0.020  # s: a target every 20 ms, the example's rate
 OFFSET = 0.15  # rad: each target is the start pose +- this on every joint
-HOLD = 1.2  # s on each target (0.3 rad at 0.655 rad/s takes ~0.55 s)
+#: s of wall time a target is held at most (0.3 rad at 0.655 rad/s takes ~0.55 s of the
+#: robot's time; a loaded machine's server runs slower than its clock, down to ~0.5x)
+HOLD = 10.0
+#: periods a reached target is held on before the next (the robot stays there)
+AFTER_REACHED = 10
 TOLERANCE = 1e-3  # rad: libfranka's default goal tolerance
 
 
@@ -38,7 +42,8 @@ def target(q):
 
 
 def scenario_sequence(host: str) -> dict:
-    """Configure; feedback before any target; three targets held HOLD s each at 50 Hz
+    """Configure; feedback before any target; three targets, each sent at 50 Hz until reached
+    and AFTER_REACHED periods more (HOLD s at most)
     (feedback, then target, per period); stop_control; the state afterwards; then a
     second asynchronous motion starts and stops at once (the robot took the first's end)."""
     robot = fr.Robot(host, fr.RealtimeConfig.kIgnore)
@@ -51,8 +56,10 @@ def scenario_sequence(host: str) -> dict:
         statuses, errors, reached_after = [], [], None
         t0 = time.monotonic()
         sent_once = False
-        while time.monotonic() - t0 < HOLD:
+        held = 0
+        while time.monotonic() - t0 < HOLD and held < AFTER_REACHED:
             tick = time.monotonic()
+            held += reached_after is not None
             feedback = control.get_target_feedback()
             if sent_once:  # (before that, the feedback is about the previous target)
                 statuses.append(feedback.status.name)

@@ -96,14 +96,14 @@ def scenario_out_of_stroke(host: str) -> dict:
 
 
 def scenario_hold(host: str) -> dict:
-    """Hold one connection for HOLD_SECONDS, reading the state and moving now and then."""
+    """Hold one connection, reading the state, until told on stdin; then 10 states more
+    and a move (scenario_main.hold_until_told)."""
     gripper = fr.Gripper(host)
-    reads, deadline = 0, time.monotonic() + float(os.environ.get("HOLD_SECONDS", "3"))
-    while time.monotonic() < deadline:
-        gripper.read_once()
-        reads += 1
+    held = scenario_main.hold_until_told(
+        lambda: round(gripper.read_once().time.to_sec() * 1000), more=10
+    )
     ok = gripper.move(0.05, 0.1)
-    return {"reads": reads, "move_after": ok, **state_dict(gripper)}
+    return {**held, "move_after": ok, **state_dict(gripper)}
 
 
 def scenario_connect_only(host: str) -> dict:

@@ -8,11 +8,16 @@ cartesian_velocity_example, and a first pose 15 cm off (16).
 from __future__ import annotations
 
 import math
+import sys
 import time
+from pathlib import Path
 
 import pylibfranka as fr
 import scenario_main  # tests/e2e/clients/scenario_main.py: the shared entry point
 from pylibfranka_client import connect
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from tests.profiles import positions, there_and_back  # noqa: E402
 
 
 def stream(control, duration: float, command_at) -> str | None:
@@ -107,6 +112,39 @@ def scenario_cartesian_start_off(host: str) -> dict:
         error = str(exc)
     del control
     return {"error": error, "robot_mode": robot.read_once().robot_mode.name}
+
+
+def scenario_fast_ramp(host: str) -> dict:
+    """After 800 states at rest (the external wrench estimate settled): a pose motion
+    along +x at 3.5 m/s^2 (jerk 500 m/s^3) to 0.2 m/s and back to rest. Its joint side
+    accelerates past the FR3's 10 rad/s^2 (cartesian_motion_generator_joint_velocity_
+    discontinuity, tests/fci/test_cartesian_rows.py); it passes under
+    `serve --joint-discontinuity-scale 2`."""
+    robot = connect(host)
+    for _ in range(800):
+        rest = robot.read_once()
+    speeds = there_and_back(0.2, 3.5, 500.0)
+    control = robot.start_cartesian_pose_control(fr.ControllerMode.JointImpedance)
+    start: list[float] = []
+    x = positions(speeds)
+
+    def pose_at(state, t: float):
+        if not start:
+            start.extend(state.O_T_EE_c)
+        pose = list(start)
+        pose[12] += x[min(round(t * 1e3), len(x) - 1)]
+        return fr.CartesianPose(pose)
+
+    error = stream(control, len(speeds) * 1e-3, pose_at)
+    del control
+    after = robot.read_once()
+    return {
+        "O_F_ext_hat_K_at_rest": list(rest.O_F_ext_hat_K),
+        "error": error,
+        "moved": after.O_T_EE[12] - start[12] if start else None,
+        "distance": x[-1],
+        "robot_mode": after.robot_mode.name,
+    }
 
 
 if __name__ == "__main__":

@@ -118,8 +118,11 @@ def scenario_reflex(host: str) -> dict:
 
 
 def scenario_silence(host: str) -> dict:
-    """A joint motion whose loop goes silent for SILENCE_MS once, then recovery and a motion."""
-    silence = float(os.environ["SILENCE_MS"]) / 1000.0
+    """A joint motion whose loop goes silent once, then recovery and a motion: for
+    SILENCE_MS of wall time (neither reading nor writing), or for SILENCE_CYCLES of the
+    robot's (states read, by their message ids, and not answered)."""
+    silence = float(os.environ.get("SILENCE_MS", "0")) / 1000.0
+    silent_cycles = int(os.environ.get("SILENCE_CYCLES", "0"))
     robot = connect(host)
     control = robot.start_joint_position_control(fr.ControllerMode.JointImpedance)
     t, q0, error, slept = 0.0, None, None, False
@@ -131,7 +134,13 @@ def scenario_silence(host: str) -> dict:
                 q0 = list(state.q_d)
             if t >= 0.5 and not slept:
                 slept = True
-                time.sleep(silence)  # neither reading nor writing: cycles go unanswered
+                if silent_cycles:  # states read, none answered, until the robot ran them
+                    start = state.time.to_sec()
+                    while (state.time.to_sec() - start) * 1000.0 < silent_cycles:
+                        state, period = control.readOnce()
+                        t += period.to_sec()
+                else:
+                    time.sleep(silence)  # neither reading nor writing: cycles go unanswered
                 continue
             q = list(q0)
             q[3] += 0.05 * (1 - math.cos(2 * math.pi * t / 1.5))

@@ -1,0 +1,182 @@
+"""Demonstrations as Minari datasets (training/datasets.py): recorded from a batched env,
+loaded, the env recovered, every episode replayed bit for bit on a single env; bad
+input refused with nothing left behind."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+minari = pytest.importorskip("minari")
+
+from franka_sim_gym.training.datasets import (  # noqa: E402
+    dataset_path,
+    episode_seed,
+    names,
+    record,
+    replay,
+    summary,
+)
+from tests.conftest import ROOT, load_example, run_python  # noqa: E402
+
+#: Reach with unfiltered joint-position targets: uniform random actions trip reflexes
+#: within a few steps (tests/training/test_sb3_her.py).
+REFLEXES = dict(action_filter="none", max_episode_steps=6)
+#: Push, short: the scripted solver goes behind the block and starts down
+PUSH = dict(max_episode_steps=12)
+
+
+class RandomPolicy:
+    """Uniform actions from a seeded stream (a callable policy, no reset method)."""
+
+    def __init__(self, dim: int, seed: int = 0, scale: float = 1.0) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.dim, self.scale = dim, scale
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        n = len(obs["observation"])
+        return self.scale * self.rng.uniform(-1.0, 1.0, (n, self.dim))  # float64: cast
+
+
+@pytest.fixture(scope="module")
+def reflex_dataset(datasets_dir):
+    return record(
+        "tests/reflexes-v0",
+        "FrankaFCI-v0",
+        RandomPolicy(7),
+        5,
+        seed=3,
+        env_kwargs=REFLEXES,
+        num_envs=3,
+    )
+
+
+@pytest.fixture(scope="module")
+def push_dataset(datasets_dir):
+    scripted = load_example("scripted")
+    policy = scripted.ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=PUSH)
+    return record("tests/push-v0", "FrankaFCIPush-v0", policy, 2, seed=7, env_kwargs=PUSH)
+
+
+def assert_replays(dataset) -> None:
+    """Every episode: the recovered single env, reset with the episode's seed and
+    stepped with its actions, gives the stored observations, rewards and ends."""
+    for episode in dataset.iterate_episodes():
+        again = replay(dataset, episode)
+        for key, stored in episode.observations.items():
+            assert np.array_equal(again["observations"][key], stored), (episode.id, key)
+        assert np.array_equal(again["rewards"], episode.rewards)
+        assert np.array_equal(again["terminations"], episode.terminations)
+        assert np.array_equal(again["truncations"], episode.truncations)
+
+
+def test_a_batched_recording_loads_and_replays_on_a_single_env(reflex_dataset):
+    dataset = minari.load_dataset("tests/reflexes-v0")
+    assert dataset.total_episodes == 5
+    # arms of two batches (3 + 2): episode k seeded seed + k
+    assert [episode_seed(dataset, k) for k in range(5)] == [3, 4, 5, 6, 7]
+    spec = dataset.env_spec
+    assert spec.id == "FrankaFCI-v0" and spec.max_episode_steps == 6
+    assert spec.kwargs["action_filter"] == "none"
+    env = dataset.recover_environment()
+    assert env.unwrapped.max_episode_steps == 6
+    env.close()
+    assert_replays(dataset)
+
+
+def test_reflexes_are_recorded_with_their_names_and_charge(reflex_dataset):
+    ended_in_reflex = 0
+    for episode in reflex_dataset.iterate_episodes():
+        infos = episode.infos
+        assert len(infos["is_success"]) == len(episode) + 1  # the reset's info first
+        last = names(infos["reflex_reason"][-1])
+        if episode.terminations[-1]:
+            ended_in_reflex += 1
+            assert last, "a terminated episode names the robot's errors"
+            charge = infos["reflex_penalty"][-1]
+            assert charge < 0  # the worst step reward for each step cut off
+            assert episode.rewards[-1] == pytest.approx(-1.0 + charge)
+            assert infos["robot_mode"][-1] == b"kReflex"
+        else:
+            assert last == () and infos["reflex_penalty"][-1] == 0.0
+        assert infos["O_F_ext_hat_K"].shape == (len(episode) + 1, 6)
+        assert infos["joint_contact"].shape == (len(episode) + 1, 7)
+        assert infos["cartesian_contact"].dtype == bool
+    assert ended_in_reflex > 0, "random unfiltered actions must trip reflexes"
+    success, reflex_rate, reasons = summary(reflex_dataset)
+    assert reflex_rate == ended_in_reflex / 5 and success == 0.0
+    assert sum(reasons.values()) >= ended_in_reflex
+
+
+def test_a_scripted_push_records_and_replays(push_dataset):
+    assert push_dataset.total_episodes == 2 and push_dataset.total_steps == 24
+    assert push_dataset.action_space.shape == (3,)
+    assert "algorithm_name" not in push_dataset.storage.metadata
+    assert_replays(push_dataset)
+
+
+def test_scripted_record_writes_a_dataset(datasets_dir):
+    proc = run_python(
+        ROOT / "examples" / "scripted.py",
+        "--env-id",
+        "FrankaFCIPush-v0",
+        "--episodes",
+        "2",
+        "--batch",
+        "2",
+        "--env-kwargs",
+        '{"max_episode_steps": 3}',
+        "--record",
+        "tests/cli-v0",
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "recorded 2 episodes as tests/cli-v0" in proc.stdout
+    assert proc.stdout.strip().splitlines()[-1].startswith("scripted: env_id=FrankaFCIPush-v0")
+    dataset = minari.load_dataset("tests/cli-v0")
+    assert dataset.total_steps == 6
+    assert dataset.storage.metadata["algorithm_name"] == "examples/scripted.py"
+
+
+def nothing_written(dataset_id: str) -> bool:
+    return not dataset_path(dataset_id).exists() and dataset_id not in minari.list_local_datasets()
+
+
+@pytest.mark.parametrize(
+    "scale, match",
+    [
+        (1.5, r"the policy's action \[.*\] \(episode 0\) is outside the action space"),
+        (np.nan, r"is outside the action space"),
+    ],
+    ids=["beyond", "nan"],
+)
+def test_an_action_outside_the_space_is_refused_and_nothing_written(datasets_dir, scale, match):
+    with pytest.raises(ValueError, match=match):
+        record("tests/bad-v0", "FrankaFCI-v0", RandomPolicy(7, scale=scale), 2, env_kwargs=REFLEXES)
+    assert nothing_written("tests/bad-v0")
+
+
+def test_actions_of_the_wrong_shape_are_refused(datasets_dir):
+    with pytest.raises(ValueError, match=r"shape \(2, 3\), expected \(2, 7\)"):
+        record("tests/bad-v0", "FrankaFCI-v0", RandomPolicy(3), 2, env_kwargs=REFLEXES)
+    assert nothing_written("tests/bad-v0")
+
+
+def test_an_unknown_env_id_is_refused(datasets_dir):
+    with pytest.raises(ValueError, match="unknown env id 'FrankaFCIPushh-v0'"):
+        record("tests/bad-v0", "FrankaFCIPushh-v0", RandomPolicy(3), 1)
+    assert nothing_written("tests/bad-v0")
+
+
+def test_an_existing_dataset_is_refused_and_kept(reflex_dataset):
+    before = reflex_dataset.total_steps
+    with pytest.raises(ValueError, match="dataset 'tests/reflexes-v0' exists"):
+        record("tests/reflexes-v0", "FrankaFCI-v0", RandomPolicy(7), 1, env_kwargs=REFLEXES)
+    assert minari.load_dataset("tests/reflexes-v0").total_steps == before
+
+
+def test_a_malformed_id_and_unstorable_arguments_are_refused(datasets_dir):
+    with pytest.raises(ValueError, match="Malformed dataset ID"):
+        record("no version", "FrankaFCI-v0", RandomPolicy(7), 1)
+    with pytest.raises(ValueError, match="cannot be stored in a dataset"):
+        record("tests/bad-v0", "FrankaFCI-v0", RandomPolicy(7), 1, env_kwargs={"x": object()})
+    assert nothing_written("tests/bad-v0")
