@@ -89,8 +89,12 @@ def build_config(
             critic_lr=1e-3,
             alpha_lr=1e-3,
             initial_alpha=0.02,
-            model={"fcnet_hiddens": [128, 128]},
-        ).reporting(min_time_s_per_iteration=0, min_sample_timesteps_per_iteration=batch_size)
+        )
+        # the new API stack reads the network from rl_module(model_config=...); a
+        # training(model=...) is ignored there (RLlib warns and builds [256, 256])
+        config = config.rl_module(model_config={"fcnet_hiddens": [128, 128]}).reporting(
+            min_time_s_per_iteration=0, min_sample_timesteps_per_iteration=batch_size
+        )
     else:
         raise ValueError(f"unknown algo {algo!r}: expected one of {ALGOS}")
     return (
