@@ -64,7 +64,7 @@ def build_config(
     learning after 512 env steps, ``batch_size`` env steps an iteration. RLlib has no
     HER, so SAC learns from the reward the env gives (dense:
     ``--env-kwargs '{"reward_type": "dense"}'``; docs/scaling.md)."""
-    from ray.rllib.connectors.env_to_module import FlattenObservations
+    from ray.rllib.connectors.env_to_module import FlattenObservations, MeanStdFilter
 
     if algo == "ppo":
         from ray.rllib.algorithms.ppo import PPOConfig
@@ -89,8 +89,12 @@ def build_config(
             critic_lr=1e-3,
             alpha_lr=1e-3,
             initial_alpha=0.02,
-            model={"fcnet_hiddens": [128, 128]},
-        ).reporting(min_time_s_per_iteration=0, min_sample_timesteps_per_iteration=batch_size)
+        )
+        # the new API stack reads the network from rl_module(model_config=...); a
+        # training(model=...) is ignored there (RLlib warns and builds [256, 256])
+        config = config.rl_module(model_config={"fcnet_hiddens": [128, 128]}).reporting(
+            min_time_s_per_iteration=0, min_sample_timesteps_per_iteration=batch_size
+        )
     else:
         raise ValueError(f"unknown algo {algo!r}: expected one of {ALGOS}")
     return (
@@ -99,7 +103,12 @@ def build_config(
             num_env_runners=runners,
             num_envs_per_env_runner=envs_per_runner,
             gym_env_vectorize_mode="vector_entry_point",
-            env_to_module_connector=lambda env, spaces=None, device=None: FlattenObservations(),
+            # the Dict observation flattened, then normalised by running mean and std
+            # (the SB3 recipe's VecNormalize, for the same reason: docs/training.md)
+            env_to_module_connector=lambda env, spaces=None, device=None: [
+                FlattenObservations(),
+                MeanStdFilter(),
+            ],
             num_cpus_per_env_runner=1,
             # RLlib's default (60 s) gives up on a runner that samples slowly, as on a
             # busy machine, and the iteration then reports no episodes: wait for it.
@@ -112,15 +121,20 @@ def build_config(
 class RLlibPolicy:
     """An RLlib module's deterministic action, behind SB3's ``predict`` (what
     ``franka_sim_gym.training.evaluation.evaluate`` calls). The Dict observation is
-    flattened as ``FlattenObservations`` does: its keys in sorted order, concatenated."""
+    flattened as ``FlattenObservations`` does (its keys in sorted order, concatenated),
+    then normalised by ``observation_filter`` (RLlib's ``MeanStdFilter`` with the
+    training's statistics, frozen), as the env runners' connectors did in training."""
 
-    def __init__(self, module) -> None:
+    def __init__(self, module, observation_filter=None) -> None:
         self.module = module
+        self.observation_filter = observation_filter
 
     def predict(self, obs: dict, deterministic: bool = True):
         import torch
 
         flat = np.concatenate([np.asarray(obs[k], np.float32) for k in sorted(obs)], axis=-1)
+        if self.observation_filter is not None:
+            flat = np.asarray(self.observation_filter(flat, update=False), np.float32)
         with torch.no_grad():
             out = self.module.forward_inference({"obs": torch.from_numpy(flat)})
             dist = self.module.get_inference_action_dist_cls().from_logits(
@@ -130,9 +144,36 @@ class RLlibPolicy:
         return np.clip(action, -1.0, 1.0), None
 
 
+def observation_filter(state: dict):
+    """RLlib's ``MeanStdFilter`` (ray.rllib.utils.filter) holding the statistics of an
+    env-to-module pipeline's state (``{connector name: its state}``), as the connector's
+    own ``set_state`` restores them; None when the pipeline has no ``MeanStdFilter``."""
+    import tree  # dm-tree, RLlib's dependency
+    from ray.rllib.utils.filter import MeanStdFilter, RunningStat
+
+    for name, connector_state in state.items():
+        if name.startswith("MeanStdFilter") and connector_state:
+            agent = next(iter(connector_state.values()))  # single-agent: one filter
+            result = MeanStdFilter(
+                agent["shape"],
+                demean=agent["de_mean_to_zero"],
+                destd=agent["de_std_to_one"],
+                clip=agent["clip_by_value"],
+            )
+            result.running_stats = tree.unflatten_as(
+                agent["shape"], [RunningStat.from_state(s) for s in agent["running_stats"]]
+            )
+            return result
+    return None
+
+
 def load_policy(checkpoint: Path) -> RLlibPolicy:
-    """The trained policy of an RLlib checkpoint (the learner's default module)."""
+    """The trained policy of an RLlib checkpoint (the learner's default module) with the
+    observation normalisation its env runners trained behind."""
+    from ray.rllib.connectors.env_to_module import EnvToModulePipeline
     from ray.rllib.core import (
+        COMPONENT_ENV_RUNNER,
+        COMPONENT_ENV_TO_MODULE_CONNECTOR,
         COMPONENT_LEARNER,
         COMPONENT_LEARNER_GROUP,
         COMPONENT_RL_MODULE,
@@ -147,7 +188,10 @@ def load_policy(checkpoint: Path) -> RLlibPolicy:
         / COMPONENT_RL_MODULE
         / DEFAULT_MODULE_ID
     )
-    return RLlibPolicy(RLModule.from_checkpoint(path.resolve()))
+    module = RLModule.from_checkpoint(path.resolve())
+    connectors = Path(checkpoint) / COMPONENT_ENV_RUNNER / COMPONENT_ENV_TO_MODULE_CONNECTOR
+    pipeline = EnvToModulePipeline.from_checkpoint(connectors.resolve())
+    return RLlibPolicy(module, observation_filter(pipeline.get_state()))
 
 
 def start_local_ray(address: str | None = None) -> None:

@@ -7,7 +7,7 @@
 The default: SAC + HER on FrankaFCICartesianVelocity-v0 (a 3-D twist, orientation held,
 10 Hz policy, 2 s episodes) in 16 batched arms (the native batched env,
 franka_sim_gym.training.sb3_vec_env), behind SB3's observation normalisation, SB3's SAC,
-one gradient step per sample on one torch thread, 6,000 samples, HER through the buffer
+one gradient step per sample on one torch thread, 8,000 samples, HER through the buffer
 that keeps the reflex charge of relabelled steps (franka_sim_gym.training.sb3_her), SAC's
 entropy weight tuned from 0.02.
 Every cycle runs the full FCI at 1 kHz: the libfranka client's filters, every
@@ -199,8 +199,8 @@ def plot(out: Path, rows: list[dict], title: str = "FrankaFCI reach") -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--algo", default="sac", choices=("sac", "td3", "ppo"))
-    parser.add_argument("--steps", type=int, default=6000, help="environment steps")
-    parser.add_argument("--evals", type=int, default=3, help="evaluations during training")
+    parser.add_argument("--steps", type=int, default=8000, help="environment steps")
+    parser.add_argument("--evals", type=int, default=4, help="evaluations during training")
     parser.add_argument(
         "--eval-every", type=int, default=None, help="samples between evaluations (over --evals)"
     )

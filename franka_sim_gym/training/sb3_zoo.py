@@ -75,23 +75,27 @@ def with_normalization(model, model_path: str | Path, env: gym.Env):
 
 
 class BatchedArms(VecEnvWrapper):
-    """The native batched env in place of the vector env rl-zoo3 built (its
-    ``vec_env_wrapper``).
+    """The native batched env in place of the vector env rl-zoo3 built: an entry's
+    ``vec_env_wrapper``, with the entry's env arguments as its own.
 
-    rl-zoo3 builds ``n_envs`` single envs of the entry's id and ``env_kwargs`` (each
-    behind its ``Monitor``) and hands their vector env to the wrapper; this one reads the
-    id's arguments from the first env's spec, closes the single envs, and steps
-    ``FrankaFCISB3VecEnv`` of as many arms with the same arguments behind SB3's
-    ``VecMonitor`` (the episode returns, lengths and successes rl-zoo3 logs). The seeds SB3
-    gives the model reach the arms as they would the single envs (arm i: seed + i).
-    rl-zoo3's per-env ``monitor.csv`` files stay empty.
+    rl-zoo3 builds ``n_envs`` single envs of the entry's id (each behind its ``Monitor``)
+    and hands their vector env to the wrapper; this one closes them and steps
+    ``FrankaFCISB3VecEnv`` of as many arms behind SB3's ``VecMonitor`` (the episode
+    returns, lengths and successes rl-zoo3 logs). The arms' arguments: the id's
+    registered ones, over them ``env_kwargs`` (the entry's, given in the file as the
+    wrapper's arguments), over those whatever rl-zoo3 gave the single envs beyond the
+    registration (``--env-kwargs``). The entry's arguments are the wrapper's because
+    rl-zoo3 2.9.2 builds its evaluation env (``--eval-freq``) without the entry's
+    ``env_kwargs`` (``ExperimentManager`` copies them to the evaluation only when
+    ``--env-kwargs`` is given): as the wrapper's, training, evaluation and
+    ``rl_zoo3.enjoy`` all step the same env. The seeds SB3 gives the model reach the arms
+    as they would the single envs (arm i: seed + i). rl-zoo3's per-env ``monitor.csv``
+    files stay empty.
     """
 
-    def __init__(self, venv: VecEnv) -> None:
+    def __init__(self, venv: VecEnv, **env_kwargs: Any) -> None:
         spec = venv.get_attr("spec", [0])[0]
-        kwargs = dict(spec.kwargs)
-        if spec.max_episode_steps is not None:  # gym.make's own argument, not in kwargs
-            kwargs["max_episode_steps"] = spec.max_episode_steps
+        kwargs = {**gym.spec(spec.id).kwargs, **env_kwargs, **arguments_given(spec)}
         arms = venv.num_envs
         venv.close()
         batched = FrankaFCISB3VecEnv(arms, **kwargs)
@@ -102,3 +106,18 @@ class BatchedArms(VecEnvWrapper):
 
     def step_wait(self):
         return self.venv.step_wait()
+
+
+def arguments_given(spec: gym.envs.registration.EnvSpec) -> dict[str, Any]:
+    """The arguments an env of ``spec`` was made with beyond its id's registration
+    (``gym.make``'s ``max_episode_steps`` among them). A value given equal to the
+    registered one is indistinguishable from it and not returned."""
+    registered = gym.spec(spec.id)
+    given = {k: v for k, v in spec.kwargs.items() if registered.kwargs.get(k, _UNSET) != v}
+    if spec.max_episode_steps != registered.max_episode_steps:
+        given["max_episode_steps"] = spec.max_episode_steps
+    return given
+
+
+#: a value no registered argument has (arguments_given)
+_UNSET = object()

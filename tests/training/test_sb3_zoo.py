@@ -46,17 +46,23 @@ def zoo_run(directory, normalize: bool):
     return model, venv, path
 
 
-def test_batched_arms_steps_an_entrys_arms_as_the_batched_env_with_its_arguments():
-    """What rl-zoo3 does with an entry (SB3's make_vec_env of the id's single envs with
-    the entry's env_kwargs, each behind a Monitor, then the entry's vec_env_wrapper),
-    wrapped: the batched env of as many arms, the same episodes as the single envs (arm i
-    seeded seed + i), the episode length rl-zoo3 asked for, VecMonitor's statistics."""
+def zoo_vec_env(n: int, env_kwargs: dict):
+    """What rl-zoo3 builds for an entry before its vec_env_wrapper: SB3's make_vec_env of
+    the id's single envs, each behind a Monitor (rl_zoo3 ExperimentManager.create_envs)."""
     from stable_baselines3.common.env_util import make_vec_env
 
     spec = gym.spec("FrankaFCI-v0")
-    venv = make_vec_env(lambda **kwargs: spec.make(**kwargs), n_envs=3, env_kwargs=KWARGS)
-    batched = BatchedArms(venv)
+    return make_vec_env(lambda **kwargs: spec.make(**kwargs), n_envs=n, env_kwargs=env_kwargs)
+
+
+def test_batched_arms_steps_the_entrys_env_as_the_batched_env():
+    """rl-zoo3's evaluation env gets no env_kwargs (the id's 25 Hz, 50 steps); wrapped,
+    it is the batched env of as many arms with the wrapper's arguments (the entry's): the
+    same episodes as single envs with them (arm i seeded seed + i), their length, and
+    VecMonitor's statistics."""
+    batched = BatchedArms(zoo_vec_env(3, {}), **KWARGS)
     assert batched.num_envs == 3 and isinstance(batched.venv.venv, FrankaFCISB3VecEnv)
+    assert batched.venv.venv.vector_env.core.cycles_per_step == 100  # 10 Hz, not 25
     batched.seed(5)  # what SB3's model does with its seed
     obs = batched.reset()
     singles = [gym.make("FrankaFCI-v0", **KWARGS) for _ in range(3)]
@@ -71,11 +77,22 @@ def test_batched_arms_steps_an_entrys_arms_as_the_batched_env_with_its_arguments
         for i in range(3):
             if not dones[i]:
                 assert np.array_equal(obs["observation"][i], expected[i][0]["observation"])
-    assert dones.all(), "rl-zoo3's episode length (env_kwargs' max_episode_steps)"
+    assert dones.all(), "the wrapper's episode length"
     for info, single in zip(infos, expected, strict=True):
         assert info["episode"]["l"] == KWARGS["max_episode_steps"]  # VecMonitor's
         assert info["is_success"] == single[4]["is_success"]
         assert np.array_equal(info["terminal_observation"]["observation"], single[0]["observation"])
+    batched.close()
+
+
+def test_batched_arms_takes_the_arguments_rl_zoo3_gave_over_its_own():
+    """--env-kwargs reach the single envs rl-zoo3 builds (training and evaluation alike):
+    they win over the wrapper's."""
+    given = {"max_episode_steps": 3, "reward_type": "dense", "policy_hz": 25}
+    batched = BatchedArms(zoo_vec_env(2, given), **KWARGS)
+    core = batched.venv.venv.vector_env.core
+    assert core.max_episode_steps == 3 and core.task.reward_type == "dense"
+    assert core.cycles_per_step == 40  # 25 Hz given, over the wrapper's 10
     batched.close()
 
 
@@ -118,6 +135,9 @@ def test_the_shipped_file_is_found_and_names_its_ids():
     entries = yaml.safe_load(path.read_text())
     assert {"FrankaFCI-v0", "FrankaFCICartesianVelocity-v0"} <= set(entries)
     for settings in entries.values():
-        assert settings["vec_env_wrapper"] == "franka_sim_gym.training.sb3_zoo.BatchedArms"
+        # the env's arguments are the wrapper's, which rl-zoo3's evaluation env gets too
+        (wrapper,) = settings["vec_env_wrapper"]
+        assert list(wrapper) == ["franka_sim_gym.training.sb3_zoo.BatchedArms"]
+        assert "env_kwargs" not in settings
         assert settings["replay_buffer_class"] == "HerReplayBuffer"
         assert "copy_info_dict=True" in settings["replay_buffer_kwargs"]
