@@ -210,6 +210,25 @@ def start_local_ray(address: str | None = None) -> None:
     ray.init(address=address, include_dashboard=False, log_to_driver=False)
 
 
+def observation_statistics_to_local_runner(algo) -> None:
+    """Copy a remote env runner's env-to-module state (the ``MeanStdFilter``'s statistics)
+    to the algorithm's local env runner, whose state ``save_to_path`` writes.
+
+    With remote runners, RLlib 2.60 merges their filter statistics and broadcasts them
+    to the remote runners only: the local runner, which samples nothing, keeps a filter
+    of zero pushes, and a checkpoint saved as it is would evaluate the policy on raw
+    observations (measured: every evaluation episode a reflex)."""
+    from ray.rllib.core import COMPONENT_ENV_TO_MODULE_CONNECTOR
+
+    if algo.env_runner is None or algo.env_runner_group.num_healthy_remote_workers() == 0:
+        return
+    states = algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.get_state(components=COMPONENT_ENV_TO_MODULE_CONNECTOR),
+        local_env_runner=False,
+    )
+    algo.env_runner.set_state(states[0])
+
+
 def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
     """Train; returns (checkpoint, env steps per second of training, last episode return)."""
     import ray
@@ -251,6 +270,7 @@ def train(args, env_kwargs: dict) -> tuple[Path, float, float]:
             f"episode_return_mean {episode_return:.2f}",
             flush=True,
         )
+    observation_statistics_to_local_runner(algo)
     checkpoint = Path(algo.save_to_path(str((args.out / "checkpoint").resolve())))
     algo.stop()
     ray.shutdown()
