@@ -7,9 +7,9 @@ The shipped rl-zoo3 file (franka_sim_gym/training/hyperparams/sac.yml) trains wi
 ``HerReplayBuffer(copy_info_dict=True)``, which deep-copies the stored info of every
 relabelled transition at every gradient step (4 of 5 of a batch of 256), so that the
 reflex charge survives relabelling (docs/training.md). The buffer is filled as rl-zoo3
-fills it (16 single envs in SB3's DummyVecEnv, Monitor, the file's env arguments, random
-actions, N samples); then D draws of a batch of 256 are timed three ways on the same
-buffer and the same draws:
+fills it without the file's BatchedArms (16 single envs in SB3's DummyVecEnv, Monitor,
+the entry's env arguments, random actions, N samples); then D draws of a batch of 256
+are timed three ways on the same buffer and the same draws:
 
 * the infos as the env gives them (``envs.infos.InfoRow``, whose deep copy skips the
   immutable entries);
@@ -36,6 +36,7 @@ import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.native import describe
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.training import hyperparams_file
+from franka_sim_gym.training.sb3_zoo import entry_env_kwargs
 
 ENV_ID = "FrankaFCICartesianVelocity-v0"
 
@@ -62,7 +63,7 @@ def main() -> None:
     args = smoke.parse_args(parser, samples=50, draws=3, repeats=1, bare_seconds=0.1, arms=2)
     settings = yaml.safe_load(hyperparams_file("sac").read_text())[ENV_ID]
     arms = args.arms or settings["n_envs"]
-    env = make_vec_env(ENV_ID, n_envs=arms, seed=0, env_kwargs=settings["env_kwargs"])
+    env = make_vec_env(ENV_ID, n_envs=arms, seed=0, env_kwargs=entry_env_kwargs(settings))
     buffer = HerReplayBuffer(
         args.samples + arms,
         env.observation_space,

@@ -121,3 +121,16 @@ def arguments_given(spec: gym.envs.registration.EnvSpec) -> dict[str, Any]:
 
 #: a value no registered argument has (arguments_given)
 _UNSET = object()
+
+
+def entry_env_kwargs(entry: dict[str, Any]) -> dict[str, Any]:
+    """The env arguments an rl-zoo3 hyperparameter entry trains with: its ``BatchedArms``
+    wrapper's arguments (the shipped file's entries), over its ``env_kwargs`` if any."""
+    kwargs = dict(entry.get("env_kwargs") or {})
+    wrappers = entry.get("vec_env_wrapper") or []
+    for wrapper in wrappers if isinstance(wrappers, list) else [wrappers]:
+        if isinstance(wrapper, dict):
+            for name, arguments in wrapper.items():
+                if name.endswith(".BatchedArms"):
+                    kwargs.update(arguments or {})
+    return kwargs

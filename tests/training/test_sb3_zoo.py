@@ -23,6 +23,7 @@ from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv  # noqa: E402
 from franka_sim_gym.training.sb3_zoo import (  # noqa: E402
     BatchedArms,
     NormalizedPolicy,
+    entry_env_kwargs,
     with_normalization,
 )
 from tests.conftest import load_example  # noqa: E402
@@ -141,3 +142,15 @@ def test_the_shipped_file_is_found_and_names_its_ids():
         assert "env_kwargs" not in settings
         assert settings["replay_buffer_class"] == "HerReplayBuffer"
         assert "copy_info_dict=True" in settings["replay_buffer_kwargs"]
+
+
+def test_an_entrys_env_arguments_are_its_batched_arms_arguments():
+    import yaml
+
+    entries = yaml.safe_load(hyperparams_file("sac").read_text())
+    assert entry_env_kwargs(entries["FrankaFCI-v0"]) == {"policy_hz": 5, "max_episode_steps": 10}
+    cartesian = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 20}
+    assert entry_env_kwargs(entries["FrankaFCICartesianVelocity-v0"]) == cartesian
+    # an entry of rl-zoo3's own form: env_kwargs, a wrapper by name only
+    entry = {"env_kwargs": {"policy_hz": 25}, "vec_env_wrapper": "some.Wrapper"}
+    assert entry_env_kwargs(entry) == {"policy_hz": 25}

@@ -35,7 +35,8 @@ def test_two_runners_of_batched_arms_train_and_the_checkpoint_evaluates(tmp_path
     assert any(line.startswith("evaluate: success_rate=") for line in lines)
     assert (out / "checkpoint").is_dir()
     config = json.loads((out / "train_config.json").read_text())
-    assert config["env_kwargs"] == {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10}
+    trained = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10, "reward_type": "dense"}
+    assert config["env_kwargs"] == trained
     # the checkpoint alone evaluates again, on the env it trained on, to the same figures
     proc = run_python(
         ROOT / "examples" / "train_rllib.py",
