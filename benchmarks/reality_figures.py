@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.reality import DrawBatch, draw, load_profile
@@ -97,7 +98,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="randomized seeds at rest")
     parser.add_argument("--no-socket", action="store_true", help="skip the served robot")
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, seeds=1)
     rest_table(args.seeds)
     if not args.no_socket:
         socket_table()

@@ -17,6 +17,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
+import smoke  # benchmarks/smoke.py: --smoke
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.native import describe
@@ -64,7 +65,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--id", default="FrankaFCI-v0", help="env id (default FrankaFCI-v0)")
-    args = parser.parse_args()
+    args = smoke.parse_args(parser, seconds=0.2, rounds=1)
     cycles = gym.spec(args.id).kwargs.get("policy_hz", 25)
     cycles = round(1000 / cycles)
     print(describe())
