@@ -92,9 +92,9 @@ def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, clie
 
 def test_without_enforcement_the_step_is_only_logged(serve, client):
     server = serve()
-    r = client(
-        "pylibfranka_reflex", "reflex", server.host, env={"REFLEX": "torque_step"}, timeout=90
-    )
+    # the 5 Nm step from cycle 50, then 950 cycles of it
+    env = {"REFLEX": "torque_step", "CYCLES": "1000"}
+    r = client("pylibfranka_reflex", "reflex", server.host, env=env, timeout=90)
     assert "exception" not in r, r
     # the provocation ran to its end without an abort
     assert r["error"] is None
