@@ -9,7 +9,7 @@ import re
 
 import pytest
 
-from tests.conftest import ROOT, run_python
+from tests.conftest import ROOT, load_example, run_python
 
 pytest.importorskip("ray.rllib")
 
@@ -37,6 +37,11 @@ def test_two_runners_of_batched_arms_train_and_the_checkpoint_evaluates(tmp_path
     config = json.loads((out / "train_config.json").read_text())
     trained = {"cartesian_dof": 3, "policy_hz": 10, "max_episode_steps": 10, "reward_type": "dense"}
     assert config["env_kwargs"] == trained
+    # the checkpoint carries the observation statistics the runners trained behind (RLlib
+    # leaves the local runner's at zero; evaluated without them the policy reads raw
+    # observations)
+    stats = load_example("train_rllib").load_policy(out / "checkpoint").observation_filter
+    assert stats is not None and stats.running_stats.n >= 80, stats
     # the checkpoint alone evaluates again, on the env it trained on, to the same figures
     proc = run_python(
         ROOT / "examples" / "train_rllib.py",
