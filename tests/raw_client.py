@@ -138,6 +138,21 @@ class RawClient:
             state = self.state()
         return move, state
 
+    def finish(self, q: np.ndarray, limit: int = 3000) -> np.ndarray:
+        """End the motion as libfranka's finishMotion does: answer every state with q_c =
+        ``q`` and motion_generation_finished until a state shows no motion generator
+        running (at most ``limit`` states); returns that state. A client that lags reads
+        queued states, and its finish then arrives late, which the robot takes for the
+        servo but not as the motion's end: libfranka repeats it, so this does too."""
+        for _ in range(limit):
+            state = self.state()
+            if state["motion_generator_mode"] == MotionGeneratorMode.kIdle:
+                return state
+            self.send_command(
+                message_id=int(state["message_id"]), q_c=q, motion_generation_finished=True
+            )
+        raise AssertionError(f"the motion did not end within {limit} states")
+
     def hold(self, q: np.ndarray, cycles: int, finished: bool = False) -> np.ndarray:
         """Answer ``cycles`` states with q_c = ``q`` (the last with motion_generation_finished
         if ``finished``); returns the last state read."""

@@ -25,7 +25,7 @@ def test_two_thousand_stray_datagrams_during_a_hold_add_a_few_log_lines(serve):
         state = client.hold(q, 1)
         # A stale loop beside the client: ids no state ever carried, from its own port.
         client.send_command(message_id=int(state["message_id"]) + 10**6 + k, q_c=q)
-    client.hold(q, 5, finished=True)
+    client.finish(q)
     assert client.reply(move).payload[0] == p.MoveStatus.kSuccess
     log = server.log()
     lines = [line for line in log.splitlines() if "answers no state of the running motion" in line]
