@@ -86,12 +86,15 @@ def press(robot: fr.Robot, servo: str) -> dict:
 
 
 def idle(robot: fr.Robot) -> list[dict]:
-    """read_once for IDLE seconds: the idle hold after the press."""
+    """read_once for IDLE seconds of the robot's clock (its states' time): the idle hold
+    after the press, a sample about every 10 ms."""
     samples = []
-    end = time.monotonic() + IDLE
-    while time.monotonic() < end:
-        samples.append(sample(robot.read_once()))
+    state = robot.read_once()
+    start = state.time.to_sec()
+    while state.time.to_sec() - start < IDLE:
+        samples.append(sample(state))
         time.sleep(0.01)
+        state = robot.read_once()
     return samples
 
 
