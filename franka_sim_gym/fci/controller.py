@@ -87,8 +87,6 @@ class FciController(ControllerRequests):
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
         #: the idle hold: what holds the arm when no motion drives it (fci/hold.py)
         self.hold = IdleHold(physics.q, physics.kp, physics.kd, DEFAULT_CARTESIAN_STIFFNESS)
-        #: the configuration it holds
-        self.q_hold = self.hold.q
         self.accounting = CycleAccounting(n)
         self.errors = np.zeros((n, ERROR_COUNT), dtype=bool)
         self.reflex_reason = np.zeros((n, ERROR_COUNT), dtype=bool)

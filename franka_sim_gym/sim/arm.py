@@ -391,18 +391,14 @@ class ArmPhysics:
         self._ctrl.scatter(tau)
         if self.truth is not None:
             self.truth.before_step()
-            if self._own_models:
-                for model, data in zip(self.models, self.datas, strict=True):
-                    mujoco.mj_step2(model, data)
-                    mujoco.mj_step1(model, data)
-                self._refresh()
-                return
-        model = self.model
-        if self.finger_force is None:
-            for data in self.datas:
+        if self._own_models or self.finger_force is None:
+            # every arm its own model (a reality draw's, holding its own finger limit),
+            # or one shared model without a hand: self.models says which
+            for model, data in zip(self.models, self.datas, strict=True):
                 mujoco.mj_step2(model, data)
                 mujoco.mj_step1(model, data)
-        else:  # the force range is the model's, the limits are every arm's own
+        else:
+            model = self.model  # the force range is the model's, the limits are every arm's own
             forcerange, act = model.actuator_forcerange, self._finger_act
             applied = self._applied_force
             for force, data in zip(self.finger_force.tolist(), self.datas, strict=True):

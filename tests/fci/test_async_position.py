@@ -217,7 +217,7 @@ def test_finish_brakes_to_rest_without_jumping_to_the_zero_target():
     assert np.abs(q[-1] - moving).max() < 0.05
     assert int(c.state["robot_mode"]) == RobotMode.kIdle
     assert c.ctrl.errors.sum() == 0
-    np.testing.assert_allclose(c.ctrl.q_hold[0], q[ended - 1], atol=1e-6)
+    np.testing.assert_allclose(c.ctrl.hold.q[0], q[ended - 1], atol=1e-6)
 
 
 def test_after_an_asynchronous_motion_a_joint_motion_loses_cycles_as_usual():

@@ -96,10 +96,10 @@ def test_the_next_servo_takes_over_a_press_where_its_first_command_puts_it(first
 
 def test_a_motion_that_never_commanded_leaves_the_hold_as_it_was():
     ctrl, client = pressed()
-    q_hold = ctrl.q_hold.copy()
+    q_hold = ctrl.hold.q.copy()
     assert client.start(JP, IMP) == MoveStatus.kMotionStarted
     ctrl.stop_move(0)
-    np.testing.assert_array_equal(ctrl.q_hold, q_hold)
+    np.testing.assert_array_equal(ctrl.hold.q, q_hold)
     assert client.state["controller_mode"] == CARTESIAN_IMPEDANCE
     client.idle(200)
     assert table_contacts(ctrl.physics)[0] == pytest.approx(10.0, abs=1.0)
@@ -115,11 +115,11 @@ def test_a_reflex_releases_at_the_measured_pose_and_recovery_keeps_that_hold():
     assert client.move_statuses()[-1] == MoveStatus.kReflexAborted
     assert client.state["controller_mode"] == JOINT_IMPEDANCE
     client.idle(100)
-    q_hold = ctrl.q_hold.copy()
+    q_hold = ctrl.hold.q.copy()
     tau = client.state["tau_J"].copy()
     assert ctrl.automatic_error_recovery(0) is None
     client.idle(1)
-    np.testing.assert_array_equal(ctrl.q_hold, q_hold)
+    np.testing.assert_array_equal(ctrl.hold.q, q_hold)
     np.testing.assert_allclose(client.state["tau_J"], tau, atol=0.05)
 
 
