@@ -63,9 +63,10 @@ def gravity(model: mujoco.MjModel, q: np.ndarray, mass_scale=None, com_offset=No
     return data.qfrc_bias[:7].copy()
 
 
-def weight_difference(ctrl: FciController) -> np.ndarray:
-    """MuJoCo's gravity torques of robot 0's drawn arm minus its model's, at its q."""
-    d, physics = ctrl.reality.draws[0], ctrl.physics
+def weight_difference(ctrl: FciController, profile, seed: int = 0) -> np.ndarray:
+    """MuJoCo's gravity torques of robot 0's drawn arm (``profile``'s draw of ``seed``, as
+    robot() drew it) minus its model's, at its q."""
+    d, physics = draw(load_profile(profile), seed), ctrl.physics
     q = physics.q[0]
     arm = gravity(physics.model, q, d["model.mass_scale"], d["model.com_offset"])
     return arm - gravity(physics.model, q)
@@ -76,7 +77,7 @@ def test_the_links_weight_difference_is_the_two_arms_gravity_difference(pose):
     """sim/truth.py LinkWeights against MuJoCo's gravity of the drawn and the nominal arms:
     the same torques to rounding."""
     ctrl = robot("randomized", POSES[pose], seed=4)
-    expected = weight_difference(ctrl)
+    expected = weight_difference(ctrl, "randomized", seed=4)
     np.testing.assert_allclose(ctrl.physics.truth.weights.torque()[0], expected, atol=1e-12)
     assert np.abs(expected).max() > 0.05  # a real difference, not a zero compared to zero
 
@@ -113,7 +114,7 @@ def test_fr3_estimate_at_rest_is_its_models_gravity_error():
     """What the estimate reads at rest is dg(q): the model's error, not noise."""
     ctrl = robot("fr3", POSES["forward"])
     got = rest(ctrl, 1000)
-    residual = weight_difference(ctrl)
+    residual = weight_difference(ctrl, "fr3")
     estimate = got["tau_ext_hat_filtered"][-300:, 0].mean(axis=0)
     np.testing.assert_allclose(estimate, residual, atol=0.01)
 
@@ -125,7 +126,7 @@ def test_the_drives_carry_the_models_weight_so_a_heavier_arm_sags():
     ctrl = robot(heavy, POSES["forward"])
     rest(ctrl, 800)
     sag = ctrl.physics.q[0] - POSES["forward"]
-    expected = -weight_difference(ctrl) / ctrl.physics.kp[0]
+    expected = -weight_difference(ctrl, heavy) / ctrl.physics.kp[0]
     np.testing.assert_allclose(sag, expected, atol=2e-5)
     assert np.abs(sag).max() > 1e-4
 

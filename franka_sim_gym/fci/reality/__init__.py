@@ -50,8 +50,6 @@ class RobotReality:
         self.friction = JointFriction(n)
         self._tau = np.zeros((n, 7))
         self._extra = np.zeros((n, 7))
-        #: the draws the robots run under (rows by robot)
-        self.draws: list = [None] * n
         # The servos read the robot's measurements (the state's float64 fields).
         physics.sense_with(writer.q, writer.dq)
 
@@ -70,8 +68,6 @@ class RobotReality:
             draws["sensors.tau_J_offset"],
         )
         self.friction.set_scale(robots, draws["friction.compensation"])
-        for k, i in enumerate(robots.tolist()):
-            self.draws[i] = draws.draws[k]
 
     def model_terms(self, load: np.ndarray | None) -> np.ndarray:
         """(n, 7) what the robot adds to every torque it commands besides its model's
