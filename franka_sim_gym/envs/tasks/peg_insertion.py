@@ -15,7 +15,7 @@ from gymnasium import spaces
 
 from ...sim.rotations import rotation_to_quaternion
 from .base import GoalDistanceTask
-from .objects import object_space, object_state, place_object
+from .objects import object_space, object_state, on_table, place_object
 from .push import TABLE_HOME
 
 #: The fixture's nominal position on the table (base frame) [m] and the half-width of
@@ -77,7 +77,7 @@ class PegInsertion(GoalDistanceTask):
             goal = self.sample_goal(rngs[i])
             data = physics.datas[i]
             # A reality draw's fixture sits off where the goal says, on its own table.
-            data.mocap_pos[mocap] = goal if physics.truth is None else fixture_of(physics, i, goal)
+            data.mocap_pos[mocap] = fixture_of(physics, i, goal)
             site = lay.tcp_site[i]
             R_tcp = data.site_xmat[site].reshape(3, 3)
             tcp = data.site_xpos[site]
@@ -102,10 +102,13 @@ class PegInsertion(GoalDistanceTask):
 
 
 def fixture_of(physics, arm: int, goal: np.ndarray) -> np.ndarray:
-    """Where arm ``arm``'s fixture is when its task puts it at ``goal``: moved by the
-    reality draw's fixture offset (x, y) and table height (sim/truth.py)."""
-    truth = physics.truth
-    return goal + np.append(truth.fixture_offset[arm], truth.table_height[arm])
+    """Where arm ``arm``'s fixture is when its task puts it at ``goal``: on its table
+    (objects.on_table) and moved by a reality draw's fixture offset (x, y; sim/truth.py);
+    ``goal`` itself for the ideal robot."""
+    position = on_table(physics, arm, goal)
+    if physics.truth is None:
+        return position
+    return position + np.append(physics.truth.fixture_offset[arm], 0.0)
 
 
 def tip_of(state: np.ndarray) -> np.ndarray:
