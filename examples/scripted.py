@@ -21,7 +21,12 @@ passed to the env (e.g. another policy rate and episode length).
 ``--record DATASET_ID`` stores the episodes as a Minari dataset (the ``datasets``
 extra; ``$MINARI_DATASETS_PATH`` or Minari's default directory) through
 ``franka_sim_gym.training.datasets.record``: observations, actions, rewards, the
-infos, each episode's seed and the env's spec (docs/demonstrations.md).
+infos, each episode's seed and the env's spec (docs/demonstrations.md). With
+``--noise SIGMA`` the recorded episodes are noise-injected (DART): each step the
+solver's TCP velocity plus Gaussian noise of standard deviation SIGMA (in action
+units, 1.0 = 0.3 m/s) on each of its three axes is executed, and the solver's own action
+is stored beside it as the label a learner imitates (Push and PickAndPlace: 0.1;
+PegInsertion, whose insertion runs at 0.02 m/s: 0.01).
 """
 
 from __future__ import annotations
@@ -337,6 +342,17 @@ class ScriptedPolicy:
         return self.solver.act(obs)
 
 
+def translation_noise(env_id: str, sigma: float, env_kwargs: dict) -> list[float] | None:
+    """``sigma`` on the action's three TCP-velocity axes, 0 on the rest (the hand's width,
+    the angular velocity); None for no noise."""
+    if not sigma:
+        return None
+    env = gym.make(env_id, **env_kwargs)
+    dims = env.action_space.shape[0]
+    env.close()
+    return [sigma] * 3 + [0.0] * (dims - 3)
+
+
 def run(
     env_id: str,
     episodes: int,
@@ -382,8 +398,17 @@ def main() -> None:
     parser.add_argument(
         "--record", metavar="DATASET_ID", help="store the episodes as this Minari dataset"
     )
+    parser.add_argument(
+        "--noise",
+        type=float,
+        default=0.0,
+        metavar="SIGMA",
+        help="with --record: Gaussian noise on the executed TCP velocity (action units)",
+    )
     args = parser.parse_args()
     env_kwargs = json.loads(args.env_kwargs)
+    if args.noise and not args.record:
+        parser.error("--noise records noise-injected demonstrations: give --record too")
     if args.record:
         from franka_sim_gym.training.datasets import record, summary
 
@@ -395,8 +420,12 @@ def main() -> None:
             seed=args.seed,
             env_kwargs=env_kwargs,
             num_envs=args.batch,
-            algorithm_name="examples/scripted.py" + (" --naive" if args.naive else ""),
-            description=f"scripted solver of {args.env_id}",
+            algorithm_name="examples/scripted.py"
+            + (" --naive" if args.naive else "")
+            + (f" --noise {args.noise}" if args.noise else ""),
+            description=f"scripted solver of {args.env_id}"
+            + (f", noise-injected (sigma {args.noise} on the TCP velocity)" if args.noise else ""),
+            noise=translation_noise(args.env_id, args.noise, env_kwargs),
         )
         success, reflex, reasons = summary(dataset)
         print(f"recorded {dataset.total_episodes} episodes as {args.record}")

@@ -4,11 +4,15 @@
 
 The actor of an SB3 SAC policy (the same networks as examples/train_sb3.py --demos)
 fitted to the dataset's actions (mean squared error of its deterministic action,
-franka_sim_gym.training.sb3_demos.behaviour_cloning) behind observation normalisation
-whose statistics are the dataset's, then evaluated as train_sb3.py evaluates (100
+franka_sim_gym.training.sb3_demos.behaviour_cloning; a noise-injected dataset's
+demonstrator actions), on the task-frame features of the observation
+(``--features task``: franka_sim_gym.training.task_frame, normalised with the dataset's
+statistics) or on the whole base-frame observation behind SB3's VecNormalize with the
+dataset's statistics (``--features raw``); the default, ``auto``, is ``task`` for the
+tasks with an object and ``raw`` for the reach. Then evaluated as train_sb3.py evaluates (100
 episodes side by side, seeds 10,000 on). The env id and its arguments are the dataset's
-(``recover_environment``'s spec). Writes model.zip, the normalisation
-(model/vecnormalize.pkl, where examples/evaluate.py finds it) and train_config.json to
+(``recover_environment``'s spec). Writes model.zip (with ``raw``: the normalisation,
+model/vecnormalize.pkl, where examples/evaluate.py finds it) and train_config.json to
 --out; last line ``bc: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
 """
 
@@ -29,6 +33,13 @@ def main() -> None:
     parser.add_argument("--lr", type=float, default=1e-3)
     parser.add_argument("--eval-episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--features",
+        choices=("auto", "task", "raw"),
+        default="auto",
+        help="task: the task-frame features (object tasks); raw: the base-frame "
+        "observation; auto: task where the env has an object",
+    )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--out", type=Path, default=Path("runs/bc"))
     args = parser.parse_args()
@@ -42,6 +53,12 @@ def main() -> None:
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
+    from franka_sim_gym.training.task_frame import (
+        TaskFrame,
+        frame_statistics,
+        has_object,
+        uses_rotation,
+    )
 
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
@@ -49,11 +66,26 @@ def main() -> None:
     venv = VecNormalize(
         DummyVecEnv([lambda: gym.make(spec)]), norm_obs=True, norm_reward=False, gamma=0.95
     )
-    seed_normalization(venv, dataset)
-    venv.training = False
     net = [int(x) for x in args.net.split(",")]
+    policy_kwargs: dict = dict(net_arch=net)
+    normalize = None
+    features = args.features
+    if features == "auto":
+        features = "task" if has_object(venv.observation_space) else "raw"
+    if features == "task":
+        rotation = uses_rotation(venv.action_space)
+        mean, std = frame_statistics(dataset, rotation)
+        policy_kwargs.update(
+            features_extractor_class=TaskFrame,
+            features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
+        )
+        venv = venv.venv  # the features are normalised inside the network
+    else:
+        seed_normalization(venv, dataset)
+        venv.training = False
+        normalize = venv.normalize_obs
     model = SAC(
-        "MultiInputPolicy", venv, buffer_size=1, seed=args.seed, policy_kwargs=dict(net_arch=net)
+        "MultiInputPolicy", venv, buffer_size=1, seed=args.seed, policy_kwargs=policy_kwargs
     )
     start = time.perf_counter()
     losses = behaviour_cloning(
@@ -64,19 +96,19 @@ def main() -> None:
         args.lr,
         seed=args.seed,
         log_every=max(1, args.steps // 5),
-        normalize=venv.normalize_obs,
+        normalize=normalize,
     )
     wall = time.perf_counter() - start
     registered = gym.spec(spec.id).kwargs
     env_kwargs = {k: v for k, v in spec.kwargs.items() if k not in registered or registered[k] != v}
-    result = evaluate(
-        NormalizedPolicy(model, venv), spec.id, env_kwargs, args.eval_episodes, seed=10_000
-    )
+    policy = model if normalize is None else NormalizedPolicy(model, venv)
+    result = evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=10_000)
     args.out.mkdir(parents=True, exist_ok=True)
     model.save(args.out / "model.zip")
-    stats = normalization_file(args.out / "model.zip")
-    stats.parent.mkdir(exist_ok=True)
-    venv.save(str(stats))
+    if normalize is not None:
+        stats = normalization_file(args.out / "model.zip")
+        stats.parent.mkdir(exist_ok=True)
+        venv.save(str(stats))
     (args.out / "train_config.json").write_text(
         json.dumps({"algo": "sac", "env_id": spec.id, "env_kwargs": env_kwargs}, indent=2)
     )

@@ -71,6 +71,7 @@ def make_model(
     ent_coef: str = "auto_0.02",
     threads: int = 1,
     demos: dict | None = None,
+    features: dict | None = None,
 ):
     """The SB3 model of the default run (``algo`` "sac"), or TD3 / PPO on the same env."""
     import torch
@@ -102,7 +103,9 @@ def make_model(
         learning_rate=1e-3,
         tau=0.05,  # rl-zoo's PandaReach settings: fast target networks
         # foreach Adam: one kernel per parameter group, not per tensor (~10 % of a step)
-        policy_kwargs=dict(net_arch=list(net), optimizer_kwargs=dict(foreach=True)),
+        policy_kwargs=dict(
+            net_arch=list(net), optimizer_kwargs=dict(foreach=True), **(features or {})
+        ),
         gradient_steps=gradient_steps,
     )
     if demos:
@@ -252,6 +255,13 @@ def main() -> None:
     parser.add_argument(
         "--tensorboard", action="store_true", help="TensorBoard events next to progress.csv"
     )
+    parser.add_argument(
+        "--features",
+        choices=("raw", "task"),
+        default="raw",
+        help="task: the policy sees the task-frame features of an object task "
+        "(franka_sim_gym.training.task_frame; normalised inside, so no --normalize)",
+    )
     demo = parser.add_argument_group("learning from demonstrations (docs/demonstrations.md)")
     demo.add_argument("--demos", metavar="DATASET_ID", help="a Minari dataset of the env")
     demo.add_argument(
@@ -259,12 +269,24 @@ def main() -> None:
     )
     demo.add_argument("--bc-weight", type=float, default=0.0, help="behaviour-cloning term")
     demo.add_argument("--bc-steps", type=int, default=0, help="actor fitted to them first")
+    demo.add_argument(
+        "--bc-std",
+        type=float,
+        default=None,
+        help="with --bc-steps: the exploration std (before tanh) the actor is fitted to",
+    )
+    demo.add_argument(
+        "--actor-warmup",
+        type=int,
+        default=0,
+        help="actor steps over which SAC's own actor gradient ramps in from 0",
+    )
     demo.add_argument("--gamma", type=float, default=None, help="SAC's discount (0.95)")
     demo.add_argument("--tau", type=float, default=None, help="SAC's target update (0.05)")
-    demo.add_argument(
-        "--learning-starts", type=int, default=None, help="samples before learning"
-    )
+    demo.add_argument("--learning-starts", type=int, default=None, help="samples before learning")
     args = parser.parse_args()
+    if args.features == "task":
+        args.normalize = False  # the task frame normalises its features itself
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     if args.num_envs > 1:
@@ -298,6 +320,18 @@ def main() -> None:
         demos = {"demos": load(args.demos), "demo_fraction": args.demo_fraction}
         if args.normalize:  # statistics from the demonstrations before the first step
             seed_normalization(env, demos["demos"])
+    features = None
+    if args.features == "task":
+        from franka_sim_gym.training.task_frame import TaskFrame, frame_statistics, uses_rotation
+
+        rotation = uses_rotation(env.action_space)
+        mean = std = None
+        if demos:  # the features' statistics are the demonstrations'
+            mean, std = frame_statistics(demos["demos"], rotation)
+        features = dict(
+            features_extractor_class=TaskFrame,
+            features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
+        )
     chunk = args.eval_every or max(1, args.steps // args.evals)
     # SB3 collects whole vector steps: each learn call's samples round up to the arms.
     chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]
@@ -318,6 +352,7 @@ def main() -> None:
         ent_coef=args.ent_coef,
         threads=args.threads,
         demos=demos,
+        features=features,
     )
     if args.gamma is not None:
         model.gamma = args.gamma
@@ -329,9 +364,17 @@ def main() -> None:
 
         normalize = env.normalize_obs if args.normalize else None
         if args.bc_steps:
-            behaviour_cloning(model.policy, demos["demos"], args.bc_steps, normalize=normalize)
-        if args.bc_weight:
-            add_behaviour_cloning(model, demos["demos"], args.bc_weight, normalize, args.seed)
+            behaviour_cloning(
+                model.policy,
+                demos["demos"],
+                args.bc_steps,
+                normalize=normalize,
+                exploration_std=args.bc_std,
+            )
+        if args.bc_weight or args.actor_warmup:
+            add_behaviour_cloning(
+                model, demos["demos"], args.bc_weight, normalize, args.seed, args.actor_warmup
+            )
     rows = []
     bar = progress_bar(collected, enabled=not args.no_progress)
     done = 0

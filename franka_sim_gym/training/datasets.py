@@ -31,6 +31,14 @@ as one comma-separated string (``names`` splits it back): ``is_success``,
 ``reflex_penalty``, ``robot_mode``, ``joint_contact`` (7), ``cartesian_contact`` (6),
 ``O_F_ext_hat_K`` (6), ``control_command_success_rate``, ``lost_cycles``,
 ``longest_lost_run``, ``cycles``.
+
+``noise`` records a noise-injected demonstration (DART: Laskey et al., 2017, "DART:
+Noise Injection for Robust Imitation Learning"): each step the policy's action plus
+Gaussian noise is what the env executes and ``actions`` holds; the policy's own action
+at that state, the label a learner imitates, is the info ``demonstrator_action`` after
+the step (NaN at the reset). A learner fitted to the labels has seen the demonstrator
+recover from the errors it will itself make; a learner fitted to noise-free episodes
+has seen only the demonstrator's own path (docs/demonstrations.md).
 """
 
 from __future__ import annotations
@@ -164,8 +172,33 @@ class _Episode:
         )
 
 
-def run_episodes(spec, policy: Callable, episodes: int, seed: int, num_envs: int) -> list[_Episode]:
-    """``episodes`` episodes of ``policy`` in batches of ``num_envs`` arms, in memory."""
+#: the info that holds the demonstrator's action of a noise-injected step
+DEMONSTRATOR_ACTION = "demonstrator_action"
+
+
+def noise_scale(noise: Any, space: gym.spaces.Box) -> np.ndarray | None:
+    """``noise`` (a standard deviation, or one per action dimension) as an array of the
+    action's shape; None for no noise; a ``ValueError`` naming a bad value."""
+    if noise is None:
+        return None
+    try:
+        scale = np.broadcast_to(np.asarray(noise, dtype=np.float64), space.shape).copy()
+    except ValueError:
+        raise ValueError(
+            f"noise {noise!r} is neither one standard deviation nor one per action "
+            f"dimension ({space.shape[0]})"
+        ) from None
+    if not (np.isfinite(scale) & (scale >= 0)).all():
+        raise ValueError(f"noise must be finite and >= 0, got {noise!r}")
+    return scale if scale.any() else None
+
+
+def run_episodes(
+    spec, policy: Callable, episodes: int, seed: int, num_envs: int, noise: Any = None
+) -> list[_Episode]:
+    """``episodes`` episodes of ``policy`` in batches of ``num_envs`` arms, in memory;
+    with ``noise``, the executed actions are the policy's plus Gaussian noise (drawn from
+    a generator seeded with the batch's first episode seed), clipped to the space."""
     out: list[_Episode] = []
     for start in range(0, episodes, num_envs):
         n = min(num_envs, episodes - start)
@@ -173,29 +206,40 @@ def run_episodes(spec, policy: Callable, episodes: int, seed: int, num_envs: int
         envs = gym.make_vec(spec, num_envs=n, vectorization_mode="vector_entry_point")
         try:
             space = envs.single_action_space
+            scale = noise_scale(noise, space)
+            rng = np.random.default_rng(seed + start)
             obs, info = envs.reset(seed=seed + start)
             if hasattr(policy, "reset"):
                 policy.reset(np.arange(n))
+            labels = {}
+            if scale is not None:  # no action before the reset
+                labels = {DEMONSTRATOR_ACTION: np.full(space.shape, np.nan, space.dtype)}
             batch = [
                 _Episode(
                     seed + start + i,
                     {k: v[i] for k, v in obs.items()},
-                    encode_info(info_row(info, i)),
+                    {**encode_info(info_row(info, i)), **labels},
                 )
                 for i in range(n)
             ]
             running = np.ones(n, dtype=bool)
             while running.any():
-                actions = checked_actions(policy(obs), space, rows)
+                chosen = checked_actions(policy(obs), space, rows)
+                actions = chosen
+                if scale is not None:
+                    drawn = chosen + scale * rng.standard_normal(chosen.shape)
+                    actions = np.clip(drawn, space.low, space.high).astype(space.dtype)
                 obs, reward, terminated, truncated, info = envs.step(actions)
                 for i in np.flatnonzero(running).tolist():
+                    if scale is not None:
+                        labels = {DEMONSTRATOR_ACTION: chosen[i]}
                     batch[i].add(
                         {k: v[i] for k, v in obs.items()},
                         actions[i],
                         reward[i],
                         terminated[i],
                         truncated[i],
-                        encode_info(info_row(info, i)),
+                        {**encode_info(info_row(info, i)), **labels},
                     )
                 running &= ~(terminated | truncated)
         finally:
@@ -214,6 +258,7 @@ def record(
     num_envs: int = 50,
     algorithm_name: str | None = None,
     description: str | None = None,
+    noise: float | Any = None,
 ):
     """Record ``episodes`` episodes of ``policy`` on ``env_id`` as the Minari dataset
     ``dataset_id``; returns the ``minari.MinariDataset``.
@@ -228,10 +273,15 @@ def record(
             batch's first step (a stateful controller, e.g. examples/scripted.py's).
         episodes: how many; episode k is seeded ``seed + k``.
         num_envs: arms run side by side (the last batch may be smaller).
+        noise: the standard deviation (one, or one per action dimension, in the action
+            space's units) of the Gaussian noise added to each action before it is
+            executed; the policy's own action is stored as the info
+            ``demonstrator_action`` (DART). None or 0: the policy's actions as they are.
 
     Raises ``ValueError`` (before anything is written) for a malformed or existing
-    dataset id, an unknown env id, arguments that cannot be stored, or an action outside
-    the action space; a failure while writing removes what was written.
+    dataset id, an unknown env id, arguments that cannot be stored, a negative or
+    misshapen noise, or an action outside the action space; a failure while writing
+    removes what was written.
     """
     import mujoco
     from minari import create_dataset_from_buffers
@@ -244,7 +294,7 @@ def record(
         raise ValueError(f"num_envs must be >= 1, got {num_envs}")
     check_new_id(dataset_id)
     spec = dataset_spec(env_id, env_kwargs)
-    recorded = run_episodes(spec, policy, episodes, seed, num_envs)
+    recorded = run_episodes(spec, policy, episodes, seed, num_envs, noise)
     envs = gym.make_vec(spec, num_envs=1, vectorization_mode="vector_entry_point")
     spaces = envs.single_observation_space, envs.single_action_space
     envs.close()

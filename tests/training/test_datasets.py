@@ -10,6 +10,7 @@ import pytest
 minari = pytest.importorskip("minari")
 
 from franka_sim_gym.training.datasets import (  # noqa: E402
+    DEMONSTRATOR_ACTION,
     dataset_path,
     episode_seed,
     names,
@@ -128,13 +129,60 @@ def test_scripted_record_writes_a_dataset(datasets_dir):
         '{"max_episode_steps": 3}',
         "--record",
         "tests/cli-v0",
+        "--noise",
+        "0.1",
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "recorded 2 episodes as tests/cli-v0" in proc.stdout
     assert proc.stdout.strip().splitlines()[-1].startswith("scripted: env_id=FrankaFCIPush-v0")
     dataset = minari.load_dataset("tests/cli-v0")
     assert dataset.total_steps == 6
-    assert dataset.storage.metadata["algorithm_name"] == "examples/scripted.py"
+    assert dataset.storage.metadata["algorithm_name"] == "examples/scripted.py --noise 0.1"
+    for episode in dataset.iterate_episodes():  # the solver's actions kept as the labels
+        labels = episode.infos[DEMONSTRATOR_ACTION][1:]
+        assert not np.array_equal(episode.actions, labels)
+        assert np.abs(episode.actions - labels).max() < 0.6  # sigma 0.1
+
+
+class Constant:
+    """The same action on every arm at every step."""
+
+    def __init__(self, action) -> None:
+        self.action = np.asarray(action, dtype=np.float32)
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        return np.tile(self.action, (len(obs["observation"]), 1))
+
+
+#: a slow drift of the TCP, and the noise on its first two axes (DART)
+DRIFT, NOISE = [0.1, -0.1, 0.05], [0.1, 0.1, 0.0]
+
+
+def test_noise_injected_episodes_execute_the_noisy_action_and_keep_the_label(datasets_dir):
+    dataset = record(
+        "tests/noisy-v0", "FrankaFCIPush-v0", Constant(DRIFT), 3, 5, PUSH, 3, noise=NOISE
+    )
+    drift = np.asarray(DRIFT, dtype=np.float32)
+    deviations = []
+    for episode in dataset.iterate_episodes():
+        labels = episode.infos[DEMONSTRATOR_ACTION]
+        assert np.isnan(labels[0]).all()  # the reset: no action yet
+        assert (labels[1:] == drift).all()  # what the policy chose
+        assert (episode.actions[:, 2] == drift[2]).all()  # no noise on that axis
+        deviations.append(episode.actions[:, :2] - drift[:2])
+    deviation = np.concatenate(deviations)
+    assert (deviation != 0).all() and 0.05 < deviation.std() < 0.15
+    assert_replays(dataset)  # the executed actions replay the episode, bit for bit
+    # the noise is drawn from the seed: the same seed, the same executed actions
+    again = record(
+        "tests/noisy-v1", "FrankaFCIPush-v0", Constant(DRIFT), 3, 5, PUSH, 3, noise=NOISE
+    )
+    for first, second in zip(dataset.iterate_episodes(), again.iterate_episodes(), strict=True):
+        assert np.array_equal(first.actions, second.actions)
+
+
+def test_without_noise_no_label_is_stored(push_dataset):
+    assert DEMONSTRATOR_ACTION not in push_dataset[0].infos
 
 
 def nothing_written(dataset_id: str) -> bool:
@@ -172,6 +220,25 @@ def test_an_existing_dataset_is_refused_and_kept(reflex_dataset):
     with pytest.raises(ValueError, match="dataset 'tests/reflexes-v0' exists"):
         record("tests/reflexes-v0", "FrankaFCI-v0", RandomPolicy(7), 1, env_kwargs=REFLEXES)
     assert minari.load_dataset("tests/reflexes-v0").total_steps == before
+
+
+@pytest.mark.parametrize(
+    "noise, match",
+    [
+        (-0.1, r"noise must be finite and >= 0, got -0.1"),
+        ([0.1, np.nan, 0.1], r"noise must be finite and >= 0"),
+        (
+            [0.1, 0.1],
+            r"noise \[0.1, 0.1\] is neither one standard deviation nor one per action "
+            r"dimension \(3\)",
+        ),
+    ],
+    ids=["negative", "nan", "shape"],
+)
+def test_bad_noise_is_refused_and_nothing_written(datasets_dir, noise, match):
+    with pytest.raises(ValueError, match=match):
+        record("tests/bad-v0", "FrankaFCIPush-v0", Constant(DRIFT), 2, env_kwargs=PUSH, noise=noise)
+    assert nothing_written("tests/bad-v0")
 
 
 def test_a_malformed_id_and_unstorable_arguments_are_refused(datasets_dir):

@@ -189,6 +189,48 @@ def test_behaviour_cloning_fits_the_actor_to_the_recorded_actions(demos):
     env.close()
 
 
+def test_a_noise_injected_dataset_is_cloned_from_the_demonstrators_actions(datasets_dir):
+    noisy = record(
+        "tests/noisy-bc-v0", "FrankaFCI-v0", Smooth(), 2, env_kwargs=REFLEXES, num_envs=2, noise=0.2
+    )
+    obs, actions = demo_arrays(noisy)
+    # the labels: what the demonstrator chose at each recorded state, not what ran there
+    np.testing.assert_array_equal(actions, Smooth()(obs).astype(np.float32))
+    executed = np.concatenate([episode.actions for episode in noisy.iterate_episodes()])
+    assert executed.shape == actions.shape and np.abs(executed - actions).mean() > 0.05
+
+
+def test_cloning_sets_the_exploration_and_the_warmup_holds_sacs_gradient_back(demos):
+    env = gym.make("FrankaFCI-v0", **REFLEXES)
+    model = sb3.SAC(
+        "MultiInputPolicy", env, buffer_size=10, seed=0, policy_kwargs=dict(net_arch=[32, 32])
+    )
+    obs, actions = demo_arrays(demos)
+    batch, _ = model.policy.obs_to_tensor(obs)
+    with th.no_grad():
+        _, log_std, _ = model.actor.get_action_dist_params(batch)
+    assert abs(float(log_std.mean())) < 0.5  # an untrained actor: std about 1
+    behaviour_cloning(model.policy, demos, 300, batch_size=64, exploration_std=0.1)
+    with th.no_grad():
+        _, log_std, _ = model.actor.get_action_dist_params(batch)
+    assert float(log_std.mean()) == pytest.approx(np.log(0.1), abs=0.3)
+    # warmup: SAC's own gradient scaled by 0, 1/3, 2/3, then whole
+    optimizer = BehaviourCloningAdam(
+        model.actor.parameters(), model.actor, obs, actions, 0.0, warmup=3, lr=1e-3
+    )
+    moved = []
+    for _ in range(5):
+        before = [p.detach().clone() for p in model.actor.parameters()]
+        optimizer.zero_grad()
+        model.actor(batch, deterministic=True).sum().backward()  # a stand-in actor loss
+        optimizer.step()
+        moved.append(
+            any(not th.equal(b, p) for b, p in zip(before, model.actor.parameters(), strict=True))
+        )
+    assert moved == [False, True, True, True, True]
+    env.close()
+
+
 def test_sacs_actor_steps_carry_the_behaviour_cloning_term(demos):
     env = FrankaFCISB3VecEnv(2, **ENV_KWARGS)
     model = sb3.SAC(
@@ -257,3 +299,38 @@ def test_train_bc_saves_a_policy_that_evaluate_and_where_it_fails_read(
     assert len(rows) == 3 and {r["end"] for r in rows} <= {"success", "reflex", "time limit"}
     for row in rows:
         assert (row["end"] == "reflex") == ("errors" in row) and row["step"] <= 6
+
+
+def test_train_bc_and_train_sb3_on_the_task_frame_of_noise_injected_push_demonstrations(
+    datasets_dir, tmp_path, monkeypatch, capsys
+):
+    from franka_sim_gym.training.task_frame import TaskFrame, frame_statistics
+
+    scripted = load_example("scripted")
+    push = {"max_episode_steps": 8}
+    policy = scripted.ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=push)
+    noisy = record("tests/push-dart-v0", "FrankaFCIPush-v0", policy, 2, 0, push, noise=0.1)
+    mean, std = frame_statistics(noisy, rotation=False)
+    # behaviour cloning (--features auto: the task frame for an object task)
+    out = tmp_path / "bc"
+    argv = ["train_bc.py", "--demos", "tests/push-dart-v0", "--steps", "20", "--net", "16"]
+    monkeypatch.setattr("sys.argv", [*argv, "--eval-episodes", "2", "--out", str(out)])
+    load_example("train_bc").main()
+    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("bc: success_rate=")
+    assert not (out / "model" / "vecnormalize.pkl").exists()  # normalised inside
+    model, _ = load_example("evaluate").load_model(out / "model.zip")
+    extractor = model.actor.features_extractor
+    assert isinstance(extractor, TaskFrame) and extractor.std.tolist() == pytest.approx(std)
+    # SAC from the same demonstrations on the task frame
+    out = tmp_path / "sac"
+    argv = ["train_sb3.py", "--env-id", "FrankaFCIPush-v0", "--env-kwargs", json.dumps(push)]
+    argv += ["--demos", "tests/push-dart-v0", "--features", "task", "--bc-steps", "5"]
+    argv += ["--bc-weight", "1", "--num-envs", "2", "--steps", "16", "--evals", "1"]
+    argv += ["--eval-episodes", "2", "--net", "16", "--learning-starts", "2", "--no-progress"]
+    monkeypatch.setattr("sys.argv", [*argv, "--out", str(out)])
+    load_example("train_sb3").main()
+    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("eval: success_rate=")
+    assert not (out / "model" / "vecnormalize.pkl").exists()
+    model, _ = load_example("evaluate").load_model(out / "model.zip")
+    extractor = model.critic.features_extractor
+    assert isinstance(extractor, TaskFrame) and extractor.mean.tolist() == pytest.approx(mean)

@@ -1,0 +1,124 @@
+"""The task-frame features (training/task_frame.py): what each entry is, on the three
+object tasks' real observations; the same features wherever on the table hand, object and
+goal are; fixed normalisation; a model with them saves and loads; the reach refused."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+
+import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.training.task_frame import (
+    TaskFrame,
+    frame_features,
+    frame_size,
+    has_object,
+    uses_rotation,
+)
+
+#: (id, features) of each object task: Push 3 + 3 + 1 + 3 + 3; PickAndPlace the width
+#: too; PegInsertion the 6-D twist, the quaternion and both velocities
+TASKS = [
+    ("FrankaFCIPush-v0", 13),
+    ("FrankaFCIPickAndPlace-v0", 14),
+    ("FrankaFCIPegInsertion-v0", 23),
+]
+
+
+def first_observation(env_id: str, seed: int = 3) -> tuple[dict, gym.Env]:
+    env = gym.make(env_id)
+    obs, _ = env.reset(seed=seed)
+    return {k: th.as_tensor(v[None], dtype=th.float64) for k, v in obs.items()}, env
+
+
+@pytest.mark.parametrize("env_id, size", TASKS)
+def test_the_features_are_the_object_from_the_tcp_and_the_goal_from_the_object(env_id, size):
+    obs, env = first_observation(env_id)
+    rotation = uses_rotation(env.action_space)
+    assert has_object(env.observation_space)
+    assert frame_size(env.observation_space["observation"].shape[0], rotation) == size
+    o, goal = obs["observation"][0].numpy(), obs["desired_goal"][0].numpy()
+    features = frame_features(obs["observation"], obs["desired_goal"], rotation)[0].numpy()
+    assert features.shape == (size,)
+    at = len(o) - 13
+    tcp, obj = o[14:17], o[at : at + 3]
+    np.testing.assert_array_equal(features[0:3], obj - tcp)
+    np.testing.assert_array_equal(features[3:6], goal - obj)
+    assert features[6] == tcp[2]  # the TCP's height above the table
+    twist = 6 if rotation else 3
+    np.testing.assert_array_equal(features[7 : 7 + twist], o[17 : 17 + twist])
+    if env_id == "FrankaFCIPickAndPlace-v0":
+        assert features[10] == o[23] > 0.07  # the hand's width, open at the reset
+    if rotation:
+        np.testing.assert_array_equal(features[13:], o[at + 3 :])  # quaternion, velocities
+    else:
+        np.testing.assert_array_equal(features[-3:], o[at + 7 : at + 10])  # linear velocity
+    env.close()
+
+
+def test_the_features_do_not_move_with_the_scene():
+    obs, env = first_observation("FrankaFCIPush-v0")
+    moved = {k: v.clone() for k, v in obs.items()}
+    shift = th.tensor([0.07, -0.05], dtype=th.float64)
+    at = moved["observation"].shape[1] - 13
+    for columns in (slice(14, 16), slice(at, at + 2)):  # the TCP's and the block's x, y
+        moved["observation"][:, columns] += shift
+    moved["desired_goal"][:, :2] += shift
+    before = frame_features(obs["observation"], obs["desired_goal"], False)
+    after = frame_features(moved["observation"], moved["desired_goal"], False)
+    th.testing.assert_close(after, before, rtol=0, atol=1e-12)
+    # ... and the base-frame observation does move: the features are what the policy sees
+    assert not th.equal(moved["observation"], obs["observation"])
+    env.close()
+
+
+def test_the_extractor_normalises_with_the_given_statistics():
+    obs, env = first_observation("FrankaFCIPush-v0")
+    space = env.observation_space
+    mean, std = list(np.arange(13.0)), list(np.full(13, 2.0))
+    extractor = TaskFrame(space, rotation=False, mean=mean, std=std)
+    assert extractor.features_dim == 13
+    floats = {k: v.float() for k, v in obs.items()}
+    raw = frame_features(floats["observation"], floats["desired_goal"], False)
+    th.testing.assert_close(extractor(floats), (raw - th.arange(13.0)) / 2.0)
+    th.testing.assert_close(TaskFrame(space)(floats), raw)  # no statistics: as they are
+    with pytest.raises(ValueError, match="mean has 12 entries, expected 13"):
+        TaskFrame(space, mean=mean[:12], std=std)
+    with pytest.raises(ValueError, match="std must be > 0"):
+        TaskFrame(space, mean=mean, std=[0.0] * 13)
+    env.close()
+
+
+def test_the_reach_has_no_object_and_is_refused_by_name():
+    env = gym.make("FrankaFCI-v0")
+    assert not has_object(env.observation_space)
+    with pytest.raises(ValueError, match="TaskFrame needs a task with an object"):
+        TaskFrame(env.observation_space)
+    env.close()
+
+
+def test_a_sac_model_on_the_task_frame_saves_and_loads_with_its_statistics(tmp_path):
+    from stable_baselines3 import SAC
+
+    th.set_num_threads(1)
+    env = gym.make("FrankaFCIPush-v0", max_episode_steps=5)
+    kwargs = dict(rotation=False, mean=[0.1] * 13, std=[0.5] * 13)
+    model = SAC(
+        "MultiInputPolicy",
+        env,
+        buffer_size=10,
+        seed=0,
+        policy_kwargs=dict(
+            net_arch=[16], features_extractor_class=TaskFrame, features_extractor_kwargs=kwargs
+        ),
+    )
+    obs, _ = env.reset(seed=1)
+    action, _ = model.predict(obs, deterministic=True)
+    model.save(tmp_path / "model.zip")
+    loaded = SAC.load(tmp_path / "model.zip", env=env)
+    assert isinstance(loaded.actor.features_extractor, TaskFrame)
+    th.testing.assert_close(loaded.actor.features_extractor.std, th.full((13,), 0.5))
+    np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], action)
+    env.close()
