@@ -26,7 +26,7 @@ infos, each episode's seed and the env's spec (docs/demonstrations.md). With
 solver's TCP velocity plus Gaussian noise of standard deviation SIGMA (in action
 units, 1.0 = 0.3 m/s) on each of its three axes is executed, and the solver's own action
 is stored beside it as the label a learner imitates (Push and PickAndPlace: 0.1;
-PegInsertion, whose insertion runs at 0.02 m/s: 0.01).
+PegInsertion, whose insertion runs at 0.02 m/s: 0.03; docs/demonstrations.md).
 """
 
 from __future__ import annotations
