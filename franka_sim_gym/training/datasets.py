@@ -117,7 +117,8 @@ def checked_actions(actions: Any, space: gym.spaces.Box, rows: np.ndarray) -> np
     """The policy's (n, dim) actions in the action space's dtype, or a ``ValueError``
     naming the first arm whose action is outside the space (rows: its episode numbers)."""
     n = len(rows)
-    cast = np.asarray(actions, dtype=space.dtype)
+    # a copy: a policy that reuses one output array must not rewrite the stored steps
+    cast = np.array(actions, dtype=space.dtype, copy=True)
     if cast.shape != (n, *space.shape):
         raise ValueError(
             f"the policy returned actions of shape {np.shape(actions)}, expected "
@@ -174,6 +175,8 @@ class _Episode:
 
 #: the info that holds the demonstrator's action of a noise-injected step
 DEMONSTRATOR_ACTION = "demonstrator_action"
+#: the second word of each episode's noise seed ([episode seed, this]): "NOISE" in ASCII
+NOISE_STREAM = 0x4E4F495345
 
 
 def noise_scale(noise: Any, space: gym.spaces.Box) -> np.ndarray | None:
@@ -197,8 +200,9 @@ def run_episodes(
     spec, policy: Callable, episodes: int, seed: int, num_envs: int, noise: Any = None
 ) -> list[_Episode]:
     """``episodes`` episodes of ``policy`` in batches of ``num_envs`` arms, in memory;
-    with ``noise``, the executed actions are the policy's plus Gaussian noise (drawn from
-    a generator seeded with the batch's first episode seed), clipped to the space."""
+    with ``noise``, the executed actions are the policy's plus Gaussian noise (each
+    episode's from its own generator, seeded ``[episode seed, NOISE_STREAM]``: the same
+    episode seed, the same noise, whatever the batch), clipped to the space."""
     out: list[_Episode] = []
     for start in range(0, episodes, num_envs):
         n = min(num_envs, episodes - start)
@@ -207,7 +211,10 @@ def run_episodes(
         try:
             space = envs.single_action_space
             scale = noise_scale(noise, space)
-            rng = np.random.default_rng(seed + start)
+            # One noise stream per episode, from its seed and a tag: the env seeds arm i
+            # with default_rng(seed + i) too, and the noise must not replay those draws
+            # nor depend on which batch the episode ran in.
+            rngs = [np.random.default_rng([seed + start + i, NOISE_STREAM]) for i in range(n)]
             obs, info = envs.reset(seed=seed + start)
             if hasattr(policy, "reset"):
                 policy.reset(np.arange(n))
@@ -227,7 +234,8 @@ def run_episodes(
                 chosen = checked_actions(policy(obs), space, rows)
                 actions = chosen
                 if scale is not None:
-                    drawn = chosen + scale * rng.standard_normal(chosen.shape)
+                    noise_now = np.stack([r.standard_normal(space.shape) for r in rngs])
+                    drawn = chosen + scale * noise_now
                     actions = np.clip(drawn, space.low, space.high).astype(space.dtype)
                 obs, reward, terminated, truncated, info = envs.step(actions)
                 for i in np.flatnonzero(running).tolist():
