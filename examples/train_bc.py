@@ -9,11 +9,12 @@ demonstrator actions), on the task-frame features of the observation
 (``--features task``: franka_sim_gym.training.task_frame, normalised with the dataset's
 statistics) or on the whole base-frame observation behind SB3's VecNormalize with the
 dataset's statistics (``--features raw``); the default, ``auto``, is ``task`` for the
-tasks with an object and ``raw`` for the reach. Then evaluated as train_sb3.py evaluates (100
-episodes side by side, seeds 10,000 on). The env id and its arguments are the dataset's
-(``recover_environment``'s spec). Writes model.zip (with ``raw``: the normalisation,
-model/vecnormalize.pkl, where examples/evaluate.py finds it) and train_config.json to
---out; last line ``bc: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
+tasks with an object under a Cartesian interface and ``raw`` for the rest. Then
+evaluated as train_sb3.py evaluates (100 episodes side by side, seeds 10,000 on). The
+env id and its arguments are the dataset's (``recover_environment``'s spec). Writes
+model.zip (with ``raw``: the normalisation, model/vecnormalize.pkl, where
+examples/evaluate.py finds it) and train_config.json to --out; last line
+``bc: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
 """
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ def main() -> None:
         "--features",
         choices=("auto", "task", "raw"),
         default="auto",
-        help="task: the task-frame features (object tasks); raw: the base-frame "
-        "observation; auto: task where the env has an object",
+        help="task: the task-frame features (object tasks, Cartesian interfaces); raw: the "
+        "base-frame observation; auto: task where it applies",
     )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--out", type=Path, default=Path("runs/bc"))
@@ -53,12 +54,7 @@ def main() -> None:
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
-    from franka_sim_gym.training.task_frame import (
-        TaskFrame,
-        frame_statistics,
-        has_object,
-        uses_rotation,
-    )
+    from franka_sim_gym.training.task_frame import frame_kwargs, frame_rotation
 
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
@@ -71,14 +67,12 @@ def main() -> None:
     normalize = None
     features = args.features
     if features == "auto":
-        features = "task" if has_object(venv.observation_space) else "raw"
+        features = "raw" if frame_rotation(venv.observation_space, spec.kwargs) is None else "task"
     if features == "task":
-        rotation = uses_rotation(venv.action_space)
-        mean, std = frame_statistics(dataset, rotation)
-        policy_kwargs.update(
-            features_extractor_class=TaskFrame,
-            features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
-        )
+        try:
+            policy_kwargs.update(frame_kwargs(dataset, spec.kwargs, venv.observation_space))
+        except ValueError as error:
+            parser.error(str(error))
         venv = venv.venv  # the features are normalised inside the network
     else:
         seed_normalization(venv, dataset)

@@ -259,8 +259,9 @@ def main() -> None:
         "--features",
         choices=("raw", "task"),
         default="raw",
-        help="task: the policy sees the task-frame features of an object task "
-        "(franka_sim_gym.training.task_frame; normalised inside, so no --normalize)",
+        help="task (SAC / TD3 with --demos): the policy sees the task-frame features of an "
+        "object task (franka_sim_gym.training.task_frame; normalised inside with the "
+        "dataset's statistics, so no --normalize)",
     )
     demo = parser.add_argument_group("learning from demonstrations (docs/demonstrations.md)")
     demo.add_argument("--demos", metavar="DATASET_ID", help="a Minari dataset of the env")
@@ -279,14 +280,23 @@ def main() -> None:
         "--actor-warmup",
         type=int,
         default=0,
-        help="actor steps over which SAC's own actor gradient ramps in from 0",
+        help="actor steps that take the behaviour-cloning gradient only (SAC's own after)",
     )
     demo.add_argument("--gamma", type=float, default=None, help="SAC's discount (0.95)")
     demo.add_argument("--tau", type=float, default=None, help="SAC's target update (0.05)")
     demo.add_argument("--learning-starts", type=int, default=None, help="samples before learning")
     args = parser.parse_args()
     if args.features == "task":
+        if not args.demos or args.algo == "ppo":
+            parser.error(
+                "--features task is for SAC / TD3 with --demos (its features are normalised "
+                "with the dataset's statistics)"
+            )
         args.normalize = False  # the task frame normalises its features itself
+    if args.bc_std is not None and not args.bc_steps:
+        parser.error("--bc-std sets the exploration the actor is cloned to: give --bc-steps")
+    if args.actor_warmup and not args.demos:
+        parser.error("--actor-warmup holds SAC's actor to the demonstrations: give --demos")
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     if args.num_envs > 1:
@@ -322,16 +332,13 @@ def main() -> None:
             seed_normalization(env, demos["demos"])
     features = None
     if args.features == "task":
-        from franka_sim_gym.training.task_frame import TaskFrame, frame_statistics, uses_rotation
+        from franka_sim_gym.training.task_frame import frame_kwargs
 
-        rotation = uses_rotation(env.action_space)
-        mean = std = None
-        if demos:  # the features' statistics are the demonstrations'
-            mean, std = frame_statistics(demos["demos"], rotation)
-        features = dict(
-            features_extractor_class=TaskFrame,
-            features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
-        )
+        merged = {**gym.spec(args.env_id).kwargs, **kwargs}
+        try:
+            features = frame_kwargs(demos["demos"], merged, env.observation_space)
+        except ValueError as error:
+            parser.error(str(error))
     chunk = args.eval_every or max(1, args.steps // args.evals)
     # SB3 collects whole vector steps: each learn call's samples round up to the arms.
     chunks = [min(chunk, args.steps - k) for k in range(0, args.steps, chunk)]

@@ -47,7 +47,7 @@ import dataclasses
 import shutil
 import warnings
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -179,7 +179,7 @@ DEMONSTRATOR_ACTION = "demonstrator_action"
 NOISE_STREAM = 0x4E4F495345
 
 
-def noise_scale(noise: Any, space: gym.spaces.Box) -> np.ndarray | None:
+def noise_scale(noise: float | Sequence[float] | None, space: gym.spaces.Box) -> np.ndarray | None:
     """``noise`` (a standard deviation, or one per action dimension) as an array of the
     action's shape; None for no noise; a ``ValueError`` naming a bad value."""
     if noise is None:
@@ -197,7 +197,12 @@ def noise_scale(noise: Any, space: gym.spaces.Box) -> np.ndarray | None:
 
 
 def run_episodes(
-    spec, policy: Callable, episodes: int, seed: int, num_envs: int, noise: Any = None
+    spec: gym.envs.registration.EnvSpec,
+    policy: Callable,
+    episodes: int,
+    seed: int,
+    num_envs: int,
+    noise: float | Sequence[float] | None = None,
 ) -> list[_Episode]:
     """``episodes`` episodes of ``policy`` in batches of ``num_envs`` arms, in memory;
     with ``noise``, the executed actions are the policy's plus Gaussian noise (each
@@ -266,7 +271,7 @@ def record(
     num_envs: int = 50,
     algorithm_name: str | None = None,
     description: str | None = None,
-    noise: float | Any = None,
+    noise: float | Sequence[float] | None = None,
 ):
     """Record ``episodes`` episodes of ``policy`` on ``env_id`` as the Minari dataset
     ``dataset_id``; returns the ``minari.MinariDataset``.

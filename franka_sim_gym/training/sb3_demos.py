@@ -22,6 +22,7 @@ its deterministic action), the plain baseline of what demonstrations alone give.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -155,7 +156,7 @@ class DemoMixedHerReplayBuffer(ReflexChargedHerReplayBuffer):
         )
 
 
-def demo_arrays(dataset) -> tuple[dict[str, np.ndarray], np.ndarray]:
+def demo_arrays(dataset: Any) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Every (observation, action) pair of ``dataset``: the observations a policy acted
     on (an episode's last observation has no action) and the actions: the recorded ones,
     or a noise-injected dataset's ``demonstrator_action`` (what the demonstrator chose
@@ -194,9 +195,8 @@ def behaviour_cloning(
     tanh squashing) to the log of this. An untrained SAC actor explores with a standard
     deviation of about 1 before the squashing, i.e. nearly uniform actions: the
     episodes a cloned policy collects then are not the policy's, and the first critic
-    learns from noise (measured on Push: a policy cloned to 0.79 success fell to 0 with
-    0.92 reflexes in its first 4,000 samples). Cloning it to the demonstrations'
-    own noise keeps the first episodes near what was cloned."""
+    learns from noise. Cloning it to the demonstrations' own noise keeps the first
+    episodes near what was cloned (docs/demonstrations.md, "SAC after the clone")."""
     dataset = load(demos)
     check_spaces(dataset, policy.observation_space, policy.action_space)
     obs, actions = demo_arrays(dataset)
@@ -237,23 +237,26 @@ class BehaviourCloningAdam(th.optim.Adam):
     demonstrator acted for). Nair et al. (2018), "Overcoming Exploration in
     Reinforcement Learning with Demonstrations", add this term to DDPG + HER.
 
-    ``warmup``: over its first ``warmup`` steps SAC's own actor gradient is scaled from 0
-    up to 1, so that a cloned actor is moved by critics that have learnt something
-    (the critics start at random: their first gradients undo the cloning).
+    ``warmup``: for its first ``warmup`` steps SAC's own actor gradient is dropped and
+    the actor takes the behaviour-cloning gradient only, so that the cloned actor is
+    moved by SAC only once the critics have learnt something (they start at random,
+    and their first gradients undo the cloning). Dropped, not scaled down: Adam divides
+    each step by the gradient's running magnitude, so a gradient scaled by a factor
+    moves the parameters almost as far as the whole one.
     """
 
     def __init__(
         self,
-        params,
-        actor,
-        obs,
-        actions,
-        weight,
-        batch_size=256,
-        normalize=None,
-        seed=0,
-        warmup=0,
-        **adam_kwargs,
+        params: Iterable[th.nn.Parameter],
+        actor: th.nn.Module,
+        obs: dict[str, np.ndarray],
+        actions: np.ndarray,
+        weight: float,
+        batch_size: int = 256,
+        normalize: Callable[[dict], dict] | None = None,
+        seed: int = 0,
+        warmup: int = 0,
+        **adam_kwargs: Any,
     ) -> None:
         super().__init__(params, **adam_kwargs)
         self.actor, self.obs, self.weight = actor, obs, float(weight)
@@ -265,12 +268,11 @@ class BehaviourCloningAdam(th.optim.Adam):
 
     def step(self, closure=None):
         self.steps += 1
-        if self.steps <= self.warmup:  # SAC's own gradient, ramped in from 0
-            share = (self.steps - 1) / self.warmup
+        if self.steps <= self.warmup:  # SAC's own gradient dropped: cloning only
             for group in self.param_groups:
                 for parameter in group["params"]:
                     if parameter.grad is not None:
-                        parameter.grad.mul_(share)
+                        parameter.grad.zero_()
         if self.weight > 0:
             rows = self.rng.integers(0, len(self.target), self.batch_size)
             obs = {k: v[rows] for k, v in self.obs.items()}
@@ -286,10 +288,15 @@ class BehaviourCloningAdam(th.optim.Adam):
 
 
 def add_behaviour_cloning(
-    model, demos: Any, weight: float, normalize=None, seed: int = 0, warmup: int = 0
-):
+    model: Any,
+    demos: Any,
+    weight: float,
+    normalize: Callable[[dict], dict] | None = None,
+    seed: int = 0,
+    warmup: int = 0,
+) -> BehaviourCloningAdam:
     """Give ``model`` (an SB3 SAC) an actor optimizer with a behaviour-cloning term
-    (``BehaviourCloningAdam``, ``warmup`` actor steps of ramped-in SAC gradient),
+    (``BehaviourCloningAdam``; the first ``warmup`` actor steps clone only),
     keeping its learning rate and Adam settings."""
     dataset = load(demos)
     obs, actions = demo_arrays(dataset)

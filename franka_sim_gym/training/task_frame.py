@@ -8,7 +8,7 @@ where the goal is from the object.
 
 The env's observation (docs/env.md, "Manipulation tasks") gives the joint state and every
 position in the robot's base frame, as the robot reports them. A policy fitted to 50
-demonstrations from those 36-42 numbers must find out for itself that only differences
+demonstrations from those 36-37 numbers must find out for itself that only differences
 matter: the block 1 cm to the left of the hand calls for the same motion wherever on the
 table the two are. ``TaskFrame`` hands it the differences (the object from the TCP, the
 goal from the object), the TCP's height above the table, the commanded velocity, the
@@ -37,6 +37,8 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
+from franka_sim_gym.envs.commands import CARTESIAN
+
 #: the observation's layout (docs/env.md): q 0:7, dq 7:14, TCP position 14:17, the
 #: commanded twist 17:23 (linear, angular), [the hand's width], then the object's 13:
 #: position, quaternion w, x, y, z, linear velocity, angular velocity.
@@ -45,8 +47,10 @@ TWIST_AT = 17
 OBJECT_ENTRIES = 13
 #: the first entry after the twist: the width, or the object
 AFTER_TWIST = 23
-#: a feature's smallest standard deviation: the angular twist of a 3-D task is 0 in every
-#: demonstration, and must stay 0 rather than be divided by 0
+#: a feature's smallest standard deviation [m, m/s, rad/s]: a feature that hardly varies
+#: over the demonstrations (a block at rest between pushes, a peg held square) is
+#: divided by at least this, so that a millimetre off what was demonstrated is one unit,
+#: not thousands
 MIN_STD = 1e-3
 
 
@@ -130,11 +134,36 @@ def frame_statistics(dataset: Any, rotation: bool) -> tuple[list[float], list[fl
 
 def has_object(observation_space: gym.spaces.Dict) -> bool:
     """Whether the env's observation ends with an object's 13 entries (Push,
-    PickAndPlace, PegInsertion): what ``TaskFrame`` needs."""
+    PickAndPlace, PegInsertion)."""
     return observation_space["observation"].shape[0] >= AFTER_TWIST + OBJECT_ENTRIES
 
 
-def uses_rotation(action_space: gym.spaces.Box) -> bool:
-    """Whether a task's actions turn the hand (a 6-D twist: PegInsertion's ``cartesian_dof``
-    6), so that the object's orientation is among the features."""
-    return action_space.shape[0] >= 6
+def frame_rotation(observation_space: gym.spaces.Dict, env_kwargs: dict) -> bool | None:
+    """How ``TaskFrame`` applies to an env of these arguments (its spec's kwargs): None
+    where it does not (no object, or a joint or torque interface, whose policy needs the
+    joint state the task frame leaves out); else whether the action turns the hand (a
+    Cartesian interface with ``cartesian_dof`` 6, PegInsertion's default), so that the
+    object's orientation and angular velocity are among the features."""
+    if not has_object(observation_space) or env_kwargs.get("action_interface") not in CARTESIAN:
+        return None
+    return int(env_kwargs.get("cartesian_dof", 6)) == 6
+
+
+def frame_kwargs(dataset: Any, env_kwargs: dict, observation_space: gym.spaces.Dict) -> dict:
+    """SB3 ``policy_kwargs`` entries that put ``TaskFrame`` in front of a policy's
+    networks, with the dataset's statistics; a ``ValueError`` naming why where the task
+    frame does not apply."""
+    rotation = frame_rotation(observation_space, env_kwargs)
+    if rotation is None:
+        raise ValueError(
+            "the task frame needs a task with an object and a Cartesian action interface "
+            f"(cartesian_velocity, cartesian_pose); this env has action_interface="
+            f"{env_kwargs.get('action_interface')!r} and an observation of "
+            f"{observation_space['observation'].shape[0]} entries: use the base-frame "
+            "observation (--features raw)"
+        )
+    mean, std = frame_statistics(dataset, rotation)
+    return dict(
+        features_extractor_class=TaskFrame,
+        features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
+    )

@@ -214,7 +214,8 @@ def test_cloning_sets_the_exploration_and_the_warmup_holds_sacs_gradient_back(de
     with th.no_grad():
         _, log_std, _ = model.actor.get_action_dist_params(batch)
     assert float(log_std.mean()) == pytest.approx(np.log(0.1), abs=0.3)
-    # warmup: SAC's own gradient scaled by 0, 1/3, 2/3, then whole
+    # warmup: for 3 steps SAC's own gradient is dropped (the actor stands still without
+    # a cloning term), then it moves the actor
     optimizer = BehaviourCloningAdam(
         model.actor.parameters(), model.actor, obs, actions, 0.0, warmup=3, lr=1e-3
     )
@@ -224,10 +225,26 @@ def test_cloning_sets_the_exploration_and_the_warmup_holds_sacs_gradient_back(de
         optimizer.zero_grad()
         model.actor(batch, deterministic=True).sum().backward()  # a stand-in actor loss
         optimizer.step()
-        moved.append(
-            any(not th.equal(b, p) for b, p in zip(before, model.actor.parameters(), strict=True))
+        after = model.actor.parameters()
+        moved.append(any(not th.equal(b, p) for b, p in zip(before, after, strict=True)))
+    assert moved == [False, False, False, True, True]
+
+    # with a cloning term, a warm-up step is exactly the cloning step alone
+    def one_step(sac_loss: bool) -> list[th.Tensor]:
+        fresh = sb3.SAC(
+            "MultiInputPolicy", env, buffer_size=10, seed=2, policy_kwargs=dict(net_arch=[32])
         )
-    assert moved == [False, True, True, True, True]
+        step = BehaviourCloningAdam(
+            fresh.actor.parameters(), fresh.actor, obs, actions, 1.0, 64, warmup=2, lr=1e-2
+        )
+        step.zero_grad()
+        if sac_loss:
+            (100.0 * fresh.actor(batch, deterministic=True).sum()).backward()
+        step.step()
+        return [p.detach().clone() for p in fresh.actor.parameters()]
+
+    for a, b in zip(one_step(True), one_step(False), strict=True):
+        assert th.equal(a, b)
     env.close()
 
 

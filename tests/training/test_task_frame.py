@@ -13,9 +13,9 @@ import franka_sim_gym  # noqa: F401  (registers the ids)
 from franka_sim_gym.training.task_frame import (
     TaskFrame,
     frame_features,
+    frame_kwargs,
+    frame_rotation,
     frame_size,
-    has_object,
-    uses_rotation,
 )
 
 #: (id, features) of each object task: Push 3 + 3 + 1 + 3 + 3; PickAndPlace the width
@@ -27,32 +27,44 @@ TASKS = [
 ]
 
 
-def first_observation(env_id: str, seed: int = 3) -> tuple[dict, gym.Env]:
+def first_observation(env_id: str, seed: int = 3, moving: int = 0) -> tuple[dict, gym.Env]:
+    """The observation after the reset, or after ``moving`` steps of a slow drift
+    (the twist and, where the hand holds it, the object's velocity then not zero)."""
     env = gym.make(env_id)
     obs, _ = env.reset(seed=seed)
+    action = np.zeros(env.action_space.shape, np.float32)
+    action[:3] = [0.2, -0.1, 0.1]
+    if env.action_space.shape == (4,):  # PickAndPlace's hand: open
+        action[3] = 1.0
+    for _ in range(moving):
+        obs, *_ = env.step(action)
     return {k: th.as_tensor(v[None], dtype=th.float64) for k, v in obs.items()}, env
 
 
 @pytest.mark.parametrize("env_id, size", TASKS)
 def test_the_features_are_the_object_from_the_tcp_and_the_goal_from_the_object(env_id, size):
-    obs, env = first_observation(env_id)
-    rotation = uses_rotation(env.action_space)
-    assert has_object(env.observation_space)
+    obs, env = first_observation(env_id, moving=3)
+    rotation = frame_rotation(env.observation_space, gym.spec(env_id).kwargs)
+    assert rotation == (env_id == "FrankaFCIPegInsertion-v0")
     assert frame_size(env.observation_space["observation"].shape[0], rotation) == size
     o, goal = obs["observation"][0].numpy(), obs["desired_goal"][0].numpy()
     features = frame_features(obs["observation"], obs["desired_goal"], rotation)[0].numpy()
     assert features.shape == (size,)
     at = len(o) - 13
     tcp, obj = o[14:17], o[at : at + 3]
+    if env_id != "FrankaFCIPegInsertion-v0":  # the object is the achieved goal
+        np.testing.assert_array_equal(obj, obs["achieved_goal"][0].numpy())
     np.testing.assert_array_equal(features[0:3], obj - tcp)
     np.testing.assert_array_equal(features[3:6], goal - obj)
     assert features[6] == tcp[2]  # the TCP's height above the table
     twist = 6 if rotation else 3
+    assert np.abs(o[17:20]).max() > 0.01  # the hand is moving: the twist is not zeros
     np.testing.assert_array_equal(features[7 : 7 + twist], o[17 : 17 + twist])
     if env_id == "FrankaFCIPickAndPlace-v0":
-        assert features[10] == o[23] > 0.07  # the hand's width, open at the reset
-    if rotation:
-        np.testing.assert_array_equal(features[13:], o[at + 3 :])  # quaternion, velocities
+        assert features[10] == o[23] > 0.07  # the hand's width, open
+    if rotation:  # the held peg moves with the hand: quaternion, then both velocities
+        assert np.abs(o[at + 7 : at + 10]).max() > 0.01
+        np.testing.assert_array_equal(features[13:], o[at + 3 :])
     else:
         np.testing.assert_array_equal(features[-3:], o[at + 7 : at + 10])  # linear velocity
     env.close()
@@ -69,8 +81,6 @@ def test_the_features_do_not_move_with_the_scene():
     before = frame_features(obs["observation"], obs["desired_goal"], False)
     after = frame_features(moved["observation"], moved["desired_goal"], False)
     th.testing.assert_close(after, before, rtol=0, atol=1e-12)
-    # ... and the base-frame observation does move: the features are what the policy sees
-    assert not th.equal(moved["observation"], obs["observation"])
     env.close()
 
 
@@ -91,11 +101,16 @@ def test_the_extractor_normalises_with_the_given_statistics():
     env.close()
 
 
-def test_the_reach_has_no_object_and_is_refused_by_name():
-    env = gym.make("FrankaFCI-v0")
-    assert not has_object(env.observation_space)
-    with pytest.raises(ValueError, match="TaskFrame needs a task with an object"):
-        TaskFrame(env.observation_space)
+@pytest.mark.parametrize("env_id", ["FrankaFCI-v0", "FrankaFCIPushJointPosition-v0"])
+def test_the_reach_and_the_joint_interfaces_are_refused_by_name(env_id):
+    # the reach has no object; a joint-interface policy needs the joint state
+    env = gym.make(env_id)
+    assert frame_rotation(env.observation_space, gym.spec(env_id).kwargs) is None
+    with pytest.raises(ValueError, match="needs a task with an object and a Cartesian"):
+        frame_kwargs(None, gym.spec(env_id).kwargs, env.observation_space)
+    if env_id == "FrankaFCI-v0":
+        with pytest.raises(ValueError, match="TaskFrame needs a task with an object"):
+            TaskFrame(env.observation_space)
     env.close()
 
 
