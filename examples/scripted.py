@@ -331,26 +331,21 @@ class ScriptedPolicy:
     def __init__(self, env_id: str, naive: bool = False, env_kwargs: dict | None = None):
         env = gym.make(env_id, **(env_kwargs or {}))
         self.object_at = env.observation_space["observation"].shape[0] - 13
+        self.action_dim = env.action_space.shape[0]
         env.close()
         self.env_id, self.naive = env_id, naive
         self.solver = None
+
+    def translation_noise(self, sigma: float) -> list[float] | None:
+        """``sigma`` on the action's three TCP-velocity axes, 0 on the rest (the hand's
+        width, the angular velocity); None for no noise."""
+        return [sigma] * 3 + [0.0] * (self.action_dim - 3) if sigma else None
 
     def reset(self, arms: np.ndarray) -> None:
         self.solver = solver_for(self.env_id, len(arms), self.naive, self.object_at)
 
     def __call__(self, obs: dict) -> np.ndarray:
         return self.solver.act(obs)
-
-
-def translation_noise(env_id: str, sigma: float, env_kwargs: dict) -> list[float] | None:
-    """``sigma`` on the action's three TCP-velocity axes, 0 on the rest (the hand's width,
-    the angular velocity); None for no noise."""
-    if not sigma:
-        return None
-    env = gym.make(env_id, **env_kwargs)
-    dims = env.action_space.shape[0]
-    env.close()
-    return [sigma] * 3 + [0.0] * (dims - 3)
 
 
 def run(
@@ -412,10 +407,11 @@ def main() -> None:
     if args.record:
         from franka_sim_gym.training.datasets import record, summary
 
+        policy = ScriptedPolicy(args.env_id, args.naive, env_kwargs)
         dataset = record(
             args.record,
             args.env_id,
-            ScriptedPolicy(args.env_id, args.naive, env_kwargs),
+            policy,
             args.episodes,
             seed=args.seed,
             env_kwargs=env_kwargs,
@@ -425,7 +421,7 @@ def main() -> None:
             + (f" --noise {args.noise}" if args.noise else ""),
             description=f"scripted solver of {args.env_id}"
             + (f", noise-injected (sigma {args.noise} on the TCP velocity)" if args.noise else ""),
-            noise=translation_noise(args.env_id, args.noise, env_kwargs),
+            noise=policy.translation_noise(args.noise),
         )
         success, reflex, reasons = summary(dataset)
         print(f"recorded {dataset.total_episodes} episodes as {args.record}")

@@ -59,9 +59,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
     spec = dataset.env_spec
-    venv = VecNormalize(
-        DummyVecEnv([lambda: gym.make(spec)]), norm_obs=True, norm_reward=False, gamma=0.95
-    )
+    venv = DummyVecEnv([lambda: gym.make(spec)])
     net = [int(x) for x in args.net.split(",")]
     policy_kwargs: dict = dict(net_arch=net)
     normalize = None
@@ -73,8 +71,8 @@ def main() -> None:
             policy_kwargs.update(frame_kwargs(dataset, spec.kwargs, venv.observation_space))
         except ValueError as error:
             parser.error(str(error))
-        venv = venv.venv  # the features are normalised inside the network
-    else:
+    else:  # the base-frame observation behind VecNormalize (task: normalised in the network)
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=0.95)
         seed_normalization(venv, dataset)
         venv.training = False
         normalize = venv.normalize_obs

@@ -299,10 +299,11 @@ def main() -> None:
         parser.error("--actor-warmup holds SAC's actor to the demonstrations: give --demos")
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
+    merged = {**gym.spec(args.env_id).kwargs, **kwargs}  # the env's whole arguments
     if args.num_envs > 1:
         from franka_sim_gym.training.sb3_vec_env import FrankaFCISB3VecEnv
 
-        env = FrankaFCISB3VecEnv(args.num_envs, **{**gym.spec(args.env_id).kwargs, **kwargs})
+        env = FrankaFCISB3VecEnv(args.num_envs, **merged)
     else:
         env = gym.make(args.env_id, **kwargs)
     if args.normalize:
@@ -334,7 +335,6 @@ def main() -> None:
     if args.features == "task":
         from franka_sim_gym.training.task_frame import frame_kwargs
 
-        merged = {**gym.spec(args.env_id).kwargs, **kwargs}
         try:
             features = frame_kwargs(demos["demos"], merged, env.observation_space)
         except ValueError as error:

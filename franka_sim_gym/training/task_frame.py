@@ -47,6 +47,8 @@ TWIST_AT = 17
 OBJECT_ENTRIES = 13
 #: the first entry after the twist: the width, or the object
 AFTER_TWIST = 23
+#: the shortest observation with an object (no width): the twist, then the object
+WITH_OBJECT = AFTER_TWIST + OBJECT_ENTRIES
 #: a feature's smallest standard deviation [m, m/s, rad/s]: a feature that hardly varies
 #: over the demonstrations (a block at rest between pushes, a peg held square) is
 #: divided by at least this, so that a millimetre off what was demonstrated is one unit,
@@ -56,16 +58,14 @@ MIN_STD = 1e-3
 
 def frame_size(observation_dim: int, rotation: bool) -> int:
     """How many features ``TaskFrame`` makes of an observation of ``observation_dim``."""
-    object_at = observation_dim - OBJECT_ENTRIES
-    extra = object_at - AFTER_TWIST
-    if extra < 0:
+    if observation_dim < WITH_OBJECT:
         raise ValueError(
             f"TaskFrame needs a task with an object (an observation of >= "
-            f"{AFTER_TWIST + OBJECT_ENTRIES} entries: docs/env.md); this one has "
+            f"{WITH_OBJECT} entries: docs/env.md); this one has "
             f"{observation_dim}: use the base-frame observation (no features extractor)"
         )
-    twist = 6 if rotation else 3
-    return 3 + 3 + 1 + twist + extra + (4 if rotation else 0) + (6 if rotation else 3)
+    zeros = th.zeros(1, observation_dim)
+    return frame_features(zeros, th.zeros(1, 3), rotation).shape[1]
 
 
 def frame_features(observation: th.Tensor, goal: th.Tensor, rotation: bool) -> th.Tensor:
@@ -135,7 +135,7 @@ def frame_statistics(dataset: Any, rotation: bool) -> tuple[list[float], list[fl
 def has_object(observation_space: gym.spaces.Dict) -> bool:
     """Whether the env's observation ends with an object's 13 entries (Push,
     PickAndPlace, PegInsertion)."""
-    return observation_space["observation"].shape[0] >= AFTER_TWIST + OBJECT_ENTRIES
+    return observation_space["observation"].shape[0] >= WITH_OBJECT
 
 
 def frame_rotation(observation_space: gym.spaces.Dict, env_kwargs: dict) -> bool | None:
