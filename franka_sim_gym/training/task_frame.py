@@ -16,8 +16,8 @@ hand's width (PickAndPlace), and the object's velocity; with ``rotation`` (a 6-D
 PegInsertion) also the object's orientation and angular velocity and the commanded
 angular velocity. Nothing of the joint state: the joint-space reflexes are left to the
 robot's own limits and to the demonstrations. Measured on Push, behaviour cloning from
-the same 50 noise-injected demonstrations (seed 0): 0.08 success from the base-frame observation,
-0.79 from the task frame (docs/demonstrations.md).
+the same 50 noise-injected demonstrations, seeds 0-2: 0.07-0.17 success from the
+base-frame observation, 0.71-0.75 from the task frame (docs/demonstrations.md).
 
 The features are normalised with fixed statistics (``frame_statistics`` of the
 demonstrations), inside the network: HER relabels ``desired_goal`` with raw positions,
