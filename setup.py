@@ -5,9 +5,10 @@ whole (sim/: the IK solve, the Jacobian at a point and the copies of every robot
 MjData rows, envs/: the libfranka client's filters, fci/limits/: the joint rules, fci/:
 the contact estimate's filter and wrench, the frame K and the whole sensing step)
 and becomes the extension ``franka_sim_gym.<package>._<name>``; franka_sim_gym/native/ holds
-the loader and the shared C header. The kernels are optional: a machine without a C
-compiler still installs, and the package runs on its numpy reference paths
-(``franka_sim_gym.native.describe()`` says which are loaded).
+the loader and the shared C header. Most kernels are optional: without a C compiler the
+package runs on their numpy reference paths (``franka_sim_gym.native.describe()`` says
+which are loaded). ``REQUIRED`` ones hold rules whose only text is C (issue 38: the
+safety controller's errors 3 and 4 so far): without a compiler the install fails.
 """
 
 from pathlib import Path
@@ -18,6 +19,9 @@ from setuptools import Extension, setup
 # rounds exactly as the numpy reference it replaces (bit-identical, tested).
 FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-std=c99"]
 HEADERS = sorted(p.as_posix() for p in Path("franka_sim_gym").glob("*/_*.h"))
+#: Kernels holding rules whose only text is C (issue 38): required, so that a machine
+#: that cannot build them fails at install, saying why, instead of at import.
+REQUIRED = {"franka_sim_gym/fci/limits/_joint.c"}
 
 KERNELS = [
     Extension(
@@ -26,7 +30,7 @@ KERNELS = [
         include_dirs=["franka_sim_gym/native"],
         depends=HEADERS,
         extra_compile_args=FLAGS,
-        optional=True,
+        optional=source.as_posix() not in REQUIRED,
     )
     for source in sorted(Path("franka_sim_gym").rglob("_*.c"))
 ]

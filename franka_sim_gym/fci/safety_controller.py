@@ -4,9 +4,9 @@ bound (25), judged every cycle of a motion after physics stepped.
 docs/fci-behaviour.md "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
 "self_collision_avoidance_violation (2)" and "Enabling the violation" (25). Not in any
 generator's precedence chain: every control mode, 4 outranks 3, 2 is independent of
-both. The rules are ``limits.check_measured_joint_velocity``,
-``limits.check_measured_cartesian_speed`` and ``limits.safety_error``; the
-self-collision distances come from the simulation (``sim.self_collision``).
+both. The rules are ``limits.check_safety`` (3 and 4, one C text) and its
+``limits.describe_safety`` for the log line; the self-collision distances come from the
+simulation (``sim.self_collision``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from .config import ControllerConfig
 from .engine import MotionLimitEngine
 from .errors import ERROR_NAMES, Error
 from .modes import Modes
-from .tables import DELTA_T, MAX_LOST_CYCLES
+from .tables import MAX_LOST_CYCLES
 
 
 class SafetyController:
@@ -55,33 +55,25 @@ class SafetyController:
         """Errors 3, 4 and 2 of the robots in motion (call after the step's state is written)."""
         physics, table = self.physics, self.table
         margin = self.config.measured_velocity_margin
-        dq, q = physics.dq, physics.q
-        # The measured EE speed at F_T_EE: backward difference of the measured O_T_EE
+        dq, q, ee = physics.dq, physics.q, self.O_T_EE[:, 12:15]
+        # The measured EE speed at F_T_EE: the rule differences the measured O_T_EE
         # position over the 1 ms cycle (equal to J(q) dq to first order).
-        v_ee = self.O_T_EE[:, 12:15] - self.ee_prev
-        v_ee *= 1.0 / DELTA_T
-        joint = limits.check_measured_joint_velocity(dq, q, table, margin)
-        cartesian = limits.check_measured_cartesian_speed(v_ee, table)
+        error, bad, count = limits.check_safety(
+            dq, q, ee, self.ee_prev, self.modes.in_motion, table, margin
+        )
         distance = self.config.self_collision_distance
         close = close_link_pairs(physics, distance)
-        # A robot is bad where either rule or the distance trips; which error it latches
-        # (4 outranks 3) is decided for those alone.
-        bad = np.maximum(joint, cartesian) >= 0
-        bad |= close
         if self.modes.n_motion < self.modes.n:
-            bad &= self.modes.in_motion
-        if not np.count_nonzero(bad):
+            close &= self.modes.in_motion
+        if not count and not close.any():
             return
-        error = limits.safety_error(joint, cartesian)
+        bad = bad | close
         enforce = self.config.enforce_motion_limits
         for i in np.flatnonzero(bad).tolist():
             bits = []
             if error[i] >= 0:
                 e = int(error[i])
-                if e == int(Error.cartesian_velocity_violation):
-                    d = limits.describe_measured_cartesian_speed(i, v_ee, table)
-                else:
-                    d = limits.describe_measured_joint_velocity(i, dq, q, table, margin)
+                d = limits.describe_safety(i, dq, q, ee, self.ee_prev, table, margin)
                 self.engine.report(i, e, d.message() if d else ERROR_NAMES[e], enforce)
                 bits.append(e)
             if close[i]:

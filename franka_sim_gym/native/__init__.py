@@ -81,6 +81,30 @@ def load(name: str) -> ModuleType | None:
     return module
 
 
+@functools.cache
+def require(name: str) -> ModuleType:
+    """The extension ``franka_sim_gym.<name>`` holding rules whose only text is C (issue
+    38: one text per rule): imported whatever ``FRANKA_SIM_GYM_NATIVE`` says (the switch
+    chooses between two texts; these rules have one). Missing, broken or stale, it is an
+    ImportError saying so and how to build it: the package cannot run without it.
+    """
+    module_name = f"franka_sim_gym.{name}"
+    build = (
+        "the rules in it have no other text: install franka-sim-gym where a C compiler and "
+        "Python's headers are available (`pip install -e .` or `make test` builds it; setup.py)"
+    )
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ImportError(f"{module_name} does not import ({exc}); {build}") from exc
+    if getattr(module, "DELTA_T", None) != CYCLE:
+        raise ImportError(
+            f"{module_name} was built for a cycle of {getattr(module, 'DELTA_T', None)!r} s, "
+            f"not {CYCLE!r} s (a stale build); {build}"
+        )
+    return module
+
+
 #: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
 MODULES = (
     "sim._ik",
@@ -104,4 +128,4 @@ def describe() -> str:
     return f"C kernels: {state}{switch}"
 
 
-__all__ = ["ENABLED", "MODULES", "describe", "load", "loaded"]
+__all__ = ["ENABLED", "MODULES", "describe", "load", "loaded", "require"]

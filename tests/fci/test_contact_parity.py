@@ -21,7 +21,7 @@ from franka_sim_gym.fci.collision import (
     CollisionBehavior,
     accelerating,
 )
-from franka_sim_gym.fci.limits import joint, safety
+from franka_sim_gym.fci.limits import joint
 from franka_sim_gym.fci.statuses import SetterStatus
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE, MoveMotionGeneratorMode
@@ -236,7 +236,6 @@ def test_a_press_on_the_table_publishes_the_same_states_with_and_without_the_ker
     with_kernels = _descent_into_the_table()
     monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
     monkeypatch.setattr(joint, "KERNEL", None)
-    monkeypatch.setattr(safety, "KERNEL", None)
     with_numpy = _descent_into_the_table()
     last = np.frombuffer(with_numpy[-1], dtype=ROBOT_STATE_DTYPE)[0]
     pressed = [

@@ -1,6 +1,7 @@
-"""The safety controller's rules (fci/limits/safety.py): the measured joint velocity (3)
-and Cartesian speed (4), 4 outranking 3 (docs/fci-behaviour.md "joint_velocity_violation
-(3)" and "cartesian_velocity_violation (4)")."""
+"""The safety controller's rules (fci/limits/safety.py ``check_safety``, whose only text is
+C): the measured joint velocity (3) and Cartesian speed (4), 4 outranking 3, the robots
+bad and in motion (docs/fci-behaviour.md "joint_velocity_violation (3)" and
+"cartesian_velocity_violation (4)"), and the log line's details (``describe_safety``)."""
 
 from __future__ import annotations
 
@@ -12,14 +13,11 @@ import pytest
 from franka_sim_gym.fci.limits import (
     MEASURED_VELOCITY_MARGIN,
     NO_ERROR,
-    check_measured_cartesian_speed,
-    check_measured_joint_velocity,
-    describe_measured_cartesian_speed,
-    describe_measured_joint_velocity,
-    safety_error,
+    check_safety,
+    describe_safety,
 )
-from franka_sim_gym.fci.tables import FR3
-from tests.limit_rules_helpers import E3, E4, HOME, as_batch, on
+from franka_sim_gym.fci.tables import DELTA_T, FER, FR3
+from tests.limit_rules_helpers import E3, E4, HOME, Z, as_batch, on
 
 # NaN / inf inputs must be judged silently: no RuntimeWarning on the cycle path.
 pytestmark = pytest.mark.filterwarnings("error")
@@ -28,14 +26,24 @@ pytestmark = pytest.mark.filterwarnings("error")
 # --- safety controller: 3 / 4 ----------------------------------------------------
 
 
+#: the EE at rest: the previous cycle's position is this one's
+EE = np.array([[0.3, 0.0, 0.5]])
+
+
+def _judge(dq=Z, q=HOME, v=(0.0, 0.0, 0.0), margin=MEASURED_VELOCITY_MARGIN, table=FR3):
+    """Robot 0's error and its log line's details, the EE moving at ``v`` [m/s]."""
+    ee_prev = EE - np.asarray(v, dtype=np.float64) * DELTA_T
+    args = (as_batch(dq), as_batch(q), EE, ee_prev)
+    check = check_safety(*args, np.ones(1, bool), table, margin)
+    return int(check.error[0]), describe_safety(0, *args, table, margin)
+
+
 def _measured_joint(dq, q=HOME, margin=MEASURED_VELOCITY_MARGIN):
-    error = int(check_measured_joint_velocity(as_batch(dq), as_batch(q), FR3, margin)[0])
-    return error, describe_measured_joint_velocity(0, as_batch(dq), as_batch(q), FR3, margin)
+    return _judge(dq, q, margin=margin)
 
 
 def _measured_speed(v):
-    error = int(check_measured_cartesian_speed(as_batch(v), FR3)[0])
-    return error, describe_measured_cartesian_speed(0, as_batch(v), FR3)
+    return _judge(v=v)
 
 
 def test_measured_joint_velocity_beyond_envelope_plus_margin_is_3():
@@ -60,11 +68,49 @@ def test_measured_cartesian_speed_above_3_m_per_s_is_4():
 
 
 def test_measured_cartesian_speed_outranks_joint_velocity():
-    joint = np.array([E3, E3, NO_ERROR, NO_ERROR])
-    cartesian = np.array([E4, NO_ERROR, E4, NO_ERROR])
-    assert safety_error(joint, cartesian).tolist() == [E4, E3, E4, NO_ERROR]
+    """A cycle that breaks both latches 4 only; each alone is its own error."""
+    fast_joint, fast_ee = on(0, 2.8), (3.1, 0.0, 0.0)
+    assert [
+        _judge(dq, v=v)[0]
+        for dq, v in ((fast_joint, fast_ee), (fast_joint, (0, 0, 0)), (on(0, 0), fast_ee))
+    ] == [E4, E3, E4]
+    assert _judge(fast_joint, v=fast_ee)[1].signal == "|v_EE|"
+
+
+def test_only_robots_in_motion_are_bad_and_counted():
+    dq = np.zeros((4, 7))
+    dq[[0, 2], 0] = 2.8  # robots 0 and 2 beyond the envelope
+    q, ee = np.tile(HOME, (4, 1)), np.tile(EE, (4, 1))
+    check = check_safety(dq, q, ee, ee, np.array([True, True, False, True]), FR3)
+    assert check.error.tolist() == [E3, NO_ERROR, E3, NO_ERROR]
+    assert check.bad.tolist() == [True, False, False, False] and check.count == 1
+
+
+def test_the_fer_envelope_is_its_constant_dq_max():
+    # FER: |dq| <= 2.175 rad/s on joint 1 whatever q (no position-based envelope)
+    near_stop = on(0, 2.8)
+    assert _judge(on(0, 2.175 - 1e-3 + 0.09), q=near_stop, table=FER)[0] == NO_ERROR
+    assert _judge(on(0, 2.175 - 1e-3 + 0.11), q=near_stop, table=FER)[0] == E3
+
+
+def test_the_log_line_names_the_joint_furthest_outside():
+    # at HOME joint 2's lower bound is -2.080, joint 5's upper 5.259 rad/s (+ 0.1 margin)
+    dq = on(1, -2.0800 - 0.2) + on(4, 5.259 + 0.5)
+    error, why = _measured_joint(dq)
+    assert (error, why.joint, why.check) == (E3, 4, "envelope + margin")
+    assert why.limit == pytest.approx(5.359)
+    assert why.message().startswith("joint_velocity_violation: dq joint 5 = 5.759 rad/s")
+    error, why = _measured_joint(on(1, -2.0800 - 0.2) + on(4, 5.259 + 0.15))
+    assert (why.joint, why.limit) == (1, pytest.approx(-2.18, abs=1e-4))  # the lower bound
+    assert _measured_joint(on(0, 0.0))[1] is None
 
 
 def test_non_finite_measured_velocity_is_a_violation():
     assert _measured_joint(on(0, math.nan))[0] == E3
     assert _measured_speed((math.nan, 0.0, 0.0))[0] == E4
+    # the log line names the first non-finite joint, before any joint merely outside
+    error, why = _measured_joint(on(2, 2.9) + on(5, math.inf))
+    assert (error, why.joint, why.check) == (E3, 5, "non-finite")
+    # ... also before a joint whose envelope is NaN (its q NaN, its dq finite)
+    error, why = _measured_joint(on(5, math.inf), q=HOME + on(2, math.nan))
+    assert (error, why.joint, why.check) == (E3, 5, "non-finite")

@@ -46,3 +46,32 @@ def test_a_kernel_not_built_is_the_numpy_path_without_a_word(kernels, caplog):
 def test_a_good_kernel_loads(kernels):
     (kernels / "_test_good.py").write_text("DELTA_T = 0.001\n")
     assert native.load("_test_good").DELTA_T == native.CYCLE
+
+
+# -- native.require: an extension whose rules have no other text ----------------------------
+
+
+@pytest.mark.parametrize(
+    ("name", "source", "why"),
+    [
+        ("_req_missing", None, "No module named"),
+        ("_req_broken", "raise ImportError('undefined symbol: PyFoo')", "undefined symbol: PyFoo"),
+        ("_req_stale", "DELTA_T = 0.002", "built for a cycle of 0.002 s, not 0.001 s"),
+    ],
+)
+def test_a_required_extension_missing_broken_or_stale_is_an_import_error_saying_how_to_build(
+    kernels, name, source, why
+):
+    if source is not None:
+        (kernels / f"{name}.py").write_text(source + "\n")
+    with pytest.raises(ImportError) as caught:
+        native.require(name)
+    assert why in str(caught.value)
+    assert "have no other text" in str(caught.value) and "C compiler" in str(caught.value)
+
+
+def test_a_required_extension_loads_whatever_the_switch_says(kernels, monkeypatch):
+    (kernels / "_req_good.py").write_text("DELTA_T = 0.001\n")
+    monkeypatch.setattr(native, "ENABLED", False)  # FRANKA_SIM_GYM_NATIVE=0
+    assert native.load("_req_good") is None
+    assert native.require("_req_good").DELTA_T == native.CYCLE

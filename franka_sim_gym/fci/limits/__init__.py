@@ -13,9 +13,8 @@ the joint, value and limit for the log line (:class:`Violation`).
 * :func:`check_joint_position` (q_c): 12 range, 11 start pose, 14, 13, 15;
 * :func:`check_joint_velocity` (dq_c): 13 non-finite, 15 start / acceleration / jerk, 13;
 * :func:`check_torque` (tau_J_d): 34 range, 32 rate;
-* :func:`check_measured_joint_velocity` (measured dq): 3;
-* :func:`check_measured_cartesian_speed` (measured EE speed): 4;
-* :func:`safety_error`: one safety-controller error per robot, 4 over 3.
+* :func:`check_safety` (measured dq, measured EE speed): 3, 4, one safety-controller error
+  per robot, 4 over 3 (its only text is C: fci/limits/_joint.c ``safety_rule``).
 
 What the caller does, not these functions:
 
@@ -27,7 +26,7 @@ What the caller does, not these functions:
   the caller's.
 * The safety controller (3, 4, and 2 elsewhere) is not in any generator's chain:
   "they never preempt any row below and no row below preempts them". The caller
-  ORs :func:`safety_error` into the latched bits next to the generator's error.
+  ORs :func:`check_safety`'s error into the latched bits next to the generator's error.
 * Choosing the interval ``steps`` (docs/fci-behaviour.md "The difference formulas": the server's
   own count of published cycles since the command the history sits at, never
   widened by the client's echo) and keeping the history. A non-finite command
@@ -56,11 +55,9 @@ from .joint import (
 from .precedence import NO_ERROR, Violation
 from .safety import (
     MEASURED_VELOCITY_MARGIN,
-    check_measured_cartesian_speed,
-    check_measured_joint_velocity,
-    describe_measured_cartesian_speed,
-    describe_measured_joint_velocity,
-    safety_error,
+    SafetyCheck,
+    check_safety,
+    describe_safety,
 )
 from .torque import check_torque, describe_torque
 
@@ -68,17 +65,15 @@ __all__ = [
     "MEASURED_VELOCITY_MARGIN",
     "NO_ERROR",
     "PositionCheck",
+    "SafetyCheck",
     "VelocityCheck",
     "Violation",
     "check_joint_position",
     "check_joint_velocity",
-    "check_measured_cartesian_speed",
-    "check_measured_joint_velocity",
+    "check_safety",
     "check_torque",
     "describe_joint_position",
     "describe_joint_velocity",
-    "describe_measured_cartesian_speed",
-    "describe_measured_joint_velocity",
+    "describe_safety",
     "describe_torque",
-    "safety_error",
 ]

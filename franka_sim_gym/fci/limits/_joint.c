@@ -5,7 +5,8 @@
  *                 start_tolerance, shift, rows, dq, ddq)
  *   velocity_rows(dq_c, q_prev, dq_prev, ddq_prev, dq_start, h, constants, positional,
  *                 start_tolerance, shift, rows, ddq)
- *   measured_velocity_rows(dq, q, constants, positional, shift, margin, outside)
+ *   safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
+ *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *
  * Each computes what the numpy rule computes before its precedence table: the backward
  * differences over h, the velocity envelope at the reference (RobotTable.velocity_envelope,
@@ -218,50 +219,216 @@ done:
 
 /* ---- the safety controller's joint velocity (3) --------------------------------------- */
 
-/* measured_velocity_rows(dq, q, constants, positional, shift, margin, outside): outside[i]
- * is 1 where a joint of robot i leaves the envelope at q widened by ``margin``
- * (safety.py check_measured_joint_velocity: dq <= upper + margin and dq >= lower - margin). */
-static PyObject *measured_velocity_rows(PyObject *self, PyObject *const *args,
-                                        Py_ssize_t nargs)
+/* ---- the safety controller's velocity halves: the rules' only text ------------------- */
+
+/* safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
+ *   -> (error, bad, count)
+ *
+ * docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)",
+ * judged on measured state once a cycle (fci/limits/safety.py check_safety): 3 where a
+ * joint's measured dq is not within the envelope at its measured q widened by ``margin``
+ * on either side; 4 where the EE's translational speed, the backward difference of its
+ * measured position over the cycle ``dt``, is not within ``v_max``; 4 outranks 3 (a cycle
+ * that breaks both latches 4 only). "Not within": a NaN reading trips either rule (a
+ * physics state gone NaN is not "the arm is within its limits"). ``error`` (n,) int64 3, 4
+ * or -1; ``bad`` (n,) bool: an error and ``in_motion`` ((n,) one-byte flags); ``count`` the
+ * bad robots. The arrays are made by numpy.empty (the build has no numpy headers). */
+enum { E3 = 3, E4 = 4, NO_ERROR = -1 };
+
+static PyObject *np_empty, *np_int64, *np_bool;
+
+/* numpy.empty and its dtypes, looked up on the first call. */
+static int numpy_refs(void)
+{
+    if (np_empty) return 0;
+    PyObject *np = PyImport_ImportModule("numpy");
+    if (!np) return -1;
+    np_int64 = PyObject_GetAttrString(np, "int64");
+    np_bool = PyObject_GetAttrString(np, "bool_");
+    np_empty = PyObject_GetAttrString(np, "empty");
+    Py_DECREF(np);
+    if (!np_empty || !np_int64 || !np_bool) {
+        Py_CLEAR(np_empty);
+        Py_CLEAR(np_int64);
+        Py_CLEAR(np_bool);
+        return -1;
+    }
+    return 0;
+}
+
+/* numpy.empty((n,), dtype). */
+static PyObject *empty1(Py_ssize_t n, PyObject *dtype)
+{
+    PyObject *shape = Py_BuildValue("(n)", n);
+    if (!shape) return NULL;
+    PyObject *args[2] = {shape, dtype};
+    PyObject *a = PyObject_Vectorcall(np_empty, args, 2, NULL);
+    Py_DECREF(shape);
+    return a;
+}
+
+/* The rules' arguments after the robot axis: dq, q, ee, ee_prev, the table, the margin. */
+enum { S_DQ, S_Q, S_EE, S_EEP, S_C, S_ARRAYS };
+
+typedef struct {
+    F64 a[S_ARRAYS];
+    int positional;
+    double shift, margin, v_max, dt;
+    Py_ssize_t n;
+} Safety;
+
+/* Borrow dq, q, ee, ee_prev at args[0..3] and constants, positional, shift, margin, v_max,
+ * dt at args[first..first + 5]. */
+static int safety_get(PyObject *const *args, Py_ssize_t first, Safety *s)
+{
+    memset(s, 0, sizeof(*s));
+    Py_ssize_t n = s->n = leading(args[0], "dq");
+    if (n < 0) return -1;
+    Py_ssize_t s7[2] = {n, 7}, s3[2] = {n, 3}, sc[2] = {N_CONSTANTS, 7};
+    double positional;
+    if (num_get(args[0], &s->a[S_DQ], 2, s7, 0, "dq") < 0 ||
+        num_get(args[1], &s->a[S_Q], 2, s7, 0, "q") < 0 ||
+        num_get(args[2], &s->a[S_EE], 2, s3, 0, "ee") < 0 ||
+        num_get(args[3], &s->a[S_EEP], 2, s3, 0, "ee_prev") < 0 ||
+        f64_get(args[first], &s->a[S_C], 2, sc, 0, "constants") < 0 ||
+        number(args[first + 1], &positional, "positional") < 0 ||
+        number(args[first + 2], &s->shift, "shift") < 0 ||
+        number(args[first + 3], &s->margin, "margin") < 0 ||
+        number(args[first + 4], &s->v_max, "v_max") < 0 ||
+        number(args[first + 5], &s->dt, "dt") < 0)
+        return -1;
+    s->positional = positional != 0.0;
+    return 0;
+}
+
+/* Robot i's joint j: the envelope at its measured q widened by the margin. */
+static inline void widened(const Safety *s, Py_ssize_t i, int j, double *upper, double *lower)
+{
+    envelope(&s->a[S_C], j, num2(&s->a[S_Q], i, j), s->positional, s->shift, upper, lower);
+    *upper += s->margin;
+    *lower -= s->margin;
+}
+
+/* Robot i's EE speed over the cycle. */
+static inline double ee_speed(const Safety *s, Py_ssize_t i)
+{
+    const double inv = 1.0 / s->dt;
+    double sum = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double v = (num2(&s->a[S_EE], i, k) - num2(&s->a[S_EEP], i, k)) * inv;
+        sum += v * v;
+    }
+    return sqrt(sum);
+}
+
+/* Robot i's error: 4, else 3, else -1. */
+static inline long long safety_error(const Safety *s, Py_ssize_t i)
+{
+    if (!(ee_speed(s, i) <= s->v_max)) return E4;
+    for (int j = 0; j < 7; j++) {
+        double upper, lower, dq = num2(&s->a[S_DQ], i, j);
+        widened(s, i, j, &upper, &lower);
+        if (!((dq <= upper) & (dq >= lower))) return E3;
+    }
+    return NO_ERROR;
+}
+
+static PyObject *safety_rule(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    enum { DQ, Q, C };
-    F64 a[3];
-    Bytes outside;
-    memset(a, 0, sizeof(a));
-    memset(&outside, 0, sizeof(outside));
-    PyObject *result = NULL;
-    double positional, shift, margin;
-    if (check_nargs(nargs, 7, "measured_velocity_rows") < 0) return NULL;
-    Py_ssize_t n = leading(args[0], "dq");
-    if (n < 0) return NULL;
-    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
-    if (num_get(args[0], &a[DQ], 2, s7, 0, "dq") < 0 ||
-        num_get(args[1], &a[Q], 2, s7, 0, "q") < 0 ||
-        f64_get(args[2], &a[C], 2, sc, 0, "constants") < 0 ||
-        number(args[3], &positional, "positional") < 0 || number(args[4], &shift, "shift") < 0 ||
-        number(args[5], &margin, "margin") < 0 || bytes_get(args[6], &outside, n, 1, "outside") < 0)
+    Safety s;
+    Bytes motion;
+    Py_buffer err_view = {0}, bad_view = {0};
+    PyObject *error = NULL, *bad = NULL, *result = NULL;
+    memset(&s, 0, sizeof(s));
+    memset(&motion, 0, sizeof(motion));
+    if (check_nargs(nargs, 11, "safety_rule") < 0 || numpy_refs() < 0) return NULL;
+    if (safety_get(args, 5, &s) < 0 || bytes_get(args[4], &motion, s.n, 0, "in_motion") < 0)
         goto done;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        unsigned out = 0;
-        for (int j = 0; j < 7; j++) {
-            double upper, lower, dq = num2(&a[DQ], i, j);
-            envelope(&a[C], j, num2(&a[Q], i, j), positional != 0.0, shift, &upper, &lower);
-            if (!((dq <= upper + margin) & (dq >= lower - margin))) out = 1u;
-        }
-        outside.data[i * outside.stride] = (char)out;
+    error = empty1(s.n, np_int64);
+    bad = error ? empty1(s.n, np_bool) : NULL;
+    if (!bad || PyObject_GetBuffer(error, &err_view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0 ||
+        PyObject_GetBuffer(bad, &bad_view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+        goto done;
+    long long *err_out = err_view.buf;
+    char *bad_out = bad_view.buf;
+    Py_ssize_t count = 0;
+    for (Py_ssize_t i = 0; i < s.n; i++) {
+        long long e = safety_error(&s, i);
+        int b = e != NO_ERROR && BYTE1(motion, i);
+        err_out[i] = e;
+        bad_out[i] = (char)b;
+        count += b;
     }
-    result = Py_NewRef(Py_None);
+    result = Py_BuildValue("(OOn)", error, bad, count);
 done:
-    f64_release_all(a, 3);
-    bytes_release(&outside);
+    if (err_view.obj) PyBuffer_Release(&err_view);
+    if (bad_view.obj) PyBuffer_Release(&bad_view);
+    Py_XDECREF(error);
+    Py_XDECREF(bad);
+    f64_release_all(s.a, S_ARRAYS);
+    bytes_release(&motion);
+    return result;
+}
+
+/* safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
+ *   -> None | (error, joint, value, upper, lower)
+ *
+ * What robot i's error was about, for the log line (safety.py describe_safety): for 4 the
+ * EE speed (joint -1, bounds v_max and -inf); for 3 the first joint whose dq is not finite
+ * (bounds NaN), else the joint furthest outside its widened envelope (the first of equals)
+ * and that envelope (a NaN excess, from a NaN q, counting as the largest, as numpy's
+ * argmax). The same helpers as safety_rule: one text of the rule. */
+static PyObject *safety_detail(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    Safety s;
+    PyObject *result = NULL;
+    memset(&s, 0, sizeof(s));
+    if (check_nargs(nargs, 11, "safety_detail") < 0) return NULL;
+    Py_ssize_t i = PyLong_AsSsize_t(args[0]);
+    if (i == -1 && PyErr_Occurred()) return NULL;
+    if (safety_get(args + 1, 4, &s) < 0) goto done;
+    if (i < 0 || i >= s.n) {
+        PyErr_Format(PyExc_IndexError, "safety_detail: robot %zd of %zd", i, s.n);
+        goto done;
+    }
+    long long e = safety_error(&s, i);
+    if (e == E4) {
+        result = Py_BuildValue("(Lidd d)", e, -1, ee_speed(&s, i), s.v_max, -INFINITY);
+        goto done;
+    }
+    if (e == NO_ERROR) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    int worst = -1;
+    double excess = -INFINITY, upper_w = NAN, lower_w = NAN;
+    for (int j = 0; j < 7; j++) {
+        double upper, lower, dq = num2(&s.a[S_DQ], i, j);
+        widened(&s, i, j, &upper, &lower);
+        if (!isfinite(dq)) {
+            result = Py_BuildValue("(Lidd d)", e, j, dq, NAN, NAN);
+            goto done;
+        }
+        if ((dq <= upper) & (dq >= lower)) continue;
+        /* numpy's argmax of np.maximum(dq - upper, lower - dq): a NaN (an envelope at a NaN
+         * q) is the largest, the first of equals wins */
+        double x = nan_max(dq - upper, lower - dq);
+        if (worst < 0 || (isnan(x) && !isnan(excess)) || x > excess)
+            worst = j, excess = x, upper_w = upper, lower_w = lower;
+    }
+    result = Py_BuildValue("(Lidd d)", e, worst, num2(&s.a[S_DQ], i, worst), upper_w, lower_w);
+done:
+    f64_release_all(s.a, S_ARRAYS);
     return result;
 }
 
 static PyMethodDef METHODS[] = {
     METHOD(position_rows, "The tripped rows of check_joint_position, and dq, ddq."),
     METHOD(velocity_rows, "The tripped rows of check_joint_velocity, and ddq."),
-    METHOD(measured_velocity_rows, "check_measured_joint_velocity's robots outside."),
+    METHOD(safety_rule, "Errors 3 and 4 of every robot, 4 over 3: (error, bad, count)."),
+    METHOD(safety_detail, "Robot i's error 3 or 4 for the log line: (error, joint, value, upper, lower)."),
     {NULL, NULL, 0, NULL},
 };
 

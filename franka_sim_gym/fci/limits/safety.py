@@ -4,111 +4,112 @@ docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_vio
 part of any generator's precedence chain (docs/fci-behaviour.md "What is checked, and what it
 latches"); judged once per cycle in every control mode. Self-collision (2) needs contacts and is
 not here.
+
+The rules' only text is C (fci/limits/_joint.c ``safety_rule`` and ``safety_detail``, issue 38:
+one text per rule, compiled): this module hands them the table's constants and turns their
+answers into :class:`SafetyCheck` and :class:`~.precedence.Violation`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
+from ... import native
 from ..errors import Error
-from ..tables import JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
-from .joint import KERNEL, joint_constants
-from .precedence import NO_ERROR, Row, Violation, describe_row, robot_row
+from ..tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
+from .joint import joint_constants
+from .precedence import Violation
 
 #: docs/fci-behaviour.md "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
 #: the envelope before firing" (measured dq carries integrator ring / contact spikes).
 #: Same value as ControllerConfig.measured_velocity_margin, which the caller passes.
 MEASURED_VELOCITY_MARGIN = 0.1
 
-_JOINT = int(Error.joint_velocity_violation)
-_CARTESIAN = int(Error.cartesian_velocity_violation)
+#: the C text of the rules (a required extension: there is no other)
+RULES = native.require("fci.limits._joint")
 
 
-def check_measured_joint_velocity(
+class SafetyCheck(NamedTuple):
+    """:func:`check_safety`'s answer."""
+
+    #: (n,) int64: 4 (cartesian_velocity_violation), 3 (joint_velocity_violation) or -1
+    error: np.ndarray
+    #: (n,) bool: an error, on a robot in motion
+    bad: np.ndarray
+    #: how many robots are bad
+    count: int
+
+
+def check_safety(
     dq: np.ndarray,
     q: np.ndarray,
+    ee: np.ndarray,
+    ee_prev: np.ndarray,
+    in_motion: np.ndarray,
     table: RobotTable,
     margin: float = MEASURED_VELOCITY_MARGIN,
-) -> np.ndarray:
-    """3 where measured dq leaves the envelope at measured q by more than ``margin``.
+) -> SafetyCheck:
+    """Errors 3 and 4 of every robot this cycle, 4 outranking 3.
+
+    - **3** where a joint's measured ``dq`` is outside the velocity envelope at its
+      measured ``q`` (``table.velocity_envelope``) widened by ``margin`` on either side;
+    - **4** where the end effector's measured translational speed, the backward
+      difference of its measured position (``ee_prev`` a cycle before ``ee``) over the
+      1 ms cycle, exceeds ``table.v_trans_max`` (kMaxTranslationalVelocity = 3 - 1e-3
+      m/s: translation only, no rotational bound: hardware answers 3, not 4, for a
+      fast-spinning EE; no margin);
+    - **4 outranks 3** (docs/fci-behaviour.md "cartesian_velocity_violation (4)": with the EE
+      moved 0.5 m out, a joint velocity ramp is reported as cartesian_velocity_violation
+      by itself: a cycle that breaks both latches 4 only).
+
+    A non-finite reading is a violation (a physics state gone NaN is not "the arm is
+    within its limits"). A robot whose backend publishes no reading must be left out by
+    the caller (docs/fci-behaviour.md: such a backend "is left alone rather than read as
+    'the arm is clear'").
 
     Args:
         dq, q: (n, 7) measured joint velocity [rad/s] and position [rad].
-        table: the robot's limits (``velocity_envelope``).
-        margin: [rad/s] allowed beyond the envelope on either side.
-
-    Returns:
-        (n,) int64: 3 or -1. A non-finite measured dq is a violation (3): a physics
-        state gone NaN is not "the arm is within its limits".
-    """
-    if KERNEL is not None:  # the same comparisons in C (fci/limits/_joint.c)
-        outside = np.empty(len(dq), np.uint8)
-        constants, positional = joint_constants(table)
-        shift = JOINT_VELOCITY_LIMIT_TOLERANCE
-        KERNEL.measured_velocity_rows(dq, q, constants, positional, shift, margin, outside)
-        return np.where(outside, _JOINT, NO_ERROR)
-    upper, lower = table.velocity_envelope(q)
-    inside = (dq <= upper + margin) & (dq >= lower - margin)
-    return np.where(inside.all(axis=1), NO_ERROR, _JOINT)
-
-
-def check_measured_cartesian_speed(v_ee: np.ndarray, table: RobotTable) -> np.ndarray:
-    """4 where the measured end-effector translational speed exceeds ``table.v_trans_max``.
-
-    docs/fci-behaviour.md "cartesian_velocity_violation (4)": translation only (no rotational
-    bound: hardware answers 3, not 4, for a fast-spinning EE), limit
-    kMaxTranslationalVelocity = 3 - 1e-3 m/s, no margin.
-
-    Args:
-        v_ee: (n, 3) measured EE translational velocity [m/s]. Robots whose
-            backend publishes no reading must be left out by the caller (docs/fci-behaviour.md: such
-            a backend "is left alone rather than read as 'the arm is clear'").
+        ee, ee_prev: (n, 3) the measured EE position [m] this cycle and the one before.
+        in_motion: (n,) bool: the robots whose errors count (``bad``).
         table: the robot's limits.
-
-    Returns:
-        (n,) int64: 4 or -1 (4 for a non-finite reading, as for 3).
+        margin: [rad/s] allowed beyond the envelope on either side.
     """
-    speed = np.sqrt((v_ee * v_ee).sum(axis=1))
-    return np.where(speed <= table.v_trans_max, NO_ERROR, _CARTESIAN)
+    constants, positional = joint_constants(table)
+    error, bad, count = RULES.safety_rule(
+        dq, q, ee, ee_prev, in_motion, constants, positional,
+        JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
+    )  # fmt: skip
+    return SafetyCheck(error, bad, count)
 
 
-def safety_error(joint: np.ndarray, cartesian: np.ndarray) -> np.ndarray:
-    """One safety-controller error per robot: 4 outranks 3.
-
-    docs/fci-behaviour.md "cartesian_velocity_violation (4)": with the EE moved 0.5 m out, a joint
-    velocity ramp is reported as cartesian_velocity_violation by itself: a cycle
-    that breaks both latches 4 only.
-    """
-    return np.where(cartesian != NO_ERROR, cartesian, joint)
-
-
-def describe_measured_joint_velocity(
+def describe_safety(
     i: int,
     dq: np.ndarray,
     q: np.ndarray,
+    ee: np.ndarray,
+    ee_prev: np.ndarray,
     table: RobotTable,
     margin: float = MEASURED_VELOCITY_MARGIN,
 ) -> Violation | None:
-    """Robot i's violation under :func:`check_measured_joint_velocity`, or None.
+    """Robot i's error under :func:`check_safety`, for the log line, or None.
 
-    ``limit`` is the threshold applied: the envelope bound widened by ``margin``.
+    For 4 the EE's speed and its limit; for 3 the first joint whose dq is not finite,
+    else the joint furthest outside its widened envelope, with the bound it crossed (the
+    envelope bound widened by ``margin``).
     """
-    dq, q = robot_row(dq, i), robot_row(q, i)
-    upper, lower = table.velocity_envelope(q)
-    tripped = ~((dq <= upper + margin) & (dq >= lower - margin))
-    if not tripped.any():
+    constants, positional = joint_constants(table)
+    found = RULES.safety_detail(
+        i, dq, q, ee, ee_prev, constants, positional,
+        JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
+    )  # fmt: skip
+    if found is None:
         return None
-    row = Row(_JOINT, "envelope + margin", "dq", "rad/s", dq, upper + margin, lower - margin)
-    return describe_row(row, tripped)
-
-
-def describe_measured_cartesian_speed(
-    i: int, v_ee: np.ndarray, table: RobotTable
-) -> Violation | None:
-    """Robot i's violation under :func:`check_measured_cartesian_speed`, or None."""
-    v = np.asarray(v_ee, dtype=np.float64)[i]
-    speed = float(np.sqrt((v * v).sum()))
-    if speed <= table.v_trans_max:
-        return None
-    limit = table.v_trans_max
-    return Violation(_CARTESIAN, "|v_EE|", -1, speed, limit, "m/s", "translational speed")
+    error, joint, value, upper, lower = found
+    if error == Error.cartesian_velocity_violation:
+        return Violation(error, "|v_EE|", -1, value, upper, "m/s", "translational speed")
+    if not np.isfinite(value):
+        return Violation(error, "dq", joint, value, float("nan"), "rad/s", "non-finite")
+    limit = upper if value - upper >= lower - value else lower
+    return Violation(error, "dq", joint, value, limit, "rad/s", "envelope + margin")
