@@ -20,7 +20,7 @@ from setuptools import Extension, setup
 FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-std=c99"]
 HEADERS = sorted(p.as_posix() for p in Path("franka_sim_gym").glob("*/_*.h"))
 #: Kernels holding rules whose only text is C (issue 38): required, so that a machine
-#: that cannot build them fails at install, saying why, instead of at import.
+#: that cannot build them fails at install (with the compiler's error), not at import.
 REQUIRED = {"franka_sim_gym/fci/limits/_joint.c"}
 
 KERNELS = [

@@ -1,24 +1,28 @@
-"""The loader of the optional C kernels for the 1 kHz hot path (no rule lives here).
+"""The loader of the C extensions for the 1 kHz hot path (no rule lives here).
 
-A kernel replaces one whole rule: the same signature as the numpy function it stands
-in for, in that function's layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the
-Jacobian at a point; ``sim/_rows.c``: the loops copying every robot's MjData rows, no
-rule; ``envs/_client_filters.c``: the libfranka client's filters;
-``fci/limits/_joint.c``: the joint rules' per-joint arithmetic; ``fci/_contact.c``: the
-contact estimate's rules, the frame K, and the whole sensing step after the model terms:
-estimate, wrench at K, collision levels), every constant passed in from the tables,
-never fused with the code of another layer. The numpy function stays the rule (the one
-the docs describe); a test holds the kernel to it (docs/architecture.md, "One
-implementation per rule", says which rules have one and why).
-This package holds what the kernels share: the switch, the loader and the C headers
+Two kinds. **Kernels** (``native.load``) replace one whole rule that still has a numpy
+text: the same signature as the numpy function it stands in for, in that function's
+layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the Jacobian at a point;
+``sim/_rows.c``: the loops copying every robot's MjData rows, no rule;
+``envs/_client_filters.c``: the libfranka client's filters; ``fci/limits/_joint.c``:
+the joint rules' per-joint arithmetic; ``fci/_contact.c``: the contact estimate's rules,
+the frame K, and the whole sensing step after the model terms: estimate, wrench at K,
+collision levels), every constant passed in from the tables, never fused with the code
+of another layer; the numpy function stays the rule and a test holds the kernel to it.
+**Required extensions** (``native.require``) hold rules whose only text is C (issue 38:
+``fci/limits/_joint.c``'s ``safety_rule`` and ``safety_detail``, the safety controller's
+errors 3 and 4): no numpy path, no switch (docs/architecture.md, "One implementation per
+rule", says which rules are where and why).
+This package holds what they share: the switch, the loaders and the C headers
 ``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_rotation.h``,
 ``_solve6.h`` and ``_ik_core.h``.
 
-The kernels are built at install time (``pip install .`` compiles every
-``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler was available
-they are absent and every caller takes its numpy path. ``FRANKA_SIM_GYM_NATIVE=0`` in the
-environment turns them off (read once, at import): the reference paths, for
-comparison and debugging.
+They are built at install time (``pip install .`` compiles every
+``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler is available the
+install fails (the required extension cannot be built); an optional kernel that is
+absent leaves its caller on its numpy path. ``FRANKA_SIM_GYM_NATIVE=0`` in the
+environment turns the kernels off (read once, at import): the reference paths, for
+comparison and debugging. It does not touch the required extensions' rules.
 """
 
 from __future__ import annotations
@@ -82,11 +86,13 @@ def load(name: str) -> ModuleType | None:
 
 
 @functools.cache
-def require(name: str) -> ModuleType:
+def require(name: str, *functions: str) -> ModuleType:
     """The extension ``franka_sim_gym.<name>`` holding rules whose only text is C (issue
-    38: one text per rule): imported whatever ``FRANKA_SIM_GYM_NATIVE`` says (the switch
-    chooses between two texts; these rules have one). Missing, broken or stale, it is an
-    ImportError saying so and how to build it: the package cannot run without it.
+    38: one text per rule), with each of ``functions``: imported whatever
+    ``FRANKA_SIM_GYM_NATIVE`` says (the switch chooses between two texts; these rules
+    have one). Missing, broken or stale (built for another cycle, or from an older source
+    without one of ``functions``), it is an ImportError at import saying so and how to
+    build it, never an AttributeError inside the cycle.
     """
     module_name = f"franka_sim_gym.{name}"
     build = (
@@ -101,6 +107,12 @@ def require(name: str) -> ModuleType:
         raise ImportError(
             f"{module_name} was built for a cycle of {getattr(module, 'DELTA_T', None)!r} s, "
             f"not {CYCLE!r} s (a stale build); {build}"
+        )
+    missing = [f for f in functions if not callable(getattr(module, f, None))]
+    if missing:
+        raise ImportError(
+            f"{module_name} has no {', '.join(missing)} (a stale build from an older "
+            f"source); {build}"
         )
     return module
 

@@ -114,3 +114,46 @@ def test_non_finite_measured_velocity_is_a_violation():
     # ... also before a joint whose envelope is NaN (its q NaN, its dq finite)
     error, why = _measured_joint(on(5, math.inf), q=HOME + on(2, math.nan))
     assert (error, why.joint, why.check) == (E3, 5, "non-finite")
+
+
+def test_the_bounds_themselves_pass_and_one_ulp_beyond_trips():
+    """<= on every bound: the envelope widened by the margin on both sides, and the speed."""
+    upper, lower = (b[0] for b in FR3.velocity_envelope(as_batch(HOME)))
+    for margin in (0.0, MEASURED_VELOCITY_MARGIN):
+        for j in (0, 3, 5):
+            for bound, beyond in ((upper[j] + margin, math.inf), (lower[j] - margin, -math.inf)):
+                assert _measured_joint(on(j, bound), margin=margin)[0] == NO_ERROR
+                past = math.nextafter(bound, beyond)
+                assert _measured_joint(on(j, past), margin=margin)[0] == E3
+    # 2.999 m/s exactly: the EE moved 2.999 mm in the cycle (speed computed as the rule does)
+    ee_prev = np.zeros((1, 3))
+    at = np.array([[2.999 / 1000.0, 0.0, 0.0]])
+    past = np.array([[math.nextafter(2.999 / 1000.0, 1.0), 0.0, 0.0]])
+    for ee, want in ((at, NO_ERROR), (past, E4)):
+        check = check_safety(as_batch(Z), as_batch(HOME), ee, ee_prev, np.ones(1, bool), FR3)
+        assert int(check.error[0]) == want
+
+
+def test_each_robot_is_judged_and_described_on_its_own_rows():
+    q, dq = np.tile(HOME, (3, 1)), np.zeros((3, 7))
+    dq[2, 3] = 2.8  # robot 2: joint 4 beyond the envelope
+    ee = np.tile(EE, (3, 1))
+    ee_prev = ee.copy()
+    ee_prev[1, 1] -= 3.5 * DELTA_T  # robot 1: the EE at 3.5 m/s
+    args = (dq, q, ee, ee_prev)
+    check = check_safety(*args, np.ones(3, bool), FR3)
+    assert check.error.tolist() == [NO_ERROR, E4, E3] and check.count == 2
+    assert describe_safety(0, *args, FR3) is None
+    fast = describe_safety(np.int64(1), *args, FR3)  # a numpy index, as np.flatnonzero gives
+    assert (fast.signal, fast.value) == ("|v_EE|", pytest.approx(3.5))
+    assert (describe_safety(2, *args, FR3).joint, describe_safety(2, *args, FR3).value) == (3, 2.8)
+    with pytest.raises(IndexError, match="robot 3 of 3"):
+        describe_safety(3, *args, FR3)
+
+
+def test_a_nan_position_makes_its_joint_the_one_named():
+    """A NaN measured q gives that joint a NaN envelope: dq is not within it (3), and the
+    log line names that joint, with no finite bound."""
+    error, why = _measured_joint(on(1, 2.0), q=HOME + on(2, math.nan))
+    assert (error, why.joint, why.check) == (E3, 2, "envelope + margin")
+    assert math.isnan(why.limit)

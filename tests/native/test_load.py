@@ -57,6 +57,7 @@ def test_a_good_kernel_loads(kernels):
         ("_req_missing", None, "No module named"),
         ("_req_broken", "raise ImportError('undefined symbol: PyFoo')", "undefined symbol: PyFoo"),
         ("_req_stale", "DELTA_T = 0.002", "built for a cycle of 0.002 s, not 0.001 s"),
+        ("_req_older", "DELTA_T = 0.001\ndef rule(): pass", "has no detail (a stale build"),
     ],
 )
 def test_a_required_extension_missing_broken_or_stale_is_an_import_error_saying_how_to_build(
@@ -65,7 +66,7 @@ def test_a_required_extension_missing_broken_or_stale_is_an_import_error_saying_
     if source is not None:
         (kernels / f"{name}.py").write_text(source + "\n")
     with pytest.raises(ImportError) as caught:
-        native.require(name)
+        native.require(name, "rule", "detail")
     assert why in str(caught.value)
     assert "have no other text" in str(caught.value) and "C compiler" in str(caught.value)
 

@@ -1,5 +1,4 @@
-/* C replacements of the joint rules' per-joint arithmetic (fci/limits/joint.py and
- * fci/limits/safety.py), chosen by the backend switch (native.load, joint.py KERNEL):
+/* The joint rules' C text (fci/limits/joint.py and fci/limits/safety.py):
  *
  *   position_rows(q_c, q_prev, dq_prev, ddq_prev, q_start, h, constants, positional,
  *                 start_tolerance, shift, rows, dq, ddq)
@@ -8,19 +7,24 @@
  *   safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
  *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *
- * Each computes what the numpy rule computes before its precedence table: the backward
- * differences over h, the velocity envelope at the reference (RobotTable.velocity_envelope,
- * fci/tables.py) and, per robot, which rows of the table trip on any joint, as the bits
- * of ``rows`` (bit k: row k of joint.py's _POSITION / _VELOCITY). The table itself (which
- * row wins, its error, the gating by the opening command) stays in numpy: joint.py looks
- * the bits up in the same table as the numpy path. Every constant is an argument:
- * ``constants`` is joint.py's joint_constants(table), the rows q_lower, q_upper, ddq_max,
- * dddq_max, 2 ddq_decel, dq_offset, dq_max of fci/tables.py; ``positional`` 0 for a robot
- * whose envelope is the constant dq_max (the FER); ``shift`` the envelope's tolerance.
+ * position_rows and velocity_rows are kernels, chosen by the backend switch (native.load,
+ * joint.py KERNEL): they compute what the numpy rule computes before its precedence
+ * table: the backward differences over h, the velocity envelope at the reference
+ * (RobotTable.velocity_envelope, fci/tables.py) and, per robot, which rows of the table
+ * trip on any joint, as the bits of ``rows`` (bit k: row k of joint.py's _POSITION /
+ * _VELOCITY). The table itself (which row wins, its error, the gating by the opening
+ * command) stays in numpy: joint.py looks the bits up in the same table as the numpy path,
+ * and tests/fci/test_joint_rules_parity.py holds them to it bit for bit (non-finite inputs
+ * included). safety_rule and safety_detail are the safety controller's errors 3 and 4
+ * whole, their only text (issue 38): no numpy path, no switch (native.require), tested
+ * against the documented behaviour (tests/fci/test_safety_rules.py).
  *
- * Elementwise arithmetic in the numpy rule's order, built without fused multiply-adds
- * (setup.py), numpy's NaN-propagating minimum / maximum: the same bits as numpy for
- * every input, non-finite ones included (tests/fci/test_joint_rules_parity.py). */
+ * Every constant is an argument: ``constants`` is joint.py's joint_constants(table), the
+ * rows q_lower, q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max of
+ * fci/tables.py; ``positional`` 0 for a robot whose envelope is the constant dq_max (the
+ * FER); ``shift`` the envelope's tolerance. Elementwise arithmetic in the numpy rules'
+ * order, built without fused multiply-adds (setup.py), numpy's NaN-propagating minimum /
+ * maximum. Inputs are read as float64 (a float32 field is widened first). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -216,8 +220,6 @@ done:
     call_release(&c);
     return result;
 }
-
-/* ---- the safety controller's joint velocity (3) --------------------------------------- */
 
 /* ---- the safety controller's velocity halves: the rules' only text ------------------- */
 
@@ -417,6 +419,10 @@ static PyObject *safety_detail(PyObject *self, PyObject *const *args, Py_ssize_t
         double x = nan_max(dq - upper, lower - dq);
         if (worst < 0 || (isnan(x) && !isnan(excess)) || x > excess)
             worst = j, excess = x, upper_w = upper, lower_w = lower;
+    }
+    if (worst < 0) { /* safety_error found a joint outside: this loop must too */
+        PyErr_SetString(PyExc_SystemError, "safety_detail: error 3 without a joint outside");
+        goto done;
     }
     result = Py_BuildValue("(Lidd d)", e, worst, num2(&s.a[S_DQ], i, worst), upper_w, lower_w);
 done:

@@ -28,7 +28,7 @@ from .precedence import Violation
 MEASURED_VELOCITY_MARGIN = 0.1
 
 #: the C text of the rules (a required extension: there is no other)
-RULES = native.require("fci.limits._joint")
+RULES = native.require("fci.limits._joint", "safety_rule", "safety_detail")
 
 
 class SafetyCheck(NamedTuple):
@@ -101,7 +101,7 @@ def describe_safety(
     """
     constants, positional = joint_constants(table)
     found = RULES.safety_detail(
-        i, dq, q, ee, ee_prev, constants, positional,
+        int(i), dq, q, ee, ee_prev, constants, positional,
         JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
     )  # fmt: skip
     if found is None:
