@@ -8,7 +8,8 @@ and becomes the extension ``franka_sim_gym.<package>._<name>``; franka_sim_gym/n
 the loader and the shared C header. Most kernels are optional: without a C compiler the
 package runs on their numpy reference paths (``franka_sim_gym.native.describe()`` says
 which are loaded). ``REQUIRED`` ones hold rules whose only text is C (issue 38: the
-safety controller's errors 3 and 4 so far): without a compiler the install fails.
+safety controller's errors 3 and 4 and the torque interface's 34 and 32 so far): without
+a compiler the install fails.
 """
 
 from pathlib import Path

@@ -10,8 +10,9 @@ the frame K, and the whole sensing step after the model terms: estimate, wrench 
 collision levels), every constant passed in from the tables, never fused with the code
 of another layer; the numpy function stays the rule and a test holds the kernel to it.
 **Required extensions** (``native.require``) hold rules whose only text is C (issue 38:
-``fci/limits/_joint.c``'s ``safety_rule`` and ``safety_detail``, the safety controller's
-errors 3 and 4): no numpy path, no switch (docs/architecture.md, "One implementation per
+``fci/limits/_joint.c``'s ``safety_rule`` / ``safety_detail``, the safety controller's
+errors 3 and 4, and ``torque_rule`` / ``torque_detail``, the torque interface's 34 and
+32): no numpy path, no switch (docs/architecture.md, "One implementation per
 rule", says which rules are where and why).
 This package holds what they share: the switch, the loaders and the C headers
 ``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_rotation.h``,

@@ -1,6 +1,7 @@
-"""The torque rules (fci/limits/torque.py): tau_J_d's range (34) and rate (32), one
-provocation and one conforming twin per row (docs/fci-behaviour.md "What is checked, and
-what it latches")."""
+"""The torque rules (fci/limits/torque.py, whose only text is C): tau_J_d's range (34)
+and rate (32), one provocation and one conforming twin per row, the bounds themselves,
+each robot on its own rows (docs/fci-behaviour.md "What is checked, and what it
+latches")."""
 
 from __future__ import annotations
 
@@ -58,4 +59,54 @@ def test_non_finite_torque_is_34(bad):
     tau = on(6, 0.0)
     tau[6] = bad
     error, why = torque(tau)
+    assert (error, why.check, why.joint) == (E34, "non-finite", 6)
+
+
+def test_the_bounds_themselves_pass_and_one_ulp_beyond_trips():
+    for j in (0, 4):
+        limit = FR3.tau_max[j]
+        for bound, beyond in ((limit, math.inf), (-limit, -math.inf)):
+            assert torque(on(j, bound), tau_prev=on(j, bound))[0] == NO_ERROR
+            past = math.nextafter(bound, beyond)
+            assert torque(on(j, past), tau_prev=on(j, past))[0] == E34
+    # the rate: a step of 999.999 Nm/s x 1 ms, exactly, computed as the rule does
+    step = FR3.dtau_max * DT
+    assert abs(step) / DT == FR3.dtau_max  # the step reads back as the limit itself
+    assert torque(on(2, step))[0] == NO_ERROR
+    assert torque(on(2, math.nextafter(step, 1.0)))[0] == E32
+
+
+def test_each_robot_is_judged_on_its_own_interval_and_described_on_its_own_rows():
+    tau = np.zeros((3, 7))
+    tau[:, 1] = 2.0  # 2 Nm a step: 2000 Nm/s over one cycle, 667 over three
+    tau[2, 5] = 13.0  # robot 2: joint 6 beyond 12 Nm
+    prev, first = np.zeros((3, 7)), np.zeros(3, bool)
+    steps = np.array([1, 3, 3])
+    args = (tau, prev, first, steps, FR3)
+    assert check_torque(*args).tolist() == [E32, NO_ERROR, E34]
+    assert check_torque(tau, prev, first, 3, FR3).tolist() == [NO_ERROR, NO_ERROR, E34]
+    rate = describe_torque(np.int64(0), *args)  # a numpy index, as np.flatnonzero gives
+    assert (rate.check, rate.joint, rate.value) == ("rate", 1, pytest.approx(2000.0))
+    assert describe_torque(1, *args) is None
+    assert (describe_torque(2, *args).joint, describe_torque(2, *args).value) == (5, 13.0)
+    with pytest.raises(IndexError, match="robot 3 of 3"):
+        describe_torque(3, *args)
+
+
+def test_the_worst_joint_is_named_with_its_limit():
+    error, why = torque(on(1, 88.0) + on(5, 14.0))  # 1 Nm beyond 87, 2 Nm beyond 12
+    assert (error, why.joint, why.limit, why.check) == (E34, 5, 12.0, "range")
+    assert why.message() == "tau_J_range_violation: tau_J_d joint 6 = 14 Nm, limit 12 Nm (range)"
+
+
+def test_steps_that_are_not_integers_are_refused():
+    args = (as_batch(Z), as_batch(Z), np.array([False]))
+    with pytest.raises(ValueError, match="steps: expected one integer or"):
+        check_torque(*args, np.array([1.0]), FR3)
+    with pytest.raises(ValueError, match=r"steps: expected one integer or \(1,\) integers"):
+        check_torque(*args, np.array([1, 1]), FR3)
+
+
+def test_a_non_finite_torque_is_named_before_a_finite_one_further_out():
+    error, why = torque(on(1, 100.0) + on(6, math.nan))
     assert (error, why.check, why.joint) == (E34, "non-finite", 6)

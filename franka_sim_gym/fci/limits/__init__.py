@@ -12,7 +12,8 @@ the joint, value and limit for the log line (:class:`Violation`).
 
 * :func:`check_joint_position` (q_c): 12 range, 11 start pose, 14, 13, 15;
 * :func:`check_joint_velocity` (dq_c): 13 non-finite, 15 start / acceleration / jerk, 13;
-* :func:`check_torque` (tau_J_d): 34 range, 32 rate;
+* :func:`check_torque` (tau_J_d): 34 range, 32 rate (its only text is C: fci/limits/_joint.c
+  ``torque_rule``);
 * :func:`check_safety` (measured dq, measured EE speed): 3, 4, one safety-controller error
   per robot, 4 over 3 (its only text is C: fci/limits/_joint.c ``safety_rule``).
 

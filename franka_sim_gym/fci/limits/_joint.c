@@ -6,6 +6,8 @@
  *                 start_tolerance, shift, rows, ddq)
  *   safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
  *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
+ *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
+ *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *
  * position_rows and velocity_rows are kernels, chosen by the backend switch (native.load,
  * joint.py KERNEL): they compute what the numpy rule computes before its precedence
@@ -15,9 +17,10 @@
  * _VELOCITY). The table itself (which row wins, its error, the gating by the opening
  * command) stays in numpy: joint.py looks the bits up in the same table as the numpy path,
  * and tests/fci/test_joint_rules_parity.py holds them to it bit for bit (non-finite inputs
- * included). safety_rule and safety_detail are the safety controller's errors 3 and 4
- * whole, their only text (issue 38): no numpy path, no switch (native.require), tested
- * against the documented behaviour (tests/fci/test_safety_rules.py).
+ * included). safety_rule and safety_detail (the safety controller's errors 3 and 4) and
+ * torque_rule and torque_detail (the torque interface's 34 and 32) are their rules whole,
+ * their only text (issue 38): no numpy path, no switch (native.require), tested against
+ * the documented behaviour (tests/fci/test_safety_rules.py, test_torque_rules.py).
  *
  * Every constant is an argument: ``constants`` is joint.py's joint_constants(table), the
  * rows q_lower, q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max of
@@ -430,10 +433,212 @@ done:
     return result;
 }
 
+
+/* ---- the torque interface's rows 34 and 32: the rules' only text ---------------------- */
+
+/* torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt) -> error
+ *
+ * docs/fci-behaviour.md "What is checked, and what it latches", the torque rows in
+ * precedence order (fci/limits/torque.py check_torque): 34 where a joint's commanded torque
+ * is not within |tau| <= tau_max[j] (the URDF's effort limit; "not within": NaN lands on
+ * 34), else 32 where a joint's rate (tau_c - tau_prev) / (steps dt) is above dtau_max
+ * (kMaxTorqueRate = 1000 - 1e-3 Nm/s). ``steps``: one integer for every robot, or a 0-d
+ * or (n,) integer array (the published cycles since tau_prev was applied). ``error`` (n,)
+ * int64 34, 32 or -1, made by numpy.empty. */
+enum { E32 = 32, E34 = 34 };
+
+/* A per-robot integer: one value for every robot, or a 0-d / (n,) integer buffer. */
+typedef struct {
+    Py_buffer view;
+    int per_robot;
+    int is_unsigned;
+    long long scalar;
+} Steps;
+
+static void steps_release(Steps *p)
+{
+    if (p->view.obj) PyBuffer_Release(&p->view);
+    p->view.obj = NULL;
+}
+
+static int steps_get(PyObject *obj, Steps *p, Py_ssize_t n)
+{
+    memset(p, 0, sizeof(*p));
+    if (!PyObject_CheckBuffer(obj)) {
+        p->scalar = PyLong_AsLongLong(obj);
+        if (p->scalar == -1 && PyErr_Occurred()) {
+            PyErr_SetString(PyExc_TypeError, "steps: expected an integer or an integer array");
+            return -1;
+        }
+        return 0;
+    }
+    if (PyObject_GetBuffer(obj, &p->view, PyBUF_RECORDS_RO) < 0) return -1;
+    const char *f = p->view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
+    char c = f ? *f : 0;
+    int is_signed = c == 'b' || c == 'h' || c == 'i' || c == 'l' || c == 'q';
+    p->is_unsigned = c == 'B' || c == 'H' || c == 'I' || c == 'L' || c == 'Q';
+    if ((!is_signed && !p->is_unsigned) || f[1] != 0 || p->view.ndim > 1 ||
+        (p->view.ndim == 1 && p->view.shape[0] != n)) {
+        PyErr_Format(PyExc_ValueError, "steps: expected one integer or (%zd,) integers", n);
+        steps_release(p);
+        return -1;
+    }
+    p->per_robot = p->view.ndim == 1;
+    return 0;
+}
+
+/* Robot i's steps (the 0-d array's one value for every robot). */
+static inline long long steps_at(const Steps *p, Py_ssize_t i)
+{
+    if (!p->view.obj) return p->scalar;
+    const char *q = (const char *)p->view.buf + (p->per_robot ? i * p->view.strides[0] : 0);
+    switch (p->view.itemsize) {
+    case 1: return p->is_unsigned ? *(const unsigned char *)q : *(const signed char *)q;
+    case 2: { short v; memcpy(&v, q, 2); return p->is_unsigned ? (unsigned short)v : v; }
+    case 4: { int v; memcpy(&v, q, 4); return p->is_unsigned ? (long long)(unsigned)v : v; }
+    default: { long long v; memcpy(&v, q, 8); return v; }
+    }
+}
+
+/* The rules' arguments: tau_c, tau_prev, steps, tau_max, dtau_max, dt from args[0]. */
+enum { T_TAU, T_PREV, T_MAX, T_ARRAYS };
+
+typedef struct {
+    F64 a[T_ARRAYS];
+    Steps steps;
+    double dtau_max, dt;
+    Py_ssize_t n;
+} Torque;
+
+static void torque_release(Torque *t)
+{
+    f64_release_all(t->a, T_ARRAYS);
+    steps_release(&t->steps);
+}
+
+static int torque_get(PyObject *const *args, Torque *t)
+{
+    memset(t, 0, sizeof(*t));
+    Py_ssize_t n = t->n = leading(args[0], "tau_c");
+    if (n < 0) return -1;
+    Py_ssize_t s7[2] = {n, 7}, s1[1] = {7};
+    if (num_get(args[0], &t->a[T_TAU], 2, s7, 0, "tau_c") < 0 ||
+        num_get(args[1], &t->a[T_PREV], 2, s7, 0, "tau_prev") < 0 ||
+        steps_get(args[2], &t->steps, n) < 0 ||
+        f64_get(args[3], &t->a[T_MAX], 1, s1, 0, "tau_max") < 0 ||
+        number(args[4], &t->dtau_max, "dtau_max") < 0 || number(args[5], &t->dt, "dt") < 0)
+        return -1;
+    return 0;
+}
+
+/* Robot i's joint j: its torque and its rate over the robot's interval. */
+static inline double torque_at(const Torque *t, Py_ssize_t i, int j)
+{
+    return num2(&t->a[T_TAU], i, j);
+}
+static inline double rate_at(const Torque *t, Py_ssize_t i, int j)
+{
+    const double h = (double)steps_at(&t->steps, i) * t->dt;
+    return (num2(&t->a[T_TAU], i, j) - num2(&t->a[T_PREV], i, j)) / h;
+}
+static inline int outside_range(const Torque *t, Py_ssize_t i, int j)
+{
+    return !(fabs(torque_at(t, i, j)) <= AT1(t->a[T_MAX], j));
+}
+static inline int over_rate(const Torque *t, Py_ssize_t i, int j)
+{
+    return fabs(rate_at(t, i, j)) > t->dtau_max;
+}
+
+/* Robot i's error: 34 on any joint, else 32 on any joint, else -1. */
+static inline long long torque_error(const Torque *t, Py_ssize_t i)
+{
+    for (int j = 0; j < 7; j++)
+        if (outside_range(t, i, j)) return E34;
+    for (int j = 0; j < 7; j++)
+        if (over_rate(t, i, j)) return E32;
+    return NO_ERROR;
+}
+
+static PyObject *torque_rule(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    Torque t;
+    Py_buffer view = {0};
+    PyObject *error = NULL, *result = NULL;
+    memset(&t, 0, sizeof(t));
+    if (check_nargs(nargs, 6, "torque_rule") < 0 || numpy_refs() < 0) return NULL;
+    if (torque_get(args, &t) < 0) goto done;
+    error = empty1(t.n, np_int64);
+    if (!error || PyObject_GetBuffer(error, &view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+        goto done;
+    long long *out = view.buf;
+    for (Py_ssize_t i = 0; i < t.n; i++) out[i] = torque_error(&t, i);
+    result = Py_NewRef(error);
+done:
+    if (view.obj) PyBuffer_Release(&view);
+    Py_XDECREF(error);
+    torque_release(&t);
+    return result;
+}
+
+/* torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
+ *   -> None | (error, joint, value, limit)
+ *
+ * What robot i's error was about, for the log line (torque.py describe_torque): the row
+ * that won (34: the torque, limit tau_max[j]; 32: the rate, limit dtau_max; both limits
+ * the magnitude of a symmetric bound), and in it the first joint whose value is not finite
+ * (limit NaN), else the joint furthest beyond the bound (the first of equals). */
+static PyObject *torque_detail(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    Torque t;
+    PyObject *result = NULL;
+    memset(&t, 0, sizeof(t));
+    if (check_nargs(nargs, 7, "torque_detail") < 0) return NULL;
+    Py_ssize_t i = PyLong_AsSsize_t(args[0]);
+    if (i == -1 && PyErr_Occurred()) return NULL;
+    if (torque_get(args + 1, &t) < 0) goto done;
+    if (i < 0 || i >= t.n) {
+        PyErr_Format(PyExc_IndexError, "torque_detail: robot %zd of %zd", i, t.n);
+        goto done;
+    }
+    long long e = torque_error(&t, i);
+    if (e == NO_ERROR) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    int worst = -1;
+    double excess = -INFINITY, value_w = NAN, limit_w = NAN;
+    for (int j = 0; j < 7; j++) {
+        int tripped = e == E34 ? outside_range(&t, i, j) : over_rate(&t, i, j);
+        if (!tripped) continue;
+        double value = e == E34 ? torque_at(&t, i, j) : rate_at(&t, i, j);
+        double limit = e == E34 ? AT1(t.a[T_MAX], j) : t.dtau_max;
+        if (!isfinite(value)) {
+            result = Py_BuildValue("(Lidd)", e, j, value, NAN);
+            goto done;
+        }
+        double x = fabs(value) - limit; /* max(value - limit, -limit - value) */
+        if (worst < 0 || x > excess) worst = j, excess = x, value_w = value, limit_w = limit;
+    }
+    if (worst < 0) { /* torque_error found a joint beyond: this loop must too */
+        PyErr_SetString(PyExc_SystemError, "torque_detail: an error without a joint beyond");
+        goto done;
+    }
+    result = Py_BuildValue("(Lidd)", e, worst, value_w, limit_w);
+done:
+    torque_release(&t);
+    return result;
+}
+
 static PyMethodDef METHODS[] = {
     METHOD(position_rows, "The tripped rows of check_joint_position, and dq, ddq."),
     METHOD(velocity_rows, "The tripped rows of check_joint_velocity, and ddq."),
     METHOD(safety_rule, "Errors 3 and 4 of every robot, 4 over 3: (error, bad, count)."),
+    METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
+    METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),
     METHOD(safety_detail, "Robot i's error 3 or 4 for the log line: (error, joint, value, upper, lower)."),
     {NULL, NULL, 0, NULL},
 };
