@@ -19,7 +19,8 @@ pytestmark = pytest.mark.filterwarnings("error")
 
 
 def torque(tau_c, tau_prev=Z, first=False, steps=1):
-    args = (as_batch(tau_c), as_batch(tau_prev), np.array([first]), np.array([steps]), FR3)
+    steps = steps if isinstance(steps, np.ndarray) else np.array([steps])
+    args = (as_batch(tau_c), as_batch(tau_prev), np.array([first]), steps, FR3)
     return int(check_torque(*args)[0]), describe_torque(0, *args)
 
 
@@ -85,6 +86,8 @@ def test_each_robot_is_judged_on_its_own_interval_and_described_on_its_own_rows(
     args = (tau, prev, first, steps, FR3)
     assert check_torque(*args).tolist() == [E32, NO_ERROR, E34]
     assert check_torque(tau, prev, first, 3, FR3).tolist() == [NO_ERROR, NO_ERROR, E34]
+    strided = np.array([1, 1, 3, 1, 3, 1])[::2]  # [1, 3, 3], every other int64
+    assert check_torque(tau, prev, first, strided, FR3).tolist() == [E32, NO_ERROR, E34]
     rate = describe_torque(np.int64(0), *args)  # a numpy index, as np.flatnonzero gives
     assert (rate.check, rate.joint, rate.value) == ("rate", 1, pytest.approx(2000.0))
     assert describe_torque(1, *args) is None
@@ -110,3 +113,38 @@ def test_steps_that_are_not_integers_are_refused():
 def test_a_non_finite_torque_is_named_before_a_finite_one_further_out():
     error, why = torque(on(1, 100.0) + on(6, math.nan))
     assert (error, why.check, why.joint) == (E34, "non-finite", 6)
+
+
+def test_a_falling_torque_trips_the_rate_on_every_joint():
+    for j in range(7):
+        held = on(j, 5.0)
+        error, why = torque(held - on(j, 2.0), tau_prev=held)  # -2 Nm in a cycle
+        assert (error, why.joint, why.value) == (E32, j, pytest.approx(-2000.0))
+        assert torque(held - on(j, 0.99 * 999.999 * DT), tau_prev=held)[0] == NO_ERROR
+
+
+def test_each_robot_rates_against_its_own_previous_torque():
+    prev = np.zeros((2, 7))
+    prev[1, 3] = 1.5  # robot 1 held 1.5 Nm on joint 4
+    tau = np.tile(on(3, 1.5), (2, 1))
+    assert check_torque(tau, prev, np.zeros(2, bool), 1, FR3).tolist() == [E32, NO_ERROR]
+
+
+def test_the_log_line_keeps_the_sign_and_an_infinite_torque_has_no_bound():
+    error, why = torque(on(4, -13.0))
+    assert (why.value, why.limit) == (-13.0, 12.0)
+    assert why.message() == "tau_J_range_violation: tau_J_d joint 5 = -13 Nm, limit 12 Nm (range)"
+    error, why = torque(on(2, -math.inf))
+    assert (why.check, why.value) == ("non-finite", -math.inf) and math.isnan(why.limit)
+    # equal excess on two joints: the first is named
+    assert torque(on(1, 88.0) + on(3, -88.0))[1].joint == 1
+
+
+@pytest.mark.parametrize(
+    "steps",
+    [3, np.int64(3), np.array(3), np.array([3], np.uint8), np.array([7, 3, 7])[1::2]],
+    ids=["int", "numpy int", "0-d", "uint8", "strided"],
+)
+def test_steps_in_every_integer_form(steps):
+    # 2 Nm over 3 cycles: 667 Nm/s, within the rate; over one cycle it would be 2000
+    assert torque(on(0, 2.0), steps=steps)[0] == NO_ERROR

@@ -1,4 +1,4 @@
-/* The joint rules' C text (fci/limits/joint.py and fci/limits/safety.py):
+/* The joint, safety and torque rules' C text (fci/limits/joint.py, safety.py, torque.py):
  *
  *   position_rows(q_c, q_prev, dq_prev, ddq_prev, q_start, h, constants, positional,
  *                 start_tolerance, shift, rows, dq, ddq)
@@ -478,7 +478,9 @@ static int steps_get(PyObject *obj, Steps *p, Py_ssize_t n)
     char c = f ? *f : 0;
     int is_signed = c == 'b' || c == 'h' || c == 'i' || c == 'l' || c == 'q';
     p->is_unsigned = c == 'B' || c == 'H' || c == 'I' || c == 'L' || c == 'Q';
+    Py_ssize_t size = p->view.itemsize;
     if ((!is_signed && !p->is_unsigned) || f[1] != 0 || p->view.ndim > 1 ||
+        (size != 1 && size != 2 && size != 4 && size != 8) ||
         (p->view.ndim == 1 && p->view.shape[0] != n)) {
         PyErr_Format(PyExc_ValueError, "steps: expected one integer or (%zd,) integers", n);
         steps_release(p);
@@ -488,16 +490,29 @@ static int steps_get(PyObject *obj, Steps *p, Py_ssize_t n)
     return 0;
 }
 
-/* Robot i's steps (the 0-d array's one value for every robot). */
-static inline long long steps_at(const Steps *p, Py_ssize_t i)
+/* Robot i's steps as a double, as numpy's float64 conversion gives it (the 0-d array's
+ * one value for every robot). */
+static inline double steps_at(const Steps *p, Py_ssize_t i)
 {
-    if (!p->view.obj) return p->scalar;
+    if (!p->view.obj) return (double)p->scalar;
     const char *q = (const char *)p->view.buf + (p->per_robot ? i * p->view.strides[0] : 0);
     switch (p->view.itemsize) {
     case 1: return p->is_unsigned ? *(const unsigned char *)q : *(const signed char *)q;
-    case 2: { short v; memcpy(&v, q, 2); return p->is_unsigned ? (unsigned short)v : v; }
-    case 4: { int v; memcpy(&v, q, 4); return p->is_unsigned ? (long long)(unsigned)v : v; }
-    default: { long long v; memcpy(&v, q, 8); return v; }
+    case 2: {
+        unsigned short u;
+        memcpy(&u, q, 2);
+        return p->is_unsigned ? (double)u : (double)(short)u;
+    }
+    case 4: {
+        unsigned int u;
+        memcpy(&u, q, 4);
+        return p->is_unsigned ? (double)u : (double)(int)u;
+    }
+    default: {
+        unsigned long long u;
+        memcpy(&u, q, 8);
+        return p->is_unsigned ? (double)u : (double)(long long)u;
+    }
     }
 }
 
@@ -539,7 +554,7 @@ static inline double torque_at(const Torque *t, Py_ssize_t i, int j)
 }
 static inline double rate_at(const Torque *t, Py_ssize_t i, int j)
 {
-    const double h = (double)steps_at(&t->steps, i) * t->dt;
+    const double h = steps_at(&t->steps, i) * t->dt;
     return (num2(&t->a[T_TAU], i, j) - num2(&t->a[T_PREV], i, j)) / h;
 }
 static inline int outside_range(const Torque *t, Py_ssize_t i, int j)
@@ -643,4 +658,4 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_joint, "C replacements of the joint rules' per-joint arithmetic (fci/limits).")
+KERNEL_MODULE(_joint, "The joint rules' per-joint arithmetic, and the safety and torque rules whole (fci/limits).")
