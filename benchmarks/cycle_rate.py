@@ -158,8 +158,7 @@ def motion_rate(n: int, seconds: float) -> float:
     # The safety controller on the measured state (errors 3 and 4: fci/limits/_joint.c
     # safety_rule; 2: the self-collision distances), every cycle of a motion.
     safety = rate(ctrl.safety.check, seconds / 4)
-    SAFETY_US[n] = 1e6 / safety
-    SAFETY_SHARE[n] = cycles / safety
+    SAFETY[n] = (1e6 / safety, cycles / safety)
     # What the robot senses of contact (fci/contact_sensing.py), every cycle: the model
     # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K
     # and the collision thresholds (one C call where fci/_contact.c is built).
@@ -255,9 +254,8 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
 
 #: per n: the accounting's share of one motion cycle
 ACCOUNTING_SHARE: dict[int, float] = {}
-#: per n: the safety controller's check, CPU µs a call, and its share of one motion cycle
-SAFETY_US: dict[int, float] = {}
-SAFETY_SHARE: dict[int, float] = {}
+#: per n: the safety controller's check, (CPU µs a call, its share of one motion cycle)
+SAFETY: dict[int, tuple[float, float]] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
 #: per n: the C step's share (estimate, wrench, thresholds: fci/_contact.c sense)
@@ -293,9 +291,9 @@ def main() -> None:
         print(f"{name:<50}{cycles:>12,.0f}{cycles * n:>15,.0f}{cycles / bare[n]:>12.2f}")
     for n, share in ACCOUNTING_SHARE.items():
         print(f"cycle accounting's share of the motion cycle, n={n}: {share:.1%}")
-    for n, share in SAFETY_SHARE.items():
+    for n, (us, share) in SAFETY.items():
         print(
-            f"the safety controller's check (3, 4, 2), n={n}: {SAFETY_US[n]:.1f} us, "
+            f"the safety controller's check (3, 4, 2), n={n}: {us:.1f} us, "
             f"{share:.1%} of the motion cycle"
         )
     for n, share in SENSING_SHARE.items():

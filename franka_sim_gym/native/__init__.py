@@ -74,16 +74,23 @@ def load(name: str) -> ModuleType | None:
     except ImportError as exc:
         log.warning("C kernel %s not loaded (numpy path taken): %s", name, exc)
         return None
-    if getattr(module, "DELTA_T", None) != CYCLE:
-        log.warning(
-            "C kernel %s not loaded (numpy path taken): built for a cycle of %r s, not %r s "
-            "(a stale build: reinstall the package)",
-            name,
-            getattr(module, "DELTA_T", None),
-            CYCLE,
-        )
+    why = _stale(module)
+    if why:
+        log.warning("C kernel %s not loaded (numpy path taken): %s: reinstall", name, why)
         return None
     return module
+
+
+def _stale(module: ModuleType, *functions: str) -> str | None:
+    """Why ``module`` is a stale build (built for another cycle, or from an older source
+    without one of ``functions``), or None."""
+    built = getattr(module, "DELTA_T", None)
+    if built != CYCLE:
+        return f"built for a cycle of {built!r} s, not {CYCLE!r} s (a stale build)"
+    missing = [f for f in functions if not callable(getattr(module, f, None))]
+    if missing:
+        return f"it has no {', '.join(missing)} (a stale build from an older source)"
+    return None
 
 
 @functools.cache
@@ -104,17 +111,9 @@ def require(name: str, *functions: str) -> ModuleType:
         module = importlib.import_module(module_name)
     except ImportError as exc:
         raise ImportError(f"{module_name} does not import ({exc}); {build}") from exc
-    if getattr(module, "DELTA_T", None) != CYCLE:
-        raise ImportError(
-            f"{module_name} was built for a cycle of {getattr(module, 'DELTA_T', None)!r} s, "
-            f"not {CYCLE!r} s (a stale build); {build}"
-        )
-    missing = [f for f in functions if not callable(getattr(module, f, None))]
-    if missing:
-        raise ImportError(
-            f"{module_name} has no {', '.join(missing)} (a stale build from an older "
-            f"source); {build}"
-        )
+    why = _stale(module, *functions)
+    if why:
+        raise ImportError(f"{module_name}: {why}; {build}")
     return module
 
 

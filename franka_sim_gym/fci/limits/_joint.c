@@ -4,7 +4,7 @@
  *                 start_tolerance, shift, rows, dq, ddq)
  *   velocity_rows(dq_c, q_prev, dq_prev, ddq_prev, dq_start, h, constants, positional,
  *                 start_tolerance, shift, rows, ddq)
- *   safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
+ *   safety_rule(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, in_motion)
  *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
@@ -226,7 +226,7 @@ done:
 
 /* ---- the safety controller's velocity halves: the rules' only text ------------------- */
 
-/* safety_rule(dq, q, ee, ee_prev, in_motion, constants, positional, shift, margin, v_max, dt)
+/* safety_rule(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, in_motion)
  *   -> (error, bad, count)
  *
  * docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)",
@@ -272,6 +272,20 @@ static PyObject *empty1(Py_ssize_t n, PyObject *dtype)
     return a;
 }
 
+/* A detail entry point's robot index (args[0], any integer) and, once n is known, its range.
+ * 0, or -1 with the exception set. */
+static int robot_index(PyObject *obj, Py_ssize_t *i)
+{
+    *i = PyLong_AsSsize_t(obj);
+    return (*i == -1 && PyErr_Occurred()) ? -1 : 0;
+}
+static int robot_in_range(Py_ssize_t i, Py_ssize_t n, const char *name)
+{
+    if (i >= 0 && i < n) return 0;
+    PyErr_Format(PyExc_IndexError, "%s: robot %zd of %zd", name, i, n);
+    return -1;
+}
+
 /* The rules' arguments after the robot axis: dq, q, ee, ee_prev, the table, the margin. */
 enum { S_DQ, S_Q, S_EE, S_EEP, S_C, S_ARRAYS };
 
@@ -282,9 +296,9 @@ typedef struct {
     Py_ssize_t n;
 } Safety;
 
-/* Borrow dq, q, ee, ee_prev at args[0..3] and constants, positional, shift, margin, v_max,
- * dt at args[first..first + 5]. */
-static int safety_get(PyObject *const *args, Py_ssize_t first, Safety *s)
+/* Borrow dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt at
+ * args[0..9]. */
+static int safety_get(PyObject *const *args, Safety *s)
 {
     memset(s, 0, sizeof(*s));
     Py_ssize_t n = s->n = leading(args[0], "dq");
@@ -295,12 +309,10 @@ static int safety_get(PyObject *const *args, Py_ssize_t first, Safety *s)
         num_get(args[1], &s->a[S_Q], 2, s7, 0, "q") < 0 ||
         num_get(args[2], &s->a[S_EE], 2, s3, 0, "ee") < 0 ||
         num_get(args[3], &s->a[S_EEP], 2, s3, 0, "ee_prev") < 0 ||
-        f64_get(args[first], &s->a[S_C], 2, sc, 0, "constants") < 0 ||
-        number(args[first + 1], &positional, "positional") < 0 ||
-        number(args[first + 2], &s->shift, "shift") < 0 ||
-        number(args[first + 3], &s->margin, "margin") < 0 ||
-        number(args[first + 4], &s->v_max, "v_max") < 0 ||
-        number(args[first + 5], &s->dt, "dt") < 0)
+        f64_get(args[4], &s->a[S_C], 2, sc, 0, "constants") < 0 ||
+        number(args[5], &positional, "positional") < 0 ||
+        number(args[6], &s->shift, "shift") < 0 || number(args[7], &s->margin, "margin") < 0 ||
+        number(args[8], &s->v_max, "v_max") < 0 || number(args[9], &s->dt, "dt") < 0)
         return -1;
     s->positional = positional != 0.0;
     return 0;
@@ -348,7 +360,7 @@ static PyObject *safety_rule(PyObject *self, PyObject *const *args, Py_ssize_t n
     memset(&s, 0, sizeof(s));
     memset(&motion, 0, sizeof(motion));
     if (check_nargs(nargs, 11, "safety_rule") < 0 || numpy_refs() < 0) return NULL;
-    if (safety_get(args, 5, &s) < 0 || bytes_get(args[4], &motion, s.n, 0, "in_motion") < 0)
+    if (safety_get(args, &s) < 0 || bytes_get(args[10], &motion, s.n, 0, "in_motion") < 0)
         goto done;
     error = empty1(s.n, np_int64);
     bad = error ? empty1(s.n, np_bool) : NULL;
@@ -391,13 +403,9 @@ static PyObject *safety_detail(PyObject *self, PyObject *const *args, Py_ssize_t
     PyObject *result = NULL;
     memset(&s, 0, sizeof(s));
     if (check_nargs(nargs, 11, "safety_detail") < 0) return NULL;
-    Py_ssize_t i = PyLong_AsSsize_t(args[0]);
-    if (i == -1 && PyErr_Occurred()) return NULL;
-    if (safety_get(args + 1, 4, &s) < 0) goto done;
-    if (i < 0 || i >= s.n) {
-        PyErr_Format(PyExc_IndexError, "safety_detail: robot %zd of %zd", i, s.n);
-        goto done;
-    }
+    Py_ssize_t i;
+    if (robot_index(args[0], &i) < 0) return NULL;
+    if (safety_get(args + 1, &s) < 0 || robot_in_range(i, s.n, "safety_detail") < 0) goto done;
     long long e = safety_error(&s, i);
     if (e == E4) {
         result = Py_BuildValue("(Lidd d)", e, -1, ee_speed(&s, i), s.v_max, -INFINITY);
@@ -612,13 +620,9 @@ static PyObject *torque_detail(PyObject *self, PyObject *const *args, Py_ssize_t
     PyObject *result = NULL;
     memset(&t, 0, sizeof(t));
     if (check_nargs(nargs, 7, "torque_detail") < 0) return NULL;
-    Py_ssize_t i = PyLong_AsSsize_t(args[0]);
-    if (i == -1 && PyErr_Occurred()) return NULL;
-    if (torque_get(args + 1, &t) < 0) goto done;
-    if (i < 0 || i >= t.n) {
-        PyErr_Format(PyExc_IndexError, "torque_detail: robot %zd of %zd", i, t.n);
-        goto done;
-    }
+    Py_ssize_t i;
+    if (robot_index(args[0], &i) < 0) return NULL;
+    if (torque_get(args + 1, &t) < 0 || robot_in_range(i, t.n, "torque_detail") < 0) goto done;
     long long e = torque_error(&t, i);
     if (e == NO_ERROR) {
         result = Py_NewRef(Py_None);

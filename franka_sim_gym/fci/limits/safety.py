@@ -78,8 +78,8 @@ def check_safety(
     """
     constants, positional = joint_constants(table)
     error, bad, count = RULES.safety_rule(
-        dq, q, ee, ee_prev, in_motion, constants, positional,
-        JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
+        dq, q, ee, ee_prev, constants, positional,
+        JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T, in_motion,
     )  # fmt: skip
     return SafetyCheck(error, bad, count)
 
