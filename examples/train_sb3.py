@@ -297,6 +297,9 @@ def main() -> None:
         parser.error("--bc-std sets the exploration the actor is cloned to: give --bc-steps")
     if args.actor_warmup and not args.demos:
         parser.error("--actor-warmup holds SAC's actor to the demonstrations: give --demos")
+    if args.algo != "sac" and (args.bc_std is not None or args.actor_warmup):
+        # TD3's actor has no exploration distribution to fit, nor a deterministic switch
+        parser.error(f"--bc-std and --actor-warmup act on SAC's actor, not --algo {args.algo}")
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     merged = {**gym.spec(args.env_id).kwargs, **kwargs}  # the env's whole arguments

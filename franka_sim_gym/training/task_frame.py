@@ -38,15 +38,15 @@ import torch as th
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
 from franka_sim_gym.envs.commands import CARTESIAN
+from franka_sim_gym.envs.tasks.objects import OBJECT_ENTRIES
 
 #: the observation's layout (docs/env.md): q 0:7, dq 7:14, TCP position 14:17, the
 #: commanded twist 17:23 (linear, angular), [the hand's width], then the object's 13:
 #: position, quaternion w, x, y, z, linear velocity, angular velocity.
 TCP = slice(14, 17)
 TWIST_AT = 17
-OBJECT_ENTRIES = 13
-#: the first entry after the twist: the width, or the object
-AFTER_TWIST = 23
+#: the first entry after the twist (linear and angular): the width, or the object
+AFTER_TWIST = TWIST_AT + 6
 #: the shortest observation with an object (no width): the twist, then the object
 WITH_OBJECT = AFTER_TWIST + OBJECT_ENTRIES
 #: a feature's smallest standard deviation [m, m/s, rad/s]: a feature that hardly varies

@@ -4,6 +4,7 @@ input refused with nothing left behind."""
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -11,6 +12,7 @@ minari = pytest.importorskip("minari")
 
 from franka_sim_gym.training.datasets import (  # noqa: E402
     DEMONSTRATOR_ACTION,
+    checked_actions,
     dataset_path,
     episode_seed,
     names,
@@ -248,3 +250,12 @@ def test_a_malformed_id_and_unstorable_arguments_are_refused(datasets_dir):
     with pytest.raises(ValueError, match="cannot be stored in a dataset"):
         record("tests/bad-v0", "FrankaFCI-v0", RandomPolicy(7), 1, env_kwargs={"x": object()})
     assert nothing_written("tests/bad-v0")
+
+
+def test_checked_actions_are_a_copy_of_the_policy_s_array():
+    """A policy that reuses one output array must not rewrite the steps already stored."""
+    space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+    out = np.zeros((2, 3), np.float32)
+    stored = checked_actions(out, space, np.arange(2))
+    out[...] = 0.5
+    assert (stored == 0.0).all()

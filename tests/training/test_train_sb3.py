@@ -115,3 +115,12 @@ def test_the_default_recipe_learns_the_reach_in_3000_samples(tmp_path):
     row = next(csv.DictReader((out / "eval.csv").open()))
     assert float(row["success_rate"]) >= 0.5, row
     assert float(row["reflex_rate"]) <= 0.1, row
+
+
+def test_the_actor_options_of_sac_are_refused_for_td3(tmp_path):
+    script = ROOT / "examples" / "train_sb3.py"
+    for flags in (["--bc-steps", "10", "--bc-std", "0.1"], ["--actor-warmup", "10"]):
+        args = ["--algo", "td3", "--demos", "me/none-v0", *flags, "--out", str(tmp_path)]
+        proc = run_python(script, *args, timeout=60)
+        assert proc.returncode == 2
+        assert "act on SAC's actor, not --algo td3" in proc.stderr
