@@ -151,6 +151,15 @@ static inline void bytes_release(Bytes *b)
     b->view.obj = NULL;
 }
 
+/* A helper that must be inlined into its loop: a rule's per-joint rows return their terms
+ * through a pointer the loop passes as NULL, which only inlining turns into no stores
+ * (measured: 112 against 73 ns an arm for the joint rules at 64 arms without it). */
+#if defined(__GNUC__) || defined(__clang__)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE inline
+#endif
+
 /* fci/tables.py DELTA_T, the 1 ms cycle every kernel differences and integrates over;
  * each module exports it as DELTA_T and native.load refuses a module whose value
  * differs (a stale build). */

@@ -21,7 +21,6 @@ from franka_sim_gym.fci.collision import (
     CollisionBehavior,
     accelerating,
 )
-from franka_sim_gym.fci.limits import joint
 from franka_sim_gym.fci.statuses import SetterStatus
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE, MoveMotionGeneratorMode
@@ -230,12 +229,11 @@ def _descent_into_the_table() -> list[bytes]:
 def test_a_press_on_the_table_publishes_the_same_states_with_and_without_the_kernels(
     monkeypatch,
 ):
-    """The controller's published states, bit for bit, with the fci kernels (the contact
-    rules and the joint rules) and with their numpy rules, through contact, the contact
-    flags and the cartesian_collision flag."""
+    """The controller's published states, bit for bit, with the contact rules' C text and
+    with their numpy rules, through contact, the contact flags and the cartesian_collision
+    flag."""
     with_kernels = _descent_into_the_table()
     monkeypatch.setattr(contact, "RULES", contact.NUMPY_RULES)
-    monkeypatch.setattr(joint, "KERNEL", None)
     with_numpy = _descent_into_the_table()
     last = np.frombuffer(with_numpy[-1], dtype=ROBOT_STATE_DTYPE)[0]
     pressed = [

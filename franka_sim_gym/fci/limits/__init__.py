@@ -53,7 +53,7 @@ from .joint import (
     describe_joint_position,
     describe_joint_velocity,
 )
-from .precedence import NO_ERROR, Violation
+from .record import NO_ERROR, Violation
 from .safety import (
     MEASURED_VELOCITY_MARGIN,
     SafetyCheck,

@@ -1,33 +1,29 @@
-/* The joint, safety and torque rules' C text (fci/limits/joint.py, safety.py, torque.py):
+/* The joint generators', the safety controller's and the torque interface's rules: their only
+ * text (issue 38: one text per rule, compiled; fci/limits/joint.py, safety.py, torque.py hand
+ * them the table's constants and name what they find):
  *
- *   position_rows(q_c, q_prev, dq_prev, ddq_prev, q_start, h, constants, positional,
- *                 start_tolerance, shift, rows, dq, ddq)
- *   velocity_rows(dq_c, q_prev, dq_prev, ddq_prev, dq_start, h, constants, positional,
- *                 start_tolerance, shift, rows, ddq)
+ *   position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants,
+ *                 positional, start_tolerance, shift, dt) -> (error, dq, ddq)
+ *   velocity_rule(dq_c, <the same>) -> (error, ddq)
+ *   position_detail(i, <position_rule's>), velocity_detail(i, <velocity_rule's>)
  *   safety_rule(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, in_motion)
  *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *
- * position_rows and velocity_rows are kernels, chosen by the backend switch (native.load,
- * joint.py KERNEL): they compute what the numpy rule computes before its precedence
- * table: the backward differences over h, the velocity envelope at the reference
- * (RobotTable.velocity_envelope, fci/tables.py) and, per robot, which rows of the table
- * trip on any joint, as the bits of ``rows`` (bit k: row k of joint.py's _POSITION /
- * _VELOCITY). The table itself (which row wins, its error, the gating by the opening
- * command) stays in numpy: joint.py looks the bits up in the same table as the numpy path,
- * and tests/fci/test_joint_rules_parity.py holds them to it bit for bit (non-finite inputs
- * included). safety_rule and safety_detail (the safety controller's errors 3 and 4) and
- * torque_rule and torque_detail (the torque interface's 34 and 32) are their rules whole,
- * their only text (issue 38): no numpy path, no switch (native.require), tested against
- * the documented behaviour (tests/fci/test_safety_rules.py, test_torque_rules.py).
+ * A rule returns every robot's latched error; its detail what robot i's error was about, for
+ * the log line, computed by the same helpers. No numpy path, no switch (native.require): the
+ * tests hold each to the documented behaviour (tests/fci/test_joint_rules*.py,
+ * test_safety_rules.py, test_torque_rules.py).
  *
  * Every constant is an argument: ``constants`` is joint.py's joint_constants(table), the
  * rows q_lower, q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max of
  * fci/tables.py; ``positional`` 0 for a robot whose envelope is the constant dq_max (the
- * FER); ``shift`` the envelope's tolerance. Elementwise arithmetic in the numpy rules'
- * order, built without fused multiply-adds (setup.py), numpy's NaN-propagating minimum /
- * maximum. Inputs are read as float64 (a float32 field is widened first). */
+ * FER); ``shift`` the envelope's tolerance; ``dt`` the cycle (fci/tables.py DELTA_T).
+ * Elementwise arithmetic in the order numpy's texts had it (the published states did not
+ * move), built without fused multiply-adds (setup.py), numpy's NaN-propagating minimum /
+ * maximum. Inputs are read as float64 (a float32 field is widened first). The error codes
+ * are fci/errors.py's Error indices (libfranka's robot_state.h order). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -61,38 +57,14 @@ static inline double envelope_half(const F64 *c, int j, double distance, int pos
 }
 
 /* (upper, lower) of the envelope at q for joint j. */
-static inline void envelope(const F64 *c, int j, double q, int positional, double shift,
+static ALWAYS_INLINE void envelope(const F64 *c, int j, double q, int positional, double shift,
                             double *upper, double *lower)
 {
     *upper = envelope_half(c, j, AT2(*c, Q_UPPER, j) - q * 1.0, positional, shift);
     *lower = -envelope_half(c, j, (-AT2(*c, Q_LOWER, j)) - q * -1.0, positional, shift);
 }
 
-/* ---- arguments -------------------------------------------------------------------------- */
-
-/* The differencing interval: one float for every robot, or (n,) per robot. */
-typedef struct {
-    double scalar;
-    F64 array;
-    int per_robot;
-} Interval;
-
-static int interval_get(PyObject *obj, Interval *h, Py_ssize_t n)
-{
-    memset(h, 0, sizeof(*h));
-    if (PyFloat_Check(obj)) {
-        h->scalar = PyFloat_AsDouble(obj);
-        return 0;
-    }
-    Py_ssize_t shape[1] = {n};
-    h->per_robot = 1;
-    return f64_get(obj, &h->array, 1, shape, 0, "h");
-}
-
-static inline double interval_at(const Interval *h, Py_ssize_t i)
-{
-    return h->per_robot ? AT1(h->array, i) : h->scalar;
-}
+/* ---- arguments and results ------------------------------------------------------------ */
 
 /* A float or int argument (0 on success). */
 static int number(PyObject *obj, double *out, const char *name)
@@ -105,142 +77,80 @@ static int number(PyObject *obj, double *out, const char *name)
     return 0;
 }
 
-/* ---- the joint-position and joint-velocity generators -------------------------------- */
-
-/* The two generators' arguments: the command, its history, the start, h, the constants. */
-enum { CMD, Q_PREV, DQ_PREV, DDQ_PREV, START, CONSTANTS, ARRAYS };
-
+/* A per-robot integer or flag: one value for every robot (a Python int or bool), or a 0-d /
+ * (n,) integer or bool buffer. */
 typedef struct {
-    F64 a[ARRAYS];
-    F64 out[2];
-    Bytes rows;
-    Interval h;
-    int has_start, positional;
-    double tolerance, shift;
-    Py_ssize_t n;
-} Call;
+    Py_buffer view;
+    int per_robot;
+    int is_unsigned;
+    long long scalar;
+} PerRobot;
 
-static void call_release(Call *c)
+static void per_robot_release(PerRobot *p)
 {
-    f64_release_all(c->a, ARRAYS);
-    f64_release_all(c->out, 2);
-    bytes_release(&c->rows);
-    if (c->h.per_robot) f64_release(&c->h.array);
+    if (p->view.obj) PyBuffer_Release(&p->view);
+    p->view.obj = NULL;
 }
 
-/* Borrow the 10 leading arguments and ``outs`` (n, 7) result arrays after them. */
-static int call_get(PyObject *const *args, Py_ssize_t nargs, int outs, const char *name,
-                    Call *c)
+static int per_robot_get(PyObject *obj, PerRobot *p, Py_ssize_t n, const char *name)
 {
-    memset(c, 0, sizeof(*c));
-    if (check_nargs(nargs, 11 + outs, name) < 0) return -1;
-    Py_ssize_t n = c->n = leading(args[0], "command");
-    if (n < 0) return -1;
-    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
-    static const char *names[] = {"command", "q_prev", "dq_prev", "ddq_prev", "start"};
-    for (int k = CMD; k <= DDQ_PREV; k++)
-        if (num_get(args[k], &c->a[k], 2, s7, 0, names[k]) < 0) return -1;
-    c->has_start = args[START] != Py_None;
-    if (c->has_start && num_get(args[START], &c->a[START], 2, s7, 0, "start") < 0) return -1;
-    double positional;
-    if (interval_get(args[5], &c->h, n) < 0 ||
-        f64_get(args[6], &c->a[CONSTANTS], 2, sc, 0, "constants") < 0 ||
-        number(args[7], &positional, "positional") < 0 ||
-        number(args[8], &c->tolerance, "start_tolerance") < 0 ||
-        number(args[9], &c->shift, "shift") < 0 || bytes_get(args[10], &c->rows, n, 1, "rows") < 0)
+    memset(p, 0, sizeof(*p));
+    if (!PyObject_CheckBuffer(obj)) {
+        p->scalar = PyLong_AsLongLong(obj);
+        if (p->scalar == -1 && PyErr_Occurred()) {
+            PyErr_Format(PyExc_TypeError, "%s: expected an integer or an integer array", name);
+            return -1;
+        }
+        return 0;
+    }
+    if (PyObject_GetBuffer(obj, &p->view, PyBUF_RECORDS_RO) < 0) return -1;
+    const char *f = p->view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
+    char c = f ? *f : 0;
+    int is_signed = c == 'b' || c == 'h' || c == 'i' || c == 'l' || c == 'q';
+    p->is_unsigned = c == 'B' || c == 'H' || c == 'I' || c == 'L' || c == 'Q' || c == '?';
+    Py_ssize_t size = p->view.itemsize;
+    if ((!is_signed && !p->is_unsigned) || f[1] != 0 || p->view.ndim > 1 ||
+        (size != 1 && size != 2 && size != 4 && size != 8) ||
+        (p->view.ndim == 1 && p->view.shape[0] != n)) {
+        PyErr_Format(PyExc_ValueError, "%s: expected one integer or (%zd,) integers", name, n);
+        per_robot_release(p);
         return -1;
-    c->positional = positional != 0.0;
-    for (int k = 0; k < outs; k++)
-        if (f64_get(args[11 + k], &c->out[k], 2, s7, 1, "out") < 0) return -1;
+    }
+    p->per_robot = p->view.ndim == 1;
     return 0;
 }
 
-/* position_rows: bits 12 range, 11 start pose, 14 acceleration, 13 envelope, 15 jerk
- * (joint.py _POSITION's rows 0-4); dq and ddq the implied derivatives. The start row only
- * where q_start is given (numpy: only when a robot opens its motion). */
-static PyObject *position_rows(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* Robot i's value as a double, as numpy's float64 conversion gives it (the 0-d array's
+ * one value for every robot). */
+static inline double per_robot_at(const PerRobot *p, Py_ssize_t i)
 {
-    (void)self;
-    Call c;
-    PyObject *result = NULL;
-    if (call_get(args, nargs, 2, "position_rows", &c) < 0) goto done;
-    const F64 *k = &c.a[CONSTANTS];
-    for (Py_ssize_t i = 0; i < c.n; i++) {
-        const double h = interval_at(&c.h, i);
-        unsigned bits = 0;
-        for (int j = 0; j < 7; j++) {
-            double q_c = num2(&c.a[CMD], i, j), q_prev = num2(&c.a[Q_PREV], i, j);
-            double dq = (q_c - q_prev) / h;
-            double ddq = (dq - num2(&c.a[DQ_PREV], i, j)) / h;
-            double dddq = (ddq - num2(&c.a[DDQ_PREV], i, j)) / h;
-            double upper, lower;
-            envelope(k, j, q_prev, c.positional, c.shift, &upper, &lower);
-            if (!((q_c >= AT2(*k, Q_LOWER, j)) & (q_c <= AT2(*k, Q_UPPER, j)))) bits |= 1u;
-            if (c.has_start && fabs(q_c - num2(&c.a[START], i, j)) > c.tolerance) bits |= 2u;
-            if (fabs(ddq) > AT2(*k, DDQ_MAX, j)) bits |= 4u;
-            if ((dq > upper) | (dq < lower)) bits |= 8u;
-            if (fabs(dddq) > AT2(*k, DDDQ_MAX, j)) bits |= 16u;
-            AT2(c.out[0], i, j) = dq;
-            AT2(c.out[1], i, j) = ddq;
-        }
-        c.rows.data[i * c.rows.stride] = (char)bits;
+    if (!p->view.obj) return (double)p->scalar;
+    const char *q = (const char *)p->view.buf + (p->per_robot ? i * p->view.strides[0] : 0);
+    switch (p->view.itemsize) {
+    case 1: return p->is_unsigned ? *(const unsigned char *)q : *(const signed char *)q;
+    case 2: {
+        unsigned short u;
+        memcpy(&u, q, 2);
+        return p->is_unsigned ? (double)u : (double)(short)u;
     }
-    result = Py_NewRef(Py_None);
-done:
-    call_release(&c);
-    return result;
+    case 4: {
+        unsigned int u;
+        memcpy(&u, q, 4);
+        return p->is_unsigned ? (double)u : (double)(int)u;
+    }
+    default: {
+        unsigned long long u;
+        memcpy(&u, q, 8);
+        return p->is_unsigned ? (double)u : (double)(long long)u;
+    }
+    }
 }
 
-/* velocity_rows: bits 13 non-finite, 15 start velocity, 15 acceleration, 15 jerk,
- * 13 envelope (joint.py _VELOCITY's rows 0-4); ddq the implied acceleration. */
-static PyObject *velocity_rows(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    (void)self;
-    Call c;
-    PyObject *result = NULL;
-    if (call_get(args, nargs, 1, "velocity_rows", &c) < 0) goto done;
-    const F64 *k = &c.a[CONSTANTS];
-    for (Py_ssize_t i = 0; i < c.n; i++) {
-        const double h = interval_at(&c.h, i);
-        unsigned bits = 0;
-        for (int j = 0; j < 7; j++) {
-            double dq_c = num2(&c.a[CMD], i, j);
-            double ddq = (dq_c - num2(&c.a[DQ_PREV], i, j)) / h;
-            double dddq = (ddq - num2(&c.a[DDQ_PREV], i, j)) / h;
-            double upper, lower;
-            envelope(k, j, num2(&c.a[Q_PREV], i, j), c.positional, c.shift, &upper, &lower);
-            if (!isfinite(dq_c)) bits |= 1u;
-            if (c.has_start && fabs(dq_c - num2(&c.a[START], i, j)) > c.tolerance) bits |= 2u;
-            if (fabs(ddq) > AT2(*k, DDQ_MAX, j)) bits |= 4u;
-            if (fabs(dddq) > AT2(*k, DDDQ_MAX, j)) bits |= 8u;
-            if (!((dq_c <= upper) & (dq_c >= lower))) bits |= 16u;
-            AT2(c.out[0], i, j) = ddq;
-        }
-        c.rows.data[i * c.rows.stride] = (char)bits;
-    }
-    result = Py_NewRef(Py_None);
-done:
-    call_release(&c);
-    return result;
-}
+/* The "no violation" value of every error array (fci/limits/record.py NO_ERROR). */
+enum { NO_ERROR = -1 };
 
-/* ---- the safety controller's velocity halves: the rules' only text ------------------- */
-
-/* safety_rule(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, in_motion)
- *   -> (error, bad, count)
- *
- * docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)",
- * judged on measured state once a cycle (fci/limits/safety.py check_safety): 3 where a
- * joint's measured dq is not within the envelope at its measured q widened by ``margin``
- * on either side; 4 where the EE's translational speed, the backward difference of its
- * measured position over the cycle ``dt``, is not within ``v_max``; 4 outranks 3 (a cycle
- * that breaks both latches 4 only). "Not within": a NaN reading trips either rule (a
- * physics state gone NaN is not "the arm is within its limits"). ``error`` (n,) int64 3, 4
- * or -1; ``bad`` (n,) bool: an error and ``in_motion`` ((n,) one-byte flags); ``count`` the
- * bad robots. The arrays are made by numpy.empty (the build has no numpy headers). */
-enum { E3 = 3, E4 = 4, NO_ERROR = -1 };
-
-static PyObject *np_empty, *np_int64, *np_bool;
+static PyObject *np_empty, *np_int64, *np_bool, *np_float64;
 
 /* numpy.empty and its dtypes, looked up on the first call. */
 static int numpy_refs(void)
@@ -250,21 +160,23 @@ static int numpy_refs(void)
     if (!np) return -1;
     np_int64 = PyObject_GetAttrString(np, "int64");
     np_bool = PyObject_GetAttrString(np, "bool_");
+    np_float64 = PyObject_GetAttrString(np, "float64");
     np_empty = PyObject_GetAttrString(np, "empty");
     Py_DECREF(np);
-    if (!np_empty || !np_int64 || !np_bool) {
+    if (!np_empty || !np_int64 || !np_bool || !np_float64) {
         Py_CLEAR(np_empty);
         Py_CLEAR(np_int64);
         Py_CLEAR(np_bool);
+        Py_CLEAR(np_float64);
         return -1;
     }
     return 0;
 }
 
-/* numpy.empty((n,), dtype). */
-static PyObject *empty1(Py_ssize_t n, PyObject *dtype)
+/* numpy.empty((n,), dtype), or (n, cols) where cols > 0. */
+static PyObject *empty(Py_ssize_t n, Py_ssize_t cols, PyObject *dtype)
 {
-    PyObject *shape = Py_BuildValue("(n)", n);
+    PyObject *shape = cols > 0 ? Py_BuildValue("(nn)", n, cols) : Py_BuildValue("(n)", n);
     if (!shape) return NULL;
     PyObject *args[2] = {shape, dtype};
     PyObject *a = PyObject_Vectorcall(np_empty, args, 2, NULL);
@@ -286,6 +198,322 @@ static int robot_in_range(Py_ssize_t i, Py_ssize_t n, const char *name)
     return -1;
 }
 
+/* ---- the joint-position and joint-velocity generators: the rules' only text ----------- */
+
+/* position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants, positional,
+ *               start_tolerance, shift, dt) -> (error, dq, ddq)
+ * velocity_rule(dq_c, <the same>) -> (error, ddq)
+ * position_detail(i, <position_rule's arguments>) -> None | (row, joint, value, limit)
+ * velocity_detail(i, <velocity_rule's arguments>) -> None | (row, joint, value, limit)
+ *
+ * docs/fci-behaviour.md "What is checked, and what it latches": each generator's rows in
+ * precedence order, the first row that trips on any joint latching its error (one per robot;
+ * fci/limits/joint.py check_joint_position / check_joint_velocity, which name the rows).
+ *
+ *   q_c:  0 range (12; "not inside", so NaN lands here: docs/fci-behaviour.md, a non-finite
+ *         command is the limits violation of the generator it arrived in), 1 start pose (11),
+ *         2 acceleration (14), 3 the envelope at q_d (13), 4 jerk (15).
+ *   dq_c: 0 non-finite (13, ours, first: inf would read as a 15 step, NaN passes every `>`),
+ *         1 start velocity (15), 2 acceleration (15), 3 jerk (15), 4 the envelope at q_d (13).
+ *
+ * Rows 1 apply only to a motion's opening command (``first``: the robot at rest, so the
+ * start check is the check); the derivative rows only after it; the dq_c envelope always.
+ * The derivatives are backward differences over h = steps dt (docs/fci-behaviour.md "The
+ * difference formulas": steps the published cycles since the command the history sits
+ * at): dq = (q_c - q_prev) / h, ddq = (dq - dq_prev) / h, dddq = (ddq - ddq_prev) / h.
+ * ``error`` (n,) int64 the latched Error index or -1; dq / ddq (n, 7) the implied
+ * derivatives to record, zero where ``first`` (the history rebased at rest), meaningless
+ * for a robot whose error is 12. A detail is robot i's winning row, and in it the first
+ * joint whose value is not finite (limit NaN), else the joint furthest outside (the first
+ * of equals; a NaN excess, from a NaN envelope, the largest) and the bound it crossed
+ * (the upper one for the symmetric rows 1-3 of dq_c, 1, 2, 4 of q_c). */
+enum { ROWS = 5 };
+
+/* Each row's error (fci/errors.py, libfranka robot_state.h's order): 11
+ * joint_position_motion_generator_start_pose_invalid, 12
+ * joint_motion_generator_position_limits_violation, 13 ..._velocity_limits_violation, 14
+ * ..._velocity_discontinuity, 15 ..._acceleration_discontinuity. */
+static const long long POSITION_CODES[ROWS] = {12, 11, 14, 13, 15};
+static const long long VELOCITY_CODES[ROWS] = {13, 15, 15, 15, 13};
+/* The rows that apply, bit k row k: [after the opening command, on it]. q_c: the start row
+ * only on it, the derivative rows 2-4 only after. dq_c: the start row only on it, the
+ * acceleration and jerk only after, the envelope always. */
+static const unsigned POSITION_GATE[2] = {0x1Du, 0x03u};
+static const unsigned VELOCITY_GATE[2] = {0x1Du, 0x13u};
+/* The rows whose bound is |x| <= b: the log line gives b for either side. */
+static const unsigned POSITION_SYMMETRIC = 0x16u, VELOCITY_SYMMETRIC = 0x0Eu;
+
+/* The command, its history, the start, the constants. */
+enum { CMD, Q_PREV, DQ_PREV, DDQ_PREV, START, CONSTANTS, ARRAYS };
+
+typedef struct {
+    F64 a[ARRAYS];
+    PerRobot first, steps;
+    int positional;
+    double tolerance, shift, dt;
+    Py_ssize_t n;
+} Joint;
+
+static void joint_release(Joint *r)
+{
+    f64_release_all(r->a, ARRAYS);
+    per_robot_release(&r->first);
+    per_robot_release(&r->steps);
+}
+
+/* Borrow the rules' 12 arguments from args[0]. */
+static int joint_get(PyObject *const *args, Joint *r)
+{
+    memset(r, 0, sizeof(*r));
+    Py_ssize_t n = r->n = leading(args[0], "command");
+    if (n < 0) return -1;
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    static const char *names[] = {"command", "q_prev", "dq_prev", "ddq_prev"};
+    for (int k = CMD; k <= DDQ_PREV; k++)
+        if (num_get(args[k], &r->a[k], 2, s7, 0, names[k]) < 0) return -1;
+    double positional;
+    if (per_robot_get(args[4], &r->first, n, "first") < 0 ||
+        num_get(args[5], &r->a[START], 2, s7, 0, "start") < 0 ||
+        per_robot_get(args[6], &r->steps, n, "steps") < 0 ||
+        f64_get(args[7], &r->a[CONSTANTS], 2, sc, 0, "constants") < 0 ||
+        number(args[8], &positional, "positional") < 0 ||
+        number(args[9], &r->tolerance, "start_tolerance") < 0 ||
+        number(args[10], &r->shift, "shift") < 0 || number(args[11], &r->dt, "dt") < 0)
+        return -1;
+    r->positional = positional != 0.0;
+    return 0;
+}
+
+/* Robot i's joint j under one rule: each row's checked value and bounds. */
+typedef struct {
+    double value[ROWS], upper[ROWS], lower[ROWS];
+} Terms;
+
+/* Row k's checked value and bounds into ``t`` (the detail's; the rule passes NULL). */
+static inline void term(Terms *t, int k, double value, double upper, double lower)
+{
+    if (t) t->value[k] = value, t->upper[k] = upper, t->lower[k] = lower;
+}
+
+/* q_c's rows on robot i's joint j: the bits that trip, and the terms behind them into
+ * ``t`` unless NULL; dq and ddq into ``d``. */
+static ALWAYS_INLINE unsigned position_joint(
+    const Joint *r, Py_ssize_t i, int j, int first, double h, Terms *t, double d[2])
+{
+    const F64 *k = &r->a[CONSTANTS];
+    const double q_lower = AT2(*k, Q_LOWER, j), q_upper = AT2(*k, Q_UPPER, j);
+    const double ddq_max = AT2(*k, DDQ_MAX, j), dddq_max = AT2(*k, DDDQ_MAX, j);
+    double q_c = num2(&r->a[CMD], i, j), q_prev = num2(&r->a[Q_PREV], i, j);
+    double dq = (q_c - q_prev) / h;
+    double ddq = (dq - num2(&r->a[DQ_PREV], i, j)) / h;
+    double dddq = (ddq - num2(&r->a[DDQ_PREV], i, j)) / h;
+    double start = first ? q_c - num2(&r->a[START], i, j) : 0.0;
+    double upper, lower;
+    /* docs/limits.md §4: the envelope is evaluated at the reference (q_d), never at q */
+    envelope(k, j, q_prev, r->positional, r->shift, &upper, &lower);
+    term(t, 0, q_c, q_upper, q_lower);
+    term(t, 1, start, r->tolerance, -r->tolerance);
+    term(t, 2, ddq, ddq_max, -ddq_max);
+    term(t, 3, dq, upper, lower);
+    term(t, 4, dddq, dddq_max, -dddq_max);
+    d[0] = dq, d[1] = ddq;
+    unsigned bits = 0;
+    if (!((q_c >= q_lower) & (q_c <= q_upper))) bits |= 1u;
+    if (first && fabs(start) > r->tolerance) bits |= 2u;
+    if (fabs(ddq) > ddq_max) bits |= 4u;
+    if ((dq > upper) | (dq < lower)) bits |= 8u;
+    if (fabs(dddq) > dddq_max) bits |= 16u;
+    return bits;
+}
+
+/* dq_c's rows on robot i's joint j; ddq into ``d``. */
+static ALWAYS_INLINE unsigned velocity_joint(
+    const Joint *r, Py_ssize_t i, int j, int first, double h, Terms *t, double d[2])
+{
+    const F64 *k = &r->a[CONSTANTS];
+    const double ddq_max = AT2(*k, DDQ_MAX, j), dddq_max = AT2(*k, DDDQ_MAX, j);
+    double dq_c = num2(&r->a[CMD], i, j);
+    double ddq = (dq_c - num2(&r->a[DQ_PREV], i, j)) / h;
+    double dddq = (ddq - num2(&r->a[DDQ_PREV], i, j)) / h;
+    double start = first ? dq_c - num2(&r->a[START], i, j) : 0.0;
+    double upper, lower;
+    /* docs/limits.md §4: evaluated at q_d on the joint-velocity interface too */
+    envelope(k, j, num2(&r->a[Q_PREV], i, j), r->positional, r->shift, &upper, &lower);
+    term(t, 0, dq_c, INFINITY, -INFINITY);
+    term(t, 1, start, r->tolerance, -r->tolerance);
+    term(t, 2, ddq, ddq_max, -ddq_max);
+    term(t, 3, dddq, dddq_max, -dddq_max);
+    term(t, 4, dq_c, upper, lower);
+    d[1] = ddq;
+    unsigned bits = 0;
+    if (!isfinite(dq_c)) bits |= 1u;
+    if (first && fabs(start) > r->tolerance) bits |= 2u;
+    if (fabs(ddq) > ddq_max) bits |= 4u;
+    if (fabs(dddq) > dddq_max) bits |= 8u;
+    /* "not inside": NaN trips it too */
+    if (!((dq_c <= upper) & (dq_c >= lower))) bits |= 16u;
+    return bits;
+}
+
+/* One generator: its rows, their errors, which apply when, which are symmetric. */
+typedef struct {
+    int velocity; /* 0: q_c's rows, 1: dq_c's */
+    const long long *codes;
+    const unsigned *gate;
+    unsigned symmetric;
+    const char *name;
+} Generator;
+
+static const Generator POSITION = {0, POSITION_CODES, POSITION_GATE,
+                                   POSITION_SYMMETRIC, "position_rule"};
+static const Generator VELOCITY = {1, VELOCITY_CODES, VELOCITY_GATE,
+                                   VELOCITY_SYMMETRIC, "velocity_rule"};
+
+/* The generator's rows on robot i's joint j (a direct call, so that the rule's loop
+ * inlines it and keeps only the terms it reads). */
+static ALWAYS_INLINE unsigned joint_rows(
+    const Generator *g, const Joint *r, Py_ssize_t i, int j, int first, double h, Terms *t,
+    double d[2])
+{
+    return g->velocity ? velocity_joint(r, i, j, first, h, t, d)
+                       : position_joint(r, i, j, first, h, t, d);
+}
+
+/* The first applying row among ``bits``, or -1. */
+static inline int winner(unsigned live)
+{
+    if (!live) return -1;
+    int k = 0;
+    while (!(live & 1u)) live >>= 1, k++;
+    return k;
+}
+
+/* position_rule / velocity_rule: error, and dq (q_c only) and ddq. Inlined into each with
+ * its generator a constant. */
+static ALWAYS_INLINE PyObject *joint_rule(PyObject *const *args, Py_ssize_t nargs, const Generator *g)
+{
+    Joint r;
+    const int with_dq = !g->velocity;
+    PyObject *arrays[3] = {NULL, NULL, NULL}, *result = NULL;
+    Py_buffer views[3] = {{0}};
+    memset(&r, 0, sizeof(r));
+    if (check_nargs(nargs, 12, g->name) < 0 || numpy_refs() < 0) return NULL;
+    if (joint_get(args, &r) < 0) goto done;
+    arrays[0] = empty(r.n, 0, np_int64);
+    arrays[1] = arrays[0] ? empty(r.n, 7, np_float64) : NULL;
+    arrays[2] = arrays[1] && with_dq ? empty(r.n, 7, np_float64) : NULL;
+    for (int a = 0; a < 2 + with_dq; a++)
+        if (!arrays[a] ||
+            PyObject_GetBuffer(arrays[a], &views[a], PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+            goto done;
+    long long *error = views[0].buf;
+    double *ddq_out = views[1].buf, *dq_out = with_dq ? views[2].buf : NULL;
+    for (Py_ssize_t i = 0; i < r.n; i++) {
+        const int first = per_robot_at(&r.first, i) != 0.0;
+        const double h = per_robot_at(&r.steps, i) * r.dt;
+        unsigned bits = 0;
+        for (int j = 0; j < 7; j++) {
+            double d[2];
+            bits |= joint_rows(g, &r, i, j, first, h, NULL, d);
+            /* at rest on the opening command (np.where's +0.0) */
+            ddq_out[i * 7 + j] = first ? 0.0 : d[1];
+            if (with_dq) dq_out[i * 7 + j] = first ? 0.0 : d[0];
+        }
+        int k = winner(bits & g->gate[first]);
+        error[i] = k < 0 ? NO_ERROR : g->codes[k];
+    }
+    result = with_dq ? Py_BuildValue("(OOO)", arrays[0], arrays[2], arrays[1])
+                     : Py_BuildValue("(OO)", arrays[0], arrays[1]);
+done:
+    for (int a = 0; a < 3; a++) {
+        if (views[a].obj) PyBuffer_Release(&views[a]);
+        Py_XDECREF(arrays[a]);
+    }
+    joint_release(&r);
+    return result;
+}
+
+/* position_detail / velocity_detail: robot i's winning row, joint, value and bound. */
+static PyObject *joint_detail(PyObject *const *args, Py_ssize_t nargs, const Generator *g,
+                              const char *name)
+{
+    Joint r;
+    PyObject *result = NULL;
+    memset(&r, 0, sizeof(r));
+    if (check_nargs(nargs, 13, name) < 0) return NULL;
+    Py_ssize_t i;
+    if (robot_index(args[0], &i) < 0) return NULL;
+    if (joint_get(args + 1, &r) < 0 || robot_in_range(i, r.n, name) < 0) goto done;
+    const int first = per_robot_at(&r.first, i) != 0.0;
+    const double h = per_robot_at(&r.steps, i) * r.dt;
+    Terms t[7];
+    unsigned bits[7], any = 0;
+    double d[2];
+    for (int j = 0; j < 7; j++) any |= bits[j] = joint_rows(g, &r, i, j, first, h, &t[j], d);
+    int k = winner(any & g->gate[first]);
+    if (k < 0) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    int worst = -1;
+    double excess = -INFINITY;
+    for (int j = 0; j < 7; j++) {
+        if (!(bits[j] & (1u << k))) continue;
+        double value = t[j].value[k];
+        if (!isfinite(value)) { /* no distance to a bound: the first such joint */
+            result = Py_BuildValue("(iidd)", k, j, value, NAN);
+            goto done;
+        }
+        double x = nan_max(value - t[j].upper[k], t[j].lower[k] - value);
+        if (worst < 0 || (isnan(x) && !isnan(excess)) || x > excess) worst = j, excess = x;
+    }
+    const Terms *w = &t[worst];
+    double value = w->value[k];
+    int above = value - w->upper[k] >= w->lower[k] - value;
+    double limit = (above || (g->symmetric >> k & 1u)) ? w->upper[k] : w->lower[k];
+    result = Py_BuildValue("(iidd)", k, worst, value, limit);
+done:
+    joint_release(&r);
+    return result;
+}
+
+static PyObject *position_rule(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return joint_rule(args, nargs, &POSITION);
+}
+static PyObject *velocity_rule(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return joint_rule(args, nargs, &VELOCITY);
+}
+static PyObject *position_detail(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return joint_detail(args, nargs, &POSITION, "position_detail");
+}
+static PyObject *velocity_detail(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return joint_detail(args, nargs, &VELOCITY, "velocity_detail");
+}
+
+/* ---- the safety controller's velocity halves: the rules' only text ------------------- */
+
+enum { E3 = 3, E4 = 4 };
+
+/* safety_rule(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, in_motion)
+ *   -> (error, bad, count)
+ *
+ * docs/fci-behaviour.md "joint_velocity_violation (3)" and "cartesian_velocity_violation (4)",
+ * judged on measured state once a cycle (fci/limits/safety.py check_safety): 3 where a
+ * joint's measured dq is not within the envelope at its measured q widened by ``margin``
+ * on either side; 4 where the EE's translational speed, the backward difference of its
+ * measured position over the cycle ``dt``, is not within ``v_max``; 4 outranks 3 (a cycle
+ * that breaks both latches 4 only). "Not within": a NaN reading trips either rule (a
+ * physics state gone NaN is not "the arm is within its limits"). ``error`` (n,) int64 3, 4
+ * or -1; ``bad`` (n,) bool: an error and ``in_motion`` ((n,) one-byte flags); ``count`` the
+ * bad robots. The arrays are made by numpy.empty (the build has no numpy headers). */
 /* The rules' arguments after the robot axis: dq, q, ee, ee_prev, the table, the margin. */
 enum { S_DQ, S_Q, S_EE, S_EEP, S_C, S_ARRAYS };
 
@@ -362,8 +590,8 @@ static PyObject *safety_rule(PyObject *self, PyObject *const *args, Py_ssize_t n
     if (check_nargs(nargs, 11, "safety_rule") < 0 || numpy_refs() < 0) return NULL;
     if (safety_get(args, &s) < 0 || bytes_get(args[10], &motion, s.n, 0, "in_motion") < 0)
         goto done;
-    error = empty1(s.n, np_int64);
-    bad = error ? empty1(s.n, np_bool) : NULL;
+    error = empty(s.n, 0, np_int64);
+    bad = error ? empty(s.n, 0, np_bool) : NULL;
     if (!bad || PyObject_GetBuffer(error, &err_view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0 ||
         PyObject_GetBuffer(bad, &bad_view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
         goto done;
@@ -455,81 +683,12 @@ done:
  * int64 34, 32 or -1, made by numpy.empty. */
 enum { E32 = 32, E34 = 34 };
 
-/* A per-robot integer: one value for every robot, or a 0-d / (n,) integer buffer. */
-typedef struct {
-    Py_buffer view;
-    int per_robot;
-    int is_unsigned;
-    long long scalar;
-} Steps;
-
-static void steps_release(Steps *p)
-{
-    if (p->view.obj) PyBuffer_Release(&p->view);
-    p->view.obj = NULL;
-}
-
-static int steps_get(PyObject *obj, Steps *p, Py_ssize_t n)
-{
-    memset(p, 0, sizeof(*p));
-    if (!PyObject_CheckBuffer(obj)) {
-        p->scalar = PyLong_AsLongLong(obj);
-        if (p->scalar == -1 && PyErr_Occurred()) {
-            PyErr_SetString(PyExc_TypeError, "steps: expected an integer or an integer array");
-            return -1;
-        }
-        return 0;
-    }
-    if (PyObject_GetBuffer(obj, &p->view, PyBUF_RECORDS_RO) < 0) return -1;
-    const char *f = p->view.format;
-    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
-    char c = f ? *f : 0;
-    int is_signed = c == 'b' || c == 'h' || c == 'i' || c == 'l' || c == 'q';
-    p->is_unsigned = c == 'B' || c == 'H' || c == 'I' || c == 'L' || c == 'Q';
-    Py_ssize_t size = p->view.itemsize;
-    if ((!is_signed && !p->is_unsigned) || f[1] != 0 || p->view.ndim > 1 ||
-        (size != 1 && size != 2 && size != 4 && size != 8) ||
-        (p->view.ndim == 1 && p->view.shape[0] != n)) {
-        PyErr_Format(PyExc_ValueError, "steps: expected one integer or (%zd,) integers", n);
-        steps_release(p);
-        return -1;
-    }
-    p->per_robot = p->view.ndim == 1;
-    return 0;
-}
-
-/* Robot i's steps as a double, as numpy's float64 conversion gives it (the 0-d array's
- * one value for every robot). */
-static inline double steps_at(const Steps *p, Py_ssize_t i)
-{
-    if (!p->view.obj) return (double)p->scalar;
-    const char *q = (const char *)p->view.buf + (p->per_robot ? i * p->view.strides[0] : 0);
-    switch (p->view.itemsize) {
-    case 1: return p->is_unsigned ? *(const unsigned char *)q : *(const signed char *)q;
-    case 2: {
-        unsigned short u;
-        memcpy(&u, q, 2);
-        return p->is_unsigned ? (double)u : (double)(short)u;
-    }
-    case 4: {
-        unsigned int u;
-        memcpy(&u, q, 4);
-        return p->is_unsigned ? (double)u : (double)(int)u;
-    }
-    default: {
-        unsigned long long u;
-        memcpy(&u, q, 8);
-        return p->is_unsigned ? (double)u : (double)(long long)u;
-    }
-    }
-}
-
 /* The rules' arguments: tau_c, tau_prev, steps, tau_max, dtau_max, dt from args[0]. */
 enum { T_TAU, T_PREV, T_MAX, T_ARRAYS };
 
 typedef struct {
     F64 a[T_ARRAYS];
-    Steps steps;
+    PerRobot steps;
     double dtau_max, dt;
     Py_ssize_t n;
 } Torque;
@@ -537,7 +696,7 @@ typedef struct {
 static void torque_release(Torque *t)
 {
     f64_release_all(t->a, T_ARRAYS);
-    steps_release(&t->steps);
+    per_robot_release(&t->steps);
 }
 
 static int torque_get(PyObject *const *args, Torque *t)
@@ -548,7 +707,7 @@ static int torque_get(PyObject *const *args, Torque *t)
     Py_ssize_t s7[2] = {n, 7}, s1[1] = {7};
     if (num_get(args[0], &t->a[T_TAU], 2, s7, 0, "tau_c") < 0 ||
         num_get(args[1], &t->a[T_PREV], 2, s7, 0, "tau_prev") < 0 ||
-        steps_get(args[2], &t->steps, n) < 0 ||
+        per_robot_get(args[2], &t->steps, n, "steps") < 0 ||
         f64_get(args[3], &t->a[T_MAX], 1, s1, 0, "tau_max") < 0 ||
         number(args[4], &t->dtau_max, "dtau_max") < 0 || number(args[5], &t->dt, "dt") < 0)
         return -1;
@@ -562,7 +721,7 @@ static inline double torque_at(const Torque *t, Py_ssize_t i, int j)
 }
 static inline double rate_at(const Torque *t, Py_ssize_t i, int j)
 {
-    const double h = steps_at(&t->steps, i) * t->dt;
+    const double h = per_robot_at(&t->steps, i) * t->dt;
     return (num2(&t->a[T_TAU], i, j) - num2(&t->a[T_PREV], i, j)) / h;
 }
 static inline int outside_range(const Torque *t, Py_ssize_t i, int j)
@@ -593,7 +752,7 @@ static PyObject *torque_rule(PyObject *self, PyObject *const *args, Py_ssize_t n
     memset(&t, 0, sizeof(t));
     if (check_nargs(nargs, 6, "torque_rule") < 0 || numpy_refs() < 0) return NULL;
     if (torque_get(args, &t) < 0) goto done;
-    error = empty1(t.n, np_int64);
+    error = empty(t.n, 0, np_int64);
     if (!error || PyObject_GetBuffer(error, &view, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
         goto done;
     long long *out = view.buf;
@@ -653,8 +812,10 @@ done:
 }
 
 static PyMethodDef METHODS[] = {
-    METHOD(position_rows, "The tripped rows of check_joint_position, and dq, ddq."),
-    METHOD(velocity_rows, "The tripped rows of check_joint_velocity, and ddq."),
+    METHOD(position_rule, "The latched error of every robot's q_c, and dq, ddq: (error, dq, ddq)."),
+    METHOD(velocity_rule, "The latched error of every robot's dq_c, and ddq: (error, ddq)."),
+    METHOD(position_detail, "Robot i's q_c error for the log line: (row, joint, value, limit)."),
+    METHOD(velocity_detail, "Robot i's dq_c error for the log line: (row, joint, value, limit)."),
     METHOD(safety_rule, "Errors 3 and 4 of every robot, 4 over 3: (error, bad, count)."),
     METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
     METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),

@@ -62,7 +62,7 @@ from .cartesian_derivatives import (
     pose_derivatives,
 )
 from .cartesian_joint import ik_limits, joint_side_rows, no_joint_rows, range_and_envelope_quiet
-from .precedence import NO_ERROR, Violation
+from .record import NO_ERROR, Violation
 
 _E = Error
 

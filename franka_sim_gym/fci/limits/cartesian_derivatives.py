@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...sim.rotations import relative_rotation_log
-from .precedence import interval
+from .record import interval
 
 
 class Twist(NamedTuple):

@@ -7,7 +7,7 @@ not here.
 
 The rules' only text is C (fci/limits/_joint.c ``safety_rule`` and ``safety_detail``, issue 38:
 one text per rule, compiled): this module hands them the table's constants and turns their
-answers into :class:`SafetyCheck` and :class:`~.precedence.Violation`.
+answers into :class:`SafetyCheck` and :class:`~.record.Violation`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ... import native
 from ..errors import Error
 from ..tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from .joint import joint_constants
-from .precedence import Violation
+from .record import Violation
 
 #: docs/fci-behaviour.md "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
 #: the envelope before firing" (measured dq carries integrator ring / contact spikes).

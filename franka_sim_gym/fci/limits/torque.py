@@ -6,7 +6,7 @@ docs/fci-behaviour.md "What is checked, and what it latches", torque rows in pre
 
 The rules' only text is C (fci/limits/_joint.c ``torque_rule`` and ``torque_detail``,
 issue 38: one text per rule, compiled): this module hands them the table's limits and
-turns their answers into errors and :class:`~.precedence.Violation`.
+turns their answers into errors and :class:`~.record.Violation`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from ... import native
 from ..errors import Error
 from ..tables import DELTA_T, RobotTable
-from .precedence import Violation
+from .record import Violation
 
 #: the C text of the rules (a required extension: there is no other)
 RULES = native.require("fci.limits._joint", "torque_rule", "torque_detail")
