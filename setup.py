@@ -2,14 +2,15 @@
 
 Everything else is in pyproject.toml. Each kernel sits next to the numpy rule it replaces
 whole (sim/: the IK solve, the Jacobian at a point and the copies of every robot's
-MjData rows, envs/: the libfranka client's filters, fci/limits/: the joint rules, fci/:
-the contact estimate's filter and wrench, the frame K and the whole sensing step)
+MjData rows, envs/: the libfranka client's filters, fci/: the contact estimate's filter
+and wrench, the frame K and the whole sensing step)
 and becomes the extension ``franka_sim_gym.<package>._<name>``; franka_sim_gym/native/ holds
 the loader and the shared C header. Most kernels are optional: without a C compiler the
 package runs on their numpy reference paths (``franka_sim_gym.native.describe()`` says
 which are loaded). ``REQUIRED`` ones hold rules whose only text is C (issue 38: the
-safety controller's errors 3 and 4 and the torque interface's 34 and 32 so far): without
-a compiler the install fails.
+joint generators' precedence tables, the velocity envelope, the safety controller's errors
+3 and 4 and the torque interface's 34 and 32 so far: fci/limits/_joint.c): without a
+compiler the install fails.
 """
 
 from pathlib import Path

@@ -41,5 +41,5 @@ def rollout(interface: str, action_filter: str, steps: int = 25):
 
 def joint_and_client_kernels_off(monkeypatch) -> None:
     """Envs made after this run the client's filters on their numpy references (the
-    controller's joint rules have no kernel: they are numpy only)."""
+    controller's joint rules have one text, C: there is nothing of theirs to switch)."""
     monkeypatch.setattr(commands_module, "CLIENT_KERNEL", None)

@@ -11,10 +11,13 @@ never touches the robot's threshold). The robot's threshold is taken as
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+
+from .. import native
 
 #: libfranka include/franka/rate_limiting.h: kDeltaT, the 1 kHz cycle.
 DELTA_T = 1e-3
@@ -78,11 +81,23 @@ class RobotTable:
     ik_dddq_max: np.ndarray = field(default_factory=lambda: _ro(np.zeros(7)))
 
     @cached_property
-    def _envelope_constants(self) -> tuple[np.ndarray, ...]:
-        """Upper and lower halves side by side, (14,) each: one pass computes both."""
-        two_a = np.concatenate([2.0 * self.ddq_decel] * 2)
-        bound = np.concatenate([self.q_upper, -self.q_lower])
-        return two_a, bound, np.concatenate([self.dq_offset] * 2), np.concatenate([self.dq_max] * 2)
+    def joint_constants(self) -> tuple[np.ndarray, float]:
+        """The joint limits as the C texts of the rules take them (fci/limits/_joint.c):
+        (7, 7) rows q_lower, q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max,
+        read-only, and 1.0 where the envelope depends on the position (0.0: the constant
+        dq_max of a robot without offsets)."""
+        positional = self.dq_offset is not None
+        zero = np.zeros(7)
+        rows = (
+            self.q_lower,
+            self.q_upper,
+            self.ddq_max,
+            self.dddq_max,
+            2.0 * self.ddq_decel if positional else zero,
+            self.dq_offset if positional else zero,
+            self.dq_max,
+        )
+        return _ro(np.stack(rows)), float(positional)
 
     def velocity_envelope(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The admissible joint velocity band at q, shape (..., 7) each.
@@ -97,36 +112,39 @@ class RobotTable:
     def velocity_envelope_halves(
         self, q: np.ndarray, shift: float | np.ndarray = JOINT_VELOCITY_LIMIT_TOLERANCE
     ) -> np.ndarray:
-        """(..., 14): [upper | -lower] of :meth:`velocity_envelope`, in one pass (lower is
-        the same law on the mirrored range), with ``shift`` in place of the tolerance
-        (broadcast against the rows: the safety controller widens some by its margin).
-        ``q`` is (..., 7), or already doubled as (..., 14) [q | q] (then overwritten).
+        """(..., 14): [upper | -lower] of :meth:`velocity_envelope` (lower is the same law
+        on the mirrored range), with ``shift`` in place of the tolerance (broadcast
+        against the (..., 14) bounds: a caller's margins). ``q`` is (..., 7), or already
+        doubled as (..., 14) [q | q], which a writeable float64 array (strided too, up
+        to two axes) is then overwritten with and returned as the result. The law's only text is C
+        (fci/limits/_joint.c ``envelope_halves``, beside the rules that read it).
         """
-        doubled = np.shape(q)[-1] == 14
-        if self.dq_offset is None:
-            vmax = np.concatenate([self.dq_max] * 2)
-            return np.broadcast_to(vmax, (*np.shape(q)[:-1], 14)) - shift
-        two_a, bound, offset, vmax = self._envelope_constants
-        r = q if doubled else np.concatenate((q, q), axis=-1)
-        # One robot's (1, 14) as (14,), the constants' own shape (a view: the leading
-        # axes are 1): the same elementwise arithmetic without broadcasting, in about
-        # half the time.
-        one = r.size == 14 and isinstance(shift, float)
-        x = r.reshape(14) if one else r
-        x *= _MIRROR
-        np.subtract(bound, x, out=x)  # distance to the stop, both sides
-        x *= two_a
-        np.maximum(x, 0.0, out=x)
-        np.sqrt(x, out=x)
-        np.maximum(x, offset, out=x)  # max(0, s - v_off), as max(s, v_off) - v_off
-        x -= offset
-        np.minimum(x, vmax, out=x)
-        x -= shift
-        return r
+        q = np.asarray(q)
+        doubled = q.shape[-1] == 14
+        lead = q.shape[:-1]
+        # in place: rows below must be a view of q (a reshape that copies would lose them)
+        inplace = (
+            doubled
+            and q.dtype == np.float64
+            and q.flags.writeable
+            and (q.ndim <= 2 or q.flags.c_contiguous)
+        )
+        out = q if inplace else np.empty((*lead, 14))
+        rows = out.reshape(-1, 14)
+        q7 = (q[..., :7] if doubled else q).reshape(-1, 7)
+        if not isinstance(shift, float):
+            shift = np.broadcast_to(np.asarray(shift, dtype=np.float64), rows.shape)
+        constants, positional = self.joint_constants
+        _envelope_law().envelope_halves(q7, constants, positional, shift, rows)
+        return out
 
 
-#: [q | q] to [q | -q]: the lower bound is the upper bound's law on the mirrored range.
-_MIRROR = np.concatenate((np.ones(7), -np.ones(7)))
+@functools.cache
+def _envelope_law():
+    """The C text of the velocity envelope's law (a required extension: there is no
+    other), found on first use: the module lives in fci.limits, whose rules import this
+    one."""
+    return native.require("fci.limits._joint", "envelope_halves")
 
 
 #: FR3 behind FCI v10. Joint ranges, velocities, offsets, deceleration and

@@ -180,7 +180,7 @@ def test_the_kernel_names_a_bad_argument():
 )
 def test_an_episode_is_the_same_with_and_without_the_kernels(interface, monkeypatch):
     """End to end, random actions through libfranka's limiters (reflexes included): the
-    joint rules' and the client's kernels change no bit of what a policy sees."""
+    client's kernels change no bit of what a policy sees."""
     fast = rollout(interface, "limit_rate")
     joint_and_client_kernels_off(monkeypatch)
     reference = rollout(interface, "limit_rate")

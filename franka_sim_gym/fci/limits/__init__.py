@@ -5,8 +5,9 @@ joint signals) and returns an (n,) int64 ``error``: the :class:`~..errors.Error`
 index the robot latches this cycle, or ``NO_ERROR`` (-1). One index per robot:
 within a generator the rows of docs/fci-behaviour.md "What is checked, and what it
 latches" are in precedence order and the first tripped row wins. The per-cycle
-path is a fixed handful of numpy operations, with no Python loop over robots or
-joints; the matching ``describe_*`` function (same arguments plus the robot
+path is one call of a C text (fci/limits/_joint.c: the joint, safety and torque rules)
+or a fixed handful of numpy operations (the Cartesian rules), with no Python loop over
+robots or joints; the matching ``describe_*`` function (same arguments plus the robot
 index, called only for a violating robot) recomputes that robot's row and names
 the joint, value and limit for the log line (:class:`Violation`).
 

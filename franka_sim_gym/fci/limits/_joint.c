@@ -2,6 +2,7 @@
  * text (issue 38: one text per rule, compiled; fci/limits/joint.py, safety.py, torque.py hand
  * them the table's constants and name what they find):
  *
+ *   envelope_halves(q, constants, positional, shift, out)
  *   position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants,
  *                 positional, start_tolerance, shift, dt) -> (error, dq, ddq)
  *   velocity_rule(dq_c, <the same>) -> (error, ddq)
@@ -16,7 +17,7 @@
  * tests hold each to the documented behaviour (tests/fci/test_joint_rules*.py,
  * test_safety_rules.py, test_torque_rules.py).
  *
- * Every constant is an argument: ``constants`` is joint.py's joint_constants(table), the
+ * Every constant is an argument: ``constants`` is RobotTable.joint_constants, the
  * rows q_lower, q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max of
  * fci/tables.py; ``positional`` 0 for a robot whose envelope is the constant dq_max (the
  * FER); ``shift`` the envelope's tolerance; ``dt`` the cycle (fci/tables.py DELTA_T).
@@ -196,6 +197,54 @@ static int robot_in_range(Py_ssize_t i, Py_ssize_t n, const char *name)
     if (i >= 0 && i < n) return 0;
     PyErr_Format(PyExc_IndexError, "%s: robot %zd of %zd", name, i, n);
     return -1;
+}
+
+/* ---- the velocity envelope's law, for every caller ------------------------------------- */
+
+/* envelope_halves(q, constants, positional, shift, out)
+ *
+ * fci/tables.py RobotTable.velocity_envelope_halves, the law's only text (libfranka >= 0.18
+ * src/joint_velocity_limits.cpp, docs/limits.md §4): for each row of q (m, 7), out (m, 14)
+ * = [upper | -lower] of the envelope at q with ``shift`` in place of the tolerance (one
+ * number, or (m, 14) per bound: the caller's margins). ``out`` may be q's own storage (a
+ * doubled [q | q]): each joint's q is read before its two bounds are written. */
+static PyObject *envelope_halves(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    F64 q, c, shift, out;
+    PyObject *result = NULL;
+    memset(&q, 0, sizeof(q)), memset(&c, 0, sizeof(c));
+    memset(&shift, 0, sizeof(shift)), memset(&out, 0, sizeof(out));
+    if (check_nargs(nargs, 5, "envelope_halves") < 0) return NULL;
+    Py_ssize_t m = leading(args[0], "q");
+    if (m < 0) return NULL;
+    Py_ssize_t s7[2] = {m, 7}, s14[2] = {m, 14}, sc[2] = {N_CONSTANTS, 7};
+    double positional, shift_all = 0.0;
+    const int per_bound = PyObject_CheckBuffer(args[3]);
+    if (num_get(args[0], &q, 2, s7, 0, "q") < 0 ||
+        f64_get(args[1], &c, 2, sc, 0, "constants") < 0 ||
+        number(args[2], &positional, "positional") < 0 ||
+        (per_bound ? f64_get(args[3], &shift, 2, s14, 0, "shift")
+                   : number(args[3], &shift_all, "shift")) < 0 ||
+        f64_get(args[4], &out, 2, s14, 1, "out") < 0)
+        goto done;
+    for (Py_ssize_t i = 0; i < m; i++)
+        for (int j = 0; j < 7; j++) {
+            const double qj = num2(&q, i, j);
+            const double up = per_bound ? AT2(shift, i, j) : shift_all;
+            const double down = per_bound ? AT2(shift, i, j + 7) : shift_all;
+            const int pos = positional != 0.0;
+            /* envelope()'s two halves, each with its own shift */
+            const double upper = envelope_half(&c, j, AT2(c, Q_UPPER, j) - qj * 1.0, pos, up);
+            const double minus_lower =
+                envelope_half(&c, j, (-AT2(c, Q_LOWER, j)) - qj * -1.0, pos, down);
+            AT2(out, i, j) = upper;
+            AT2(out, i, j + 7) = minus_lower;
+        }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release(&q), f64_release(&c), f64_release(&shift), f64_release(&out);
+    return result;
 }
 
 /* ---- the joint-position and joint-velocity generators: the rules' only text ----------- */
@@ -812,6 +861,7 @@ done:
 }
 
 static PyMethodDef METHODS[] = {
+    METHOD(envelope_halves, "The velocity envelope [upper | -lower] at each row of q, into out."),
     METHOD(position_rule, "The latched error of every robot's q_c, and dq, ddq: (error, dq, ddq)."),
     METHOD(velocity_rule, "The latched error of every robot's dq_c, and ddq: (error, ddq)."),
     METHOD(position_detail, "Robot i's q_c error for the log line: (row, joint, value, limit)."),
@@ -823,4 +873,4 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_joint, "The joint rules' per-joint arithmetic, and the safety and torque rules whole (fci/limits).")
+KERNEL_MODULE(_joint, "The joint generators', safety controller's and torque interface's rules and the velocity envelope: their only text (fci/limits).")

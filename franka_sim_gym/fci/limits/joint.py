@@ -67,41 +67,19 @@ _VELOCITY_ROWS = (
     (_E.joint_motion_generator_velocity_limits_violation, "velocity", "dq_c", "rad/s"),
 )
 
-_CONSTANTS: dict[int, tuple[RobotTable, np.ndarray, float]] = {}
-
-
-def joint_constants(table: RobotTable) -> tuple[np.ndarray, float]:
-    """The table's joint limits as the C texts take them: (7, 7) rows q_lower,
-    q_upper, ddq_max, dddq_max, 2 ddq_decel, dq_offset, dq_max, and 1.0 where the envelope
-    depends on the position (0.0: the constant dq_max of a robot without offsets)."""
-    cached = _CONSTANTS.get(id(table))
-    if cached is None or cached[0] is not table:
-        positional = table.dq_offset is not None
-        zero = np.zeros(7)
-        rows = (
-            table.q_lower,
-            table.q_upper,
-            table.ddq_max,
-            table.dddq_max,
-            2.0 * table.ddq_decel if positional else zero,
-            table.dq_offset if positional else zero,
-            table.dq_max,
-        )
-        cached = (table, np.ascontiguousarray(np.stack(rows), dtype=np.float64), float(positional))
-        cached[1].setflags(write=False)
-        _CONSTANTS[id(table)] = cached
-    return cached[1], cached[2]
-
 
 def _arguments(table: RobotTable, start_tolerance: float) -> tuple:
     """The C texts' trailing arguments: constants, positional, tolerance, shift, dt."""
-    constants, positional = joint_constants(table)
+    constants, positional = table.joint_constants
     return constants, positional, start_tolerance, JOINT_VELOCITY_LIMIT_TOLERANCE, DELTA_T
 
 
 def _flags(first):
-    """``first`` as the C text reads it: a Python bool / int, or an array."""
-    return first if isinstance(first, bool | int | np.ndarray) else np.asarray(first, dtype=bool)
+    """``first`` as the C text reads it: a Python bool, or a bool array (anything else,
+    e.g. a list or a float array, converted as numpy's bool conversion reads it)."""
+    if isinstance(first, bool) or (isinstance(first, np.ndarray) and first.dtype == np.bool_):
+        return first
+    return np.asarray(first, dtype=bool)
 
 
 def _violation(rows, found) -> Violation | None:

@@ -19,7 +19,6 @@ import numpy as np
 from ... import native
 from ..errors import Error
 from ..tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
-from .joint import joint_constants
 from .record import Violation
 
 #: docs/fci-behaviour.md "joint_velocity_violation (3)": "The sim allows a 0.1 rad/s margin above
@@ -76,7 +75,7 @@ def check_safety(
         table: the robot's limits.
         margin: [rad/s] allowed beyond the envelope on either side.
     """
-    constants, positional = joint_constants(table)
+    constants, positional = table.joint_constants
     error, bad, count = RULES.safety_rule(
         dq, q, ee, ee_prev, constants, positional,
         JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T, in_motion,
@@ -99,7 +98,7 @@ def describe_safety(
     else the joint furthest outside its widened envelope, with the bound it crossed (the
     envelope bound widened by ``margin``).
     """
-    constants, positional = joint_constants(table)
+    constants, positional = table.joint_constants
     found = RULES.safety_detail(
         int(i), dq, q, ee, ee_prev, constants, positional,
         JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
