@@ -9,7 +9,9 @@ arm i seeded ``seed + i``: the same episodes as N single envs;
 arguments the model was trained with (``train_config.json`` next to the model, written
 by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g. by
 rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``; its observation
-normalisation, when rl-zoo3 saved one beside the model, is applied). Reports the success rate,
+normalisation, when rl-zoo3 saved one beside the model, is applied; an ensemble of
+``train_bc.py --ensemble K``, listed in train_config.json, loads as one policy acting on
+its members' mean action). Reports the success rate,
 the reflex terminations by the robot's error name, and the link's
 control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
@@ -65,6 +67,7 @@ def load_model(
     import torch
     from stable_baselines3 import PPO, SAC, TD3
 
+    from franka_sim_gym.training.ensemble import load_members
     from franka_sim_gym.training.sb3_zoo import with_normalization
 
     torch.set_num_threads(1)  # small networks: a thread pool costs more than it gives
@@ -74,9 +77,14 @@ def load_model(
     env_kwargs = dict(config.get("env_kwargs", {})) if env_kwargs is None else env_kwargs
     # HER's replay buffer needs an env (for its spaces) to load the model.
     env = gym.make(env_id, **env_kwargs)
-    model = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo].load(path, env=env, device="cpu")
-    # an rl-zoo3 run trained behind VecNormalize: its saved statistics, if any
-    model = with_normalization(model, path, env)
+    algorithm = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo]
+    model = load_members(
+        path, config.get("members", []), lambda p: algorithm.load(p, env=env, device="cpu")
+    )
+    # a run trained behind VecNormalize: its saved statistics, if any (an ensemble's,
+    # train_bc.py's, are saved once, beside its first member, for every member)
+    members = config.get("members", [])
+    model = with_normalization(model, Path(path).parent / members[0] if members else path, env)
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 
 

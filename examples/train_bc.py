@@ -15,6 +15,11 @@ env id and its arguments are the dataset's (``recover_environment``'s spec). Wri
 model.zip (with ``raw``: the normalisation, model/vecnormalize.pkl, where
 examples/evaluate.py finds it) and train_config.json to --out; last line
 ``bc: success_rate=<x> reflex_rate=<y> wall_s=<z>``.
+
+``--ensemble K`` fits K actors, member k from seed ``seed + 10,000 k`` (member 0 is the
+single actor of ``--seed``), and evaluates the mean of their actions
+(franka_sim_gym.training.ensemble); the members are saved as model.zip and
+model_member<k>.zip, listed in train_config.json, and load back as one policy.
 """
 
 from __future__ import annotations
@@ -41,9 +46,14 @@ def main() -> None:
         help="task: the task-frame features (object tasks, Cartesian interfaces); raw: the "
         "base-frame observation; auto: task where it applies",
     )
+    parser.add_argument(
+        "--ensemble", type=int, default=1, metavar="K", help="fit K actors, act on their mean"
+    )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument("--out", type=Path, default=Path("runs/bc"))
     args = parser.parse_args()
+    if args.ensemble < 1:
+        parser.error(f"--ensemble {args.ensemble}: an ensemble has at least one member")
 
     import gymnasium as gym
     import torch
@@ -51,6 +61,7 @@ def main() -> None:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     import franka_sim_gym  # noqa: F401  (registers the ids)
+    from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
@@ -76,37 +87,43 @@ def main() -> None:
         seed_normalization(venv, dataset)
         venv.training = False
         normalize = venv.normalize_obs
-    model = SAC(
-        "MultiInputPolicy", venv, buffer_size=1, seed=args.seed, policy_kwargs=policy_kwargs
-    )
     start = time.perf_counter()
-    losses = behaviour_cloning(
-        model.policy,
-        dataset,
-        args.steps,
-        args.batch_size,
-        args.lr,
-        seed=args.seed,
-        log_every=max(1, args.steps // 5),
-        normalize=normalize,
-    )
+    models, losses = [], []
+    for k in range(args.ensemble):
+        seed = member_seed(args.seed, k)
+        model = SAC("MultiInputPolicy", venv, buffer_size=1, seed=seed, policy_kwargs=policy_kwargs)
+        losses = behaviour_cloning(
+            model.policy,
+            dataset,
+            args.steps,
+            args.batch_size,
+            args.lr,
+            seed=seed,
+            log_every=max(1, args.steps // 5),
+            normalize=normalize,
+        )
+        models.append(model)
     wall = time.perf_counter() - start
     registered = gym.spec(spec.id).kwargs
     env_kwargs = {k: v for k, v in spec.kwargs.items() if k not in registered or registered[k] != v}
-    policy = model if normalize is None else NormalizedPolicy(model, venv)
+    policy = models[0] if len(models) == 1 else Ensemble(models)
+    policy = policy if normalize is None else NormalizedPolicy(policy, venv)
     result = evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=10_000)
     args.out.mkdir(parents=True, exist_ok=True)
-    model.save(args.out / "model.zip")
+    for k, model in enumerate(models):
+        model.save(args.out / member_file(k))
     if normalize is not None:
         stats = normalization_file(args.out / "model.zip")
         stats.parent.mkdir(exist_ok=True)
         venv.save(str(stats))
-    (args.out / "train_config.json").write_text(
-        json.dumps({"algo": "sac", "env_id": spec.id, "env_kwargs": env_kwargs}, indent=2)
-    )
+    config = {"algo": "sac", "env_id": spec.id, "env_kwargs": env_kwargs}
+    if len(models) > 1:
+        config["members"] = [member_file(k) for k in range(len(models))]
+    (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
     print(
         f"{spec.id} {env_kwargs}: {dataset.total_episodes} demonstrations, "
         f"{dataset.total_steps} steps; final loss {losses[-1]:.5f}"
+        + (f" (the last of {len(models)} members)" if len(models) > 1 else "")
     )
     print(f"reflexes by error: {result['reflexes_by_error'] or 'none'}")
     print(

@@ -301,17 +301,46 @@ def test_train_sb3_learns_from_a_dataset_and_saves_a_model_that_loads_without_it
     env.close()
 
 
-def test_train_bc_saves_a_policy_that_evaluate_and_where_it_fails_read(
+def test_train_bc_saves_an_ensemble_that_evaluate_and_where_it_fails_read(
     datasets_dir, tmp_path, monkeypatch, capsys
 ):
+    from franka_sim_gym.training import evaluation
+    from franka_sim_gym.training.ensemble import Ensemble
+
     record("tests/bc-v0", "FrankaFCI-v0", Smooth(), 3, env_kwargs=REFLEXES, num_envs=3)
     out = tmp_path / "bc"
     argv = ["train_bc.py", "--demos", "tests/bc-v0", "--steps", "20", "--net", "16"]
-    monkeypatch.setattr("sys.argv", [*argv, "--eval-episodes", "2", "--out", str(out)])
+    monkeypatch.setattr("sys.argv", [*argv, "--ensemble", "0", "--out", str(out)])
+    with pytest.raises(SystemExit):
+        load_example("train_bc").main()
+    assert "--ensemble 0: an ensemble has at least one member" in capsys.readouterr().err
+    argv += ["--ensemble", "2", "--eval-episodes", "2", "--out", str(out)]
+    monkeypatch.setattr("sys.argv", argv)
+    evaluated = []  # what train_bc.py evaluates: the ensemble, not its first member
+    real_evaluate = evaluation.evaluate
+    monkeypatch.setattr(
+        evaluation,
+        "evaluate",
+        lambda policy, *a, **k: evaluated.append(policy) or real_evaluate(policy, *a, **k),
+    )
     load_example("train_bc").main()
+    assert isinstance(evaluated[0].model, Ensemble) and len(evaluated[0].model.members) == 2
     assert capsys.readouterr().out.strip().splitlines()[-1].startswith("bc: success_rate=")
     model, config = load_example("evaluate").load_model(out / "model.zip")
     assert config == {"algo": "sac", "env_id": "FrankaFCI-v0", "env_kwargs": REFLEXES}
+    # two members from two seeds behind the dataset's normalisation (the reach's raw
+    # features), acting on the mean of their actions
+    ensemble = model.model
+    assert isinstance(ensemble, Ensemble) and len(ensemble.members) == 2
+    env = gym.make("FrankaFCI-v0", **REFLEXES)
+    obs, _ = env.reset(seed=3)
+    env.close()
+    seen = model.normalization.normalize_obs(obs)
+    first, second = (m.predict(seen, deterministic=True)[0] for m in ensemble.members)
+    assert not np.array_equal(first, second)
+    np.testing.assert_array_equal(model.predict(obs)[0], np.mean([first, second], axis=0))
+    alone, _ = load_example("evaluate").load_model(out / "model_member1.zip")
+    np.testing.assert_array_equal(alone.predict(obs, deterministic=True)[0], second)
     rows = load_example("where_it_fails").run(model, "FrankaFCI-v0", REFLEXES, 3, seed=0)
     assert len(rows) == 3 and {r["end"] for r in rows} <= {"success", "reflex", "time limit"}
     for row in rows:
