@@ -19,9 +19,9 @@ import mujoco
 import numpy as np
 import smoke  # benchmarks/smoke.py: --smoke
 
-from franka_sim_gym.fci.collision import ACCELERATION_PHASE, accelerating
+from franka_sim_gym.fci.collision import ACCELERATION_PHASE
 from franka_sim_gym.fci.config import ControllerConfig
-from franka_sim_gym.fci.contact import ALPHA, KERNEL, RESOLUTION_DECIMALS, WRENCH_DAMPING
+from franka_sim_gym.fci.contact import ALPHA, RESOLUTION_DECIMALS, RULES, WRENCH_DAMPING
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from franka_sim_gym.native import describe
@@ -161,7 +161,7 @@ def motion_rate(n: int, seconds: float) -> float:
     SAFETY[n] = (1e6 / safety, cycles / safety)
     # What the robot senses of contact (fci/contact_sensing.py), every cycle: the model
     # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K
-    # and the collision thresholds (one C call where fci/_contact.c is built).
+    # and the collision thresholds (one C call: fci/_contact.c sense).
     contact, field = ctrl.contact, ctrl.contact.field
     in_motion = ctrl.modes.in_motion
     sensing = rate(lambda: contact.sense(in_motion, None), seconds / 4)
@@ -170,22 +170,16 @@ def motion_rate(n: int, seconds: float) -> float:
     bias, m_ddq = dynamics.bias().copy(), np.zeros((n, 7))
     jacobian = dynamics.jacobian(contact.k_point).copy()
     tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
-    if KERNEL is not None:
-        estimate = contact.estimator.tau_ext.copy()
-        outputs = tuple(field[k] for k in ("K_F_ext_hat_K", "joint_contact", "cartesian_contact"))
-        args = (
-            estimate, ctrl.physics.tau_J, m_ddq, bias, jacobian, contact.k_rotation, ddq_d,
-            in_motion, contact.behavior.thresholds, ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS,
-            ACCELERATION_PHASE, tau, wrench, *outputs,
-        )  # fmt: skip
-        step = rate(lambda: KERNEL.sense(*args), seconds / 4)
-        STEP_SHARE[n] = cycles / step
-    # The detector in numpy: the thresholds' comparisons (the path without the C step,
-    # and where a collision is reported).
-    detect = rate(
-        lambda: contact.behavior.levels(tau, wrench, accelerating(ddq_d, in_motion)), seconds / 4
-    )
-    DETECTOR_SHARE[n] = cycles / detect
+    estimate = contact.estimator.tau_ext.copy()
+    outputs = tuple(field[k] for k in ("K_F_ext_hat_K", "joint_contact", "cartesian_contact"))
+    levels = (contact.joint_over.copy(), contact.cartesian_over.copy(), contact.accelerating.copy())
+    args = (
+        estimate, ctrl.physics.tau_J, m_ddq, bias, jacobian, contact.k_rotation, ddq_d,
+        in_motion, contact.behavior.thresholds, ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS,
+        ACCELERATION_PHASE, tau, wrench, *outputs, *levels,
+    )  # fmt: skip
+    step = rate(lambda: RULES.sense(*args), seconds / 4)
+    STEP_SHARE[n] = cycles / step
     return cycles
 
 
@@ -260,8 +254,6 @@ SAFETY: dict[int, tuple[float, float]] = {}
 SENSING_SHARE: dict[int, float] = {}
 #: per n: the C step's share (estimate, wrench, thresholds: fci/_contact.c sense)
 STEP_SHARE: dict[int, float] = {}
-#: per n: the collision detector's comparisons' share in numpy
-DETECTOR_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -302,8 +294,6 @@ def main() -> None:
         )
     for n, share in STEP_SHARE.items():
         print(f"  of which the C step (estimate, wrench at K, thresholds), n={n}: {share:.1%}")
-    for n, share in DETECTOR_SHARE.items():
-        print(f"the thresholds' comparisons in numpy (no kernels, in contact), n={n}: {share:.1%}")
     if args.breakdown:
         pieces, total, bare_us = breakdown(16, blocks=20 if args.smoke else 500)
         print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")

@@ -1,7 +1,7 @@
-/* C replacements of the contact estimate's rules (fci/contact.py), each with the numpy
- * rule's arguments and ``out`` given, chosen by the backend switch (native.load,
- * contact.py RULES); every constant (the filter's gain, the damping, the published
- * decimals, collision.py's acceleration phase) is an argument:
+/* The contact estimate's and the collision levels' rules: their only text (issue 38: one
+ * text per rule, compiled; fci/contact.py, fci/contact_sensing.py and fci/collision.py hand
+ * them the state and the constants). Every constant (the filter's gain, the damping, the
+ * published decimals, collision.py's acceleration phase) is an argument:
  *
  *   filter_residual(tau_ext, tau_J, m_ddq, bias, alpha, decimals, out)
  *       tau_ext += alpha (tau_J - (m_ddq + bias) - tau_ext), in place; out its rounding
@@ -10,20 +10,16 @@
  *   in_frame(wrench, rotation, decimals, out)
  *       [f R, m R] (R^T f, R^T m), rounded
  *   k_frame(O_T_EE, EE_T_K, point, rotation)
- *       K's origin and axes in the base frame (numpy's BLAS product to rounding; the
- *       same bits while EE_T_K is the identity)
+ *       K's origin and axes in the base frame, O_T_K = O_T_EE EE_T_K
  *   sense(...)
  *       contact_sensing.py's step after the model terms, one call per cycle: the three
- *       rules above per robot, then the collision levels (collision.py) on the published
- *       values, the contact flags written (the same flags as numpy on the same values)
+ *       rules above per robot, then the collision levels (collision.py's thresholds and
+ *       phases) on the published values: the contact flags, the flags over an upper
+ *       threshold and the phase written, the robots over one counted
  *
- * Rounding is numpy's np.round: rint(x 10^d) / 10^d; the wrenches publish a negative
- * zero as zero. filter_residual is elementwise in the numpy rule's order, built without fused
- * multiply-adds (setup.py): the same bits as numpy. The products and the 6 x 6 solve
- * (an elimination with partial pivoting, where numpy calls BLAS and LAPACK) agree with
- * numpy to rounding (~1e-15 relative), so the published, rounded wrench is the same
- * except for a value within ~1e-15 of a rounding boundary
- * (tests/fci/test_contact_parity.py). */
+ * Rounding is numpy's np.round: rint(x 10^d) / 10^d; the wrenches publish a negative zero
+ * as zero. Built without fused multiply-adds (setup.py). The 6 x 6 solve is an
+ * elimination with partial pivoting (_solve6.h). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -252,25 +248,31 @@ enum { LOWER_TORQUE = 0, UPPER_TORQUE = 7, LOWER_FORCE = 14, UPPER_FORCE = 20, T
 
 /* sense(tau_ext, tau_J, m_ddq, bias, jacobian, rotation, ddq_d, in_motion, thresholds,
  *       alpha, damping, decimals, acceleration_phase,
- *       tau, wrench, k_wrench, joint_contact, cartesian_contact) -> int
+ *       tau, wrench, k_wrench, joint_contact, cartesian_contact,
+ *       joint_over, cartesian_over, accelerating) -> int
  * The whole step of fci/contact_sensing.py ContactSensing.sense after the model terms:
  * filter_residual into tau, wrench_from_torque into wrench, in_frame into k_wrench, then
- * collision.accelerating and CollisionBehavior.levels on the published tau and wrench:
- * the contact flags (1.0 / 0.0) written, the number of robots over an upper threshold
- * returned. (n, 7) / (n, 6) each; jacobian (n, 6, 7), rotation (n, 3, 3), in_motion (n,)
- * bool, thresholds (n, 2, 26). */
+ * the collision levels (fci/collision.py: SetCollisionBehavior's thresholds) on the
+ * published tau and wrench. A robot is in its acceleration phase when it is in motion and
+ * some |ddq_d| is above ``acceleration_phase`` (a NaN is not); each |tau_j| and |F_c| is
+ * compared with its lower threshold (``*_contact``, 1.0 / 0.0) and its upper one
+ * (``*_over``, 1.0 / 0.0) of that phase, strictly ("above": a value at a threshold is
+ * not, a NaN never is). Returns the number of robots over an upper threshold. (n, 7) /
+ * (n, 6) each; jacobian (n, 6, 7), rotation (n, 3, 3), in_motion (n,) bool, thresholds
+ * (n, 2, 26), accelerating (n,) uint8 written. */
 static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
     enum { TAU_EXT, TAU_J, M_DDQ, BIAS, JAC, ROT, DDQ_D, LIMITS, TAU, WRENCH, K_WRENCH,
-           JOINT_CONTACT, CARTESIAN_CONTACT, COUNT };
+           JOINT_CONTACT, CARTESIAN_CONTACT, JOINT_OVER, CARTESIAN_OVER, COUNT };
     F64 a[COUNT];
     memset(a, 0, sizeof(a));
-    Bytes in_motion;
+    Bytes in_motion, phase_out;
     memset(&in_motion, 0, sizeof(in_motion));
+    memset(&phase_out, 0, sizeof(phase_out));
     PyObject *result = NULL;
     double alpha, damping, scale, phase_bound;
-    if (check_nargs(nargs, 18, "sense") < 0) return NULL;
+    if (check_nargs(nargs, 21, "sense") < 0) return NULL;
     Py_ssize_t n = leading(args[0], "tau_ext");
     if (n < 0) return NULL;
     Py_ssize_t s7[2] = {n, 7}, s6[2] = {n, 6}, s67[3] = {n, 6, 7}, s33[3] = {n, 3, 3},
@@ -291,7 +293,10 @@ static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         f64_get(args[14], &a[WRENCH], 2, s6, 1, "wrench") < 0 ||
         f64_get(args[15], &a[K_WRENCH], 2, s6, 1, "k_wrench") < 0 ||
         f64_get(args[16], &a[JOINT_CONTACT], 2, s7, 1, "joint_contact") < 0 ||
-        f64_get(args[17], &a[CARTESIAN_CONTACT], 2, s6, 1, "cartesian_contact") < 0)
+        f64_get(args[17], &a[CARTESIAN_CONTACT], 2, s6, 1, "cartesian_contact") < 0 ||
+        f64_get(args[18], &a[JOINT_OVER], 2, s7, 1, "joint_over") < 0 ||
+        f64_get(args[19], &a[CARTESIAN_OVER], 2, s6, 1, "cartesian_over") < 0 ||
+        bytes_get(args[20], &phase_out, n, 1, "accelerating") < 0)
         goto done;
     long over = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
@@ -299,24 +304,29 @@ static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         filter_row(&a[TAU_EXT], &a[TAU_J], &a[M_DDQ], &a[BIAS], i, alpha, scale, tau);
         wrench_row(&a[JAC], i, tau, damping, scale, w);
         frame_row(&a[ROT], i, w, scale, k);
-        /* collision.accelerating: in motion and some |ddq_d| above the bound (a NaN is not) */
+        /* the acceleration phase: in motion and some |ddq_d| above the bound (a NaN is not) */
         int accelerating = 0;
         if (BYTE1(in_motion, i))
             for (int j = 0; j < 7; j++) accelerating |= fabs(num2(&a[DDQ_D], i, j)) > phase_bound;
-        int p = accelerating ? 0 : 1;
+        phase_out.data[i * phase_out.stride] = (char)accelerating;
+        int p = accelerating ? 0 : 1; /* thresholds: phase 0 acceleration, 1 nominal */
         int crossed = 0;
         for (int j = 0; j < 7; j++) {
             double size = fabs(tau[j]);
+            int over = size > AT3(a[LIMITS], i, p, UPPER_TORQUE + j);
             AT2(a[TAU], i, j) = tau[j];
             AT2(a[JOINT_CONTACT], i, j) = size > AT3(a[LIMITS], i, p, LOWER_TORQUE + j);
-            crossed |= size > AT3(a[LIMITS], i, p, UPPER_TORQUE + j);
+            AT2(a[JOINT_OVER], i, j) = over;
+            crossed |= over;
         }
         for (int c = 0; c < 6; c++) {
             double size = fabs(w[c]);
+            int over = size > AT3(a[LIMITS], i, p, UPPER_FORCE + c);
             AT2(a[WRENCH], i, c) = w[c];
             AT2(a[K_WRENCH], i, c) = k[c];
             AT2(a[CARTESIAN_CONTACT], i, c) = size > AT3(a[LIMITS], i, p, LOWER_FORCE + c);
-            crossed |= size > AT3(a[LIMITS], i, p, UPPER_FORCE + c);
+            AT2(a[CARTESIAN_OVER], i, c) = over;
+            crossed |= over;
         }
         over += crossed;
     }
@@ -324,16 +334,17 @@ static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 done:
     f64_release_all(a, COUNT);
     bytes_release(&in_motion);
+    bytes_release(&phase_out);
     return result;
 }
 
 static PyMethodDef METHODS[] = {
-    METHOD(filter_residual, "contact.filter_residual, out given."),
-    METHOD(wrench_from_torque, "contact.wrench_from_torque, out given."),
-    METHOD(in_frame, "contact.in_frame, out given."),
-    METHOD(k_frame, "contact.k_frame, out given."),
-    METHOD(sense, "contact_sensing: the estimate, the wrench at K and the contact flags."),
+    METHOD(filter_residual, "One step of the estimate's filter, out given."),
+    METHOD(wrench_from_torque, "The wrench at the Jacobian's point, out given."),
+    METHOD(in_frame, "A wrench in a frame's axes, out given."),
+    METHOD(k_frame, "The frame K from O_T_EE and EE_T_K."),
+    METHOD(sense, "A cycle's estimate, wrench at K, contact and collision levels."),
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_contact, "C replacements of the contact estimate's rules (fci/contact.py).")
+KERNEL_MODULE(_contact, "The contact estimate's and the collision levels' rules: their only text (fci/).")

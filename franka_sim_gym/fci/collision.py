@@ -16,11 +16,13 @@ estimate (tau_ext_hat_filtered) with the joint thresholds and its external wrenc
 What the robot takes as its acceleration phase is not published; here a running
 motion whose commanded joint acceleration exceeds ``ACCELERATION_PHASE`` on any joint
 is in it, any other cycle nominal (a choice, docs/motion-limits.md).
+
+This module holds the thresholds (their defaults, what a payload may carry, each robot's
+configured ones). The comparisons, the phase and the flags are the cycle's sensing step,
+whose only text is C (fci/_contact.c ``sense``, called by fci/contact_sensing.py).
 """
 
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 
@@ -92,22 +94,13 @@ def four_argument_form(thresholds) -> dict[str, np.ndarray]:
     return values
 
 
-class Levels(NamedTuple):
-    """One cycle's verdicts, (n, 7) joints and (n, 6) Cartesian axes."""
-
-    joint_contact: np.ndarray
-    cartesian_contact: np.ndarray
-    joint_over: np.ndarray
-    cartesian_over: np.ndarray
-
-
 class CollisionBehavior:
     """The configured thresholds of n robots: (n, 2, 7) torques and (n, 2, 6) forces,
     phase 0 = acceleration, 1 = nominal; all four are views of :attr:`thresholds`."""
 
     def __init__(self, n: int) -> None:
         #: (n, 2, 26) per phase: lower torque (7), upper torque (7), lower force (6),
-        #: upper force (6), side by side (one array for the C replacement, fci/_contact.c)
+        #: upper force (6), side by side (one array for the C text, fci/_contact.c)
         self.thresholds = np.empty((n, 2, 26))
         self.lower_torque = self.thresholds[:, :, 0:7]
         self.upper_torque = self.thresholds[:, :, 7:14]
@@ -128,23 +121,3 @@ class CollisionBehavior:
             self.upper_torque[i, phase] = values[f"upper_torque_thresholds_{suffix}"]
             self.lower_force[i, phase] = values[f"lower_force_thresholds_{suffix}"]
             self.upper_force[i, phase] = values[f"upper_force_thresholds_{suffix}"]
-
-    def levels(self, tau_ext: np.ndarray, wrench: np.ndarray, accelerating: np.ndarray) -> Levels:
-        """Compare |tau_ext| (n, 7) and |O_F_ext_hat_K| (n, 6) with the thresholds of each
-        robot's phase (``accelerating``: (n,) bool)."""
-        if np.count_nonzero(accelerating):
-            phase = (np.arange(len(accelerating)), np.where(accelerating, 0, 1))
-        else:  # every robot nominal (always, between motions): no gather
-            phase = (slice(None), 1)
-        tau, force = np.abs(tau_ext), np.abs(wrench)
-        return Levels(
-            joint_contact=tau > self.lower_torque[phase],
-            cartesian_contact=force > self.lower_force[phase],
-            joint_over=tau > self.upper_torque[phase],
-            cartesian_over=force > self.upper_force[phase],
-        )
-
-
-def accelerating(ddq_d: np.ndarray, in_motion: np.ndarray) -> np.ndarray:
-    """(n,) bool: the robot is in its acceleration phase (see the module docstring)."""
-    return in_motion & (np.abs(ddq_d) > ACCELERATION_PHASE).any(axis=1)

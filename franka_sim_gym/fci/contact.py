@@ -25,34 +25,22 @@ velocity a real robot's noisy encoders make unusable; the simulation's velocitie
 carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
 
-The four rules (the filter step, the frame K, the wrench at K, its copy in K's axes) are
-written here in numpy, each with the signature of its C replacement in
-``fci/_contact.c``; :data:`RULES` is the C module where the backend switch loaded it
-(``native.load``), else :data:`NUMPY_RULES` (tests/fci/test_contact_parity.py holds the
-two together). The same module holds the C copy of the whole cycle's step
-(fci/contact_sensing.py).
+The rules (the filter step, the frame K, the wrench at K, its copy in K's axes, and the
+whole cycle's step with the collision levels, fci/contact_sensing.py) have one text, C:
+``fci/_contact.c`` (issue 38: one text per rule, compiled), :data:`RULES`.
 """
 
 from __future__ import annotations
 
-from types import ModuleType, SimpleNamespace
-
 import numpy as np
 
 from .. import native
-from .frames import from_wire
 from .tables import DELTA_T
 
 __all__ = [
-    "KERNEL",
-    "NUMPY_RULES",
     "RULES",
     "ExternalTorqueEstimator",
-    "filter_residual_core",
     "in_frame",
-    "in_frame_core",
-    "k_frame_core",
-    "wrench_core",
     "wrench_from_torque",
 ]
 
@@ -73,76 +61,10 @@ RESOLUTION_DECIMALS = 4
 WRENCH_DAMPING = 1e-8
 
 
-# -- the rules, numpy (the reference), each with its C replacement's signature ---------------
-
-
-def filter_residual_core(
-    tau_ext: np.ndarray,
-    tau_J: np.ndarray,
-    m_ddq: np.ndarray,
-    bias: np.ndarray,
-    alpha: float,
-    decimals: int,
-    out: np.ndarray,
-) -> np.ndarray:
-    """One step of the estimate's low-pass filter on the model residual, in place on
-    ``tau_ext`` (n, 7): tau_ext += alpha (tau_J - (M ddq + bias) - tau_ext); ``out`` the
-    filtered estimate rounded to ``decimals``."""
-    residual = tau_J - (m_ddq + bias)
-    tau_ext += alpha * (residual - tau_ext)
-    return np.round(tau_ext, decimals, out=out)
-
-
-def wrench_core(
-    jacobian: np.ndarray, tau: np.ndarray, damping: float, decimals: int, out: np.ndarray
-) -> np.ndarray:
-    """(n, 6) into ``out``: the wrench F with (J J^T + damping I) F = J tau, rounded to
-    ``decimals`` (no negative zero: the C replacement's solve may reach a zero from the
-    other side)."""
-    jjt = jacobian @ jacobian.transpose(0, 2, 1)
-    jjt += damping * _EYE6
-    out[...] = np.linalg.solve(jjt, jacobian @ tau[..., None])[..., 0]
-    np.round(out, decimals, out=out)
-    out += 0.0
-    return out
-
-
-def in_frame_core(
-    wrench: np.ndarray, rotation: np.ndarray, decimals: int, out: np.ndarray
-) -> np.ndarray:
-    """(n, 6) into ``out``: ``wrench`` in the axes of ``rotation`` (n, 3, 3), rounded
-    (as :func:`wrench_core`)."""
-    out.reshape(-1, 2, 3)[...] = wrench.reshape(-1, 2, 3) @ rotation
-    np.round(out, decimals, out=out)
-    out += 0.0
-    return out
-
-
-def k_frame_core(
-    O_T_EE: np.ndarray, EE_T_K: np.ndarray, point: np.ndarray, rotation: np.ndarray
-) -> None:
-    """The stiffness frame K in the base frame, O_T_K = O_T_EE · EE_T_K, from the wire's
-    (n, 16) column-major transforms: its origin into ``point`` (n, 3) and its axes into
-    ``rotation`` (n, 3, 3). (The C replacement sums each product in one fixed order, so
-    the two agree to rounding; exactly while EE_T_K is the identity, the default.)"""
-    O_T_K = from_wire(O_T_EE) @ from_wire(EE_T_K)
-    point[...] = O_T_K[:, :3, 3]
-    rotation[...] = O_T_K[:, :3, :3]
-
-
-_EYE6 = np.eye(6)
-
-#: The numpy rules, by the names their C replacements (fci/_contact.c) have.
-NUMPY_RULES = SimpleNamespace(
-    filter_residual=filter_residual_core,
-    wrench_from_torque=wrench_core,
-    in_frame=in_frame_core,
-    k_frame=k_frame_core,
+#: The rules' only text (fci/_contact.c; a required extension: there is no other).
+RULES = native.require(
+    "fci._contact", "filter_residual", "wrench_from_torque", "in_frame", "k_frame", "sense"
 )
-#: The C replacements (fci/_contact.c), or None where not built or switched off.
-KERNEL: ModuleType | None = native.load("fci._contact")
-#: The rules the estimate runs: the C replacements where loaded, else :data:`NUMPY_RULES`.
-RULES: ModuleType | SimpleNamespace = NUMPY_RULES if KERNEL is None else KERNEL
 
 
 def wrench_from_torque(

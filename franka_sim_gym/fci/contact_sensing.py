@@ -25,22 +25,11 @@ from ..sim.dynamics import ArmDynamics, weight_torque
 from . import contact
 from .collision import (
     ACCELERATION_PHASE,
-    DEFAULT_FORCE_THRESHOLDS,
-    DEFAULT_TORQUE_THRESHOLDS,
     THRESHOLD_NAMES,
     CollisionBehavior,
-    Levels,
-    accelerating,
     invalid_thresholds,
 )
-from .contact import (
-    ALPHA,
-    RESOLUTION_DECIMALS,
-    WRENCH_DAMPING,
-    ExternalTorqueEstimator,
-    in_frame,
-    wrench_from_torque,
-)
+from .contact import ALPHA, RESOLUTION_DECIMALS, WRENCH_DAMPING, ExternalTorqueEstimator
 from .engine import MotionLimitEngine
 from .errors import Error
 from .statuses import SetterStatus
@@ -81,14 +70,14 @@ class ContactSensing:
         self.enforce = enforce
         self.field = field
         self._gravity = np.asarray(physics.model.opt.gravity, dtype=float).copy()
-        #: No threshold of any robot (lower or upper, either phase) ever lay below these:
-        #: the defaults and every configured one. An estimate at or below both trips no
-        #: comparison, whatever the thresholds are now.
-        self.lowest_torque = min(DEFAULT_TORQUE_THRESHOLDS)
-        self.lowest_force = min(DEFAULT_FORCE_THRESHOLDS)
         #: The frame K of every robot this cycle: origin (n, 3) and axes (n, 3, 3).
         self.k_point = np.zeros((n, 3))
         self.k_rotation = np.zeros((n, 3, 3))
+        #: This cycle's components over an upper threshold, (n, 7) joints and (n, 6)
+        #: Cartesian axes (1.0 / 0.0), and the robots in their acceleration phase (n,).
+        self.joint_over = np.zeros((n, 7))
+        self.cartesian_over = np.zeros((n, 6))
+        self.accelerating = np.zeros(n, dtype=np.uint8)
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -136,10 +125,6 @@ class ContactSensing:
             log.warning("robot %d: SetCollisionBehavior rejected: %s", i, why)
             return SetterStatus.kInvalidArgumentRejected
         self.behavior.configure(i, values)
-        torque = [values[name].min() for name in THRESHOLD_NAMES if "torque" in name]
-        force = [values[name].min() for name in THRESHOLD_NAMES if "force" in name]
-        self.lowest_torque = min(self.lowest_torque, *torque)
-        self.lowest_force = min(self.lowest_force, *force)
         log.info(
             "robot %d: SetCollisionBehavior: upper thresholds %s Nm, %s N/Nm (nominal phase)",
             i,
@@ -162,52 +147,33 @@ class ContactSensing:
         if load_weight is not None:
             bias = bias + load_weight
         point, rotation = self.k_point, self.k_rotation
-        rules = contact.RULES  # the backend switch (contact.py)
+        rules = contact.RULES  # the rules' C text (fci/_contact.c)
         rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)
         jacobian = self.dynamics.jacobian(point)
         tau, wrench = f["tau_ext_hat_filtered"], f["O_F_ext_hat_K"]
-        if rules is not contact.NUMPY_RULES:
-            # The numpy steps below in one C call (fci/_contact.c sense, held to them by
-            # tests/fci/test_contact_parity.py): the flags written, the robots over an
-            # upper threshold counted.
-            over = rules.sense(
-                self.estimator.tau_ext, self.tau_J, m_ddq, bias, jacobian, rotation,
-                f["ddq_d"], in_motion, self.behavior.thresholds,
-                ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE,
-                tau, wrench, f["K_F_ext_hat_K"], f["joint_contact"], f["cartesian_contact"],
-            )  # fmt: skip
-            if not over:
-                return
-        else:
-            self.estimator.filter(self.tau_J, m_ddq, bias, tau)
-            wrench_from_torque(jacobian, tau, wrench)
-            in_frame(wrench, rotation, f["K_F_ext_hat_K"])
-            quiet = np.abs(tau).max() <= self.lowest_torque
-            if quiet and np.abs(wrench).max() <= self.lowest_force:
-                # At or below every threshold: no comparison (a strict ">") can trip, so
-                # the levels are all clear without comparing (a NaN fails this test and
-                # takes the comparisons).
-                f["joint_contact"][...] = 0.0
-                f["cartesian_contact"][...] = 0.0
-                return
-        phase = accelerating(f["ddq_d"], in_motion)
-        levels = self.behavior.levels(tau, wrench, phase)
-        f["joint_contact"][...] = levels.joint_contact
-        f["cartesian_contact"][...] = levels.cartesian_contact
-        if np.count_nonzero(levels.joint_over) or np.count_nonzero(levels.cartesian_over):
-            self._collide(levels, in_motion & self.engine.live(in_motion), phase, tau, wrench)
+        # The estimate, the wrench at K and in K's axes, the collision levels: one call.
+        over = rules.sense(
+            self.estimator.tau_ext, self.tau_J, m_ddq, bias, jacobian, rotation,
+            f["ddq_d"], in_motion, self.behavior.thresholds,
+            ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE,
+            tau, wrench, f["K_F_ext_hat_K"], f["joint_contact"], f["cartesian_contact"],
+            self.joint_over, self.cartesian_over, self.accelerating,
+        )  # fmt: skip
+        if over:
+            self._collide(in_motion & self.engine.live(in_motion), tau, wrench)
 
-    def _collide(self, levels: Levels, rows: np.ndarray, phase, tau, wrench) -> None:
+    def _collide(self, rows: np.ndarray, tau: np.ndarray, wrench: np.ndarray) -> None:
         """Latch the collision flags of the robots in motion (``rows``) that crossed an
-        upper threshold, and report 6 / 7 (one abort latching both when both)."""
+        upper threshold this cycle, and report 6 / 7 (one abort latching both when both)."""
         b = self.behavior
-        over = rows & (levels.joint_over.any(axis=1) | levels.cartesian_over.any(axis=1))
+        joint_over, cartesian_over = self.joint_over > 0, self.cartesian_over > 0
+        over = rows & (joint_over.any(axis=1) | cartesian_over.any(axis=1))
         for i in np.flatnonzero(over).tolist():
-            p = 0 if phase[i] else 1
+            p = 0 if self.accelerating[i] else 1
             checks = (
-                (Error.joint_reflex, "joint_collision", levels.joint_over[i], tau[i],
+                (Error.joint_reflex, "joint_collision", joint_over[i], tau[i],
                  b.upper_torque[i, p], [f"joint {j + 1}" for j in range(7)], "external torque"),
-                (Error.cartesian_reflex, "cartesian_collision", levels.cartesian_over[i],
+                (Error.cartesian_reflex, "cartesian_collision", cartesian_over[i],
                  wrench[i], b.upper_force[i, p], _AXES, "external wrench at K"),
             )  # fmt: skip
             bits = []

@@ -4,15 +4,14 @@ Two kinds. **Kernels** (``native.load``) replace one whole rule that still has a
 text: the same signature as the numpy function it stands in for, in that function's
 layer (``sim/_ik.c``: the IK solve; ``sim/_dynamics.c``: the Jacobian at a point;
 ``sim/_rows.c``: the loops copying every robot's MjData rows, no rule;
-``envs/_client_filters.c``: the libfranka client's filters; ``fci/_contact.c``: the
-contact estimate's rules, the frame K, and the whole sensing step after the model
-terms: estimate, wrench at K, collision levels), every constant passed in from the
-tables, never fused with the code of another layer; the numpy function stays the rule
-and a test holds the kernel to it.
+``envs/_client_filters.c``: the libfranka client's filters), every constant passed in
+from the tables, never fused with the code of another layer; the numpy function stays
+the rule and a test holds the kernel to it.
 **Required extensions** (``native.require``) hold rules whose only text is C (issue 38:
 ``fci/limits/_joint.c``: the joint-position and joint-velocity generators' precedence
 tables, the velocity envelope's law, the safety controller's errors 3 and 4 and the
-torque interface's 34 and 32): no numpy path, no switch (docs/architecture.md, "One
+torque interface's 34 and 32; ``fci/_contact.c``: the contact estimate, the wrench at
+K and the collision levels): no numpy path, no switch (docs/architecture.md, "One
 implementation per rule", says which rules are where and why).
 This package holds what they share: the switch, the loaders and the C headers
 ``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_rotation.h``,

@@ -1,7 +1,7 @@
 """The controller's results do not depend on the backend switch (FRANKA_SIM_GYM_NATIVE).
 
-The C replacements of its rules (fci/_contact.c) and of the model
-terms it reads (sim/_dynamics.c) are held to their numpy rules (docs/architecture.md,
+The C replacement of the model terms it reads (sim/_dynamics.c) is held to its numpy
+rule (docs/architecture.md,
 "One implementation per rule"): the same command streams give the same published
 states, bit for bit, with the optional kernels on and off. (A Cartesian stream goes
 through the IK, sim's, whose kernel agrees with the numpy solve to rounding; it is not
