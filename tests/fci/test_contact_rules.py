@@ -16,23 +16,13 @@ from franka_sim_gym.fci import contact
 from franka_sim_gym.fci.collision import (
     ACCELERATION_PHASE,
     DEFAULT_TORQUE_THRESHOLDS,
-    THRESHOLD_NAMES,
     CollisionBehavior,
 )
+from tests.fci.test_collision import payload
 
 C = contact.RULES
 DECIMALS = contact.RESOLUTION_DECIMALS
 HUGE = 1e9  # a threshold nothing reaches
-
-
-def payload(torque_lower, torque_upper, force_lower, force_upper, nominal_scale=1.0):
-    """An 8-array payload; the nominal phase's thresholds are the acceleration phase's
-    times ``nominal_scale`` (1: libfranka's 4-argument overload)."""
-    t_lo, t_up = np.full(7, torque_lower, float), np.full(7, torque_upper, float)
-    f_lo, f_up = np.full(6, force_lower, float), np.full(6, force_upper, float)
-    s = nominal_scale
-    arrays = (t_lo, t_up, t_lo * s, t_up * s, f_lo, f_up, f_lo * s, f_up * s)
-    return dict(zip(THRESHOLD_NAMES, arrays, strict=True))
 
 
 def sense(behavior, tau, ddq_d=None, in_motion=None):
