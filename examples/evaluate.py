@@ -78,12 +78,10 @@ def load_model(
     # HER's replay buffer needs an env (for its spaces) to load the model.
     env = gym.make(env_id, **env_kwargs)
     algorithm = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo]
-    model = load_members(
-        path, config.get("members", []), lambda p: algorithm.load(p, env=env, device="cpu")
-    )
+    members = config.get("members", [])  # train_bc.py --ensemble's
+    model = load_members(path, members, lambda p: algorithm.load(p, env=env, device="cpu"))
     # a run trained behind VecNormalize: its saved statistics, if any (an ensemble's,
     # train_bc.py's, are saved once, beside its first member, for every member)
-    members = config.get("members", [])
     model = with_normalization(model, Path(path).parent / members[0] if members else path, env)
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 

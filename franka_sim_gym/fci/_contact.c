@@ -313,20 +313,20 @@ static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         int crossed = 0;
         for (int j = 0; j < 7; j++) {
             double size = fabs(tau[j]);
-            int over = size > AT3(a[LIMITS], i, p, UPPER_TORQUE + j);
+            int hit = size > AT3(a[LIMITS], i, p, UPPER_TORQUE + j);
             AT2(a[TAU], i, j) = tau[j];
             AT2(a[JOINT_CONTACT], i, j) = size > AT3(a[LIMITS], i, p, LOWER_TORQUE + j);
-            AT2(a[JOINT_OVER], i, j) = over;
-            crossed |= over;
+            AT2(a[JOINT_OVER], i, j) = hit;
+            crossed |= hit;
         }
         for (int c = 0; c < 6; c++) {
             double size = fabs(w[c]);
-            int over = size > AT3(a[LIMITS], i, p, UPPER_FORCE + c);
+            int hit = size > AT3(a[LIMITS], i, p, UPPER_FORCE + c);
             AT2(a[WRENCH], i, c) = w[c];
             AT2(a[K_WRENCH], i, c) = k[c];
             AT2(a[CARTESIAN_CONTACT], i, c) = size > AT3(a[LIMITS], i, p, LOWER_FORCE + c);
-            AT2(a[CARTESIAN_OVER], i, c) = over;
-            crossed |= over;
+            AT2(a[CARTESIAN_OVER], i, c) = hit;
+            crossed |= hit;
         }
         over += crossed;
     }

@@ -116,27 +116,29 @@ def require(name: str, *functions: str) -> ModuleType:
     return module
 
 
-#: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``).
+#: The kernel modules setup.py builds (one per ``<layer>/_<name>.c``) that the switch
+#: chooses against a numpy text.
 MODULES = (
     "sim._ik",
     "sim._dynamics",
     "sim._rows",
     "envs._client_filters",
-    "fci.limits._joint",
-    "fci._contact",
 )
+#: The extensions holding rules whose only text is C (``require``): always in use.
+REQUIRED = ("fci.limits._joint", "fci._contact")
 
 
 def loaded() -> dict[str, bool]:
-    """Which kernel modules are in use (for benchmarks and bug reports)."""
+    """Which switchable kernel modules are in use (for benchmarks and bug reports)."""
     return {name: load(name) is not None for name in MODULES}
 
 
 def describe() -> str:
-    """One line for a benchmark's header: which kernels ran."""
+    """One line for a benchmark's header: which kernels ran (the required extensions
+    always do)."""
     state = ", ".join(f"{name} {'on' if on else 'off'}" for name, on in loaded().items())
     switch = "" if ENABLED else " (FRANKA_SIM_GYM_NATIVE=0)"
-    return f"C kernels: {state}{switch}"
+    return f"C kernels: {state}{switch}; required: {', '.join(REQUIRED)}"
 
 
-__all__ = ["ENABLED", "MODULES", "describe", "load", "loaded", "require"]
+__all__ = ["ENABLED", "MODULES", "REQUIRED", "describe", "load", "loaded", "require"]

@@ -252,8 +252,8 @@ done:
 /* position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants, positional,
  *               start_tolerance, shift, dt) -> (error, dq, ddq)
  * velocity_rule(dq_c, <the same>) -> (error, ddq)
- * position_detail(i, <position_rule's arguments>) -> None | (row, joint, value, limit)
- * velocity_detail(i, <velocity_rule's arguments>) -> None | (row, joint, value, limit)
+ * position_detail(i, <position_rule's arguments>) -> None | (error, row, joint, value, limit)
+ * velocity_detail(i, <velocity_rule's arguments>) -> None | (error, row, joint, value, limit)
  *
  * docs/fci-behaviour.md "What is checked, and what it latches": each generator's rows in
  * precedence order, the first row that trips on any joint latching its error (one per robot;
@@ -510,7 +510,7 @@ static PyObject *joint_detail(PyObject *const *args, Py_ssize_t nargs, const Gen
         if (!(bits[j] & (1u << k))) continue;
         double value = t[j].value[k];
         if (!isfinite(value)) { /* no distance to a bound: the first such joint */
-            result = Py_BuildValue("(iidd)", k, j, value, NAN);
+            result = Py_BuildValue("(Liidd)", g->codes[k], k, j, value, NAN);
             goto done;
         }
         double x = nan_max(value - t[j].upper[k], t[j].lower[k] - value);
@@ -520,7 +520,7 @@ static PyObject *joint_detail(PyObject *const *args, Py_ssize_t nargs, const Gen
     double value = w->value[k];
     int above = value - w->upper[k] >= w->lower[k] - value;
     double limit = (above || (g->symmetric >> k & 1u)) ? w->upper[k] : w->lower[k];
-    result = Py_BuildValue("(iidd)", k, worst, value, limit);
+    result = Py_BuildValue("(Liidd)", g->codes[k], k, worst, value, limit);
 done:
     joint_release(&r);
     return result;
@@ -864,8 +864,8 @@ static PyMethodDef METHODS[] = {
     METHOD(envelope_halves, "The velocity envelope [upper | -lower] at each row of q, into out."),
     METHOD(position_rule, "The latched error of every robot's q_c, and dq, ddq: (error, dq, ddq)."),
     METHOD(velocity_rule, "The latched error of every robot's dq_c, and ddq: (error, ddq)."),
-    METHOD(position_detail, "Robot i's q_c error for the log line: (row, joint, value, limit)."),
-    METHOD(velocity_detail, "Robot i's dq_c error for the log line: (row, joint, value, limit)."),
+    METHOD(position_detail, "Robot i's q_c error for the log line: (error, row, joint, value, limit)."),
+    METHOD(velocity_detail, "Robot i's dq_c error for the log line: (error, row, joint, value, limit)."),
     METHOD(safety_rule, "Errors 3 and 4 of every robot, 4 over 3: (error, bad, count)."),
     METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
     METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),

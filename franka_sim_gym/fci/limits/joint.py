@@ -30,11 +30,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ... import native
-from ..errors import Error
 from ..tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from .record import Violation
-
-_E = Error
 
 #: the C text of the rules (a required extension: there is no other)
 RULES = native.require(
@@ -43,28 +40,23 @@ RULES = native.require(
 
 # The rows' names for the log line, in the C text's precedence order (_joint.c: the
 # rows, their errors and their order live there; docs/fci-behaviour.md "What is checked,
-# and what it latches"). q_c: 12 comes before 11 ("Start-pose outranks every
-# discontinuity ... It does not outrank the joint-range check": a sim ordering, no
-# hardware evidence), 11 before every discontinuity, and the discontinuity (14) before the
-# envelope (13) ("a 1 rad step in q_c is 14, never 13"); 15 last, as docs/motion-limits.md
-# lists it. dq_c: both the first and the second difference are 15 ("Which discontinuity
-# you get depends on the interface": "a 50 rad/s step in dq_c is 15, never 13 or 14"),
-# every discontinuity before the envelope (13); the non-finite row is ours, first.
-# (error, check, signal, unit) by row.
-_START_VELOCITY = ("start velocity", "dq_c - dq_d", "rad/s")
+# and what it latches"). q_c: 12 range, 11 start pose, 14 acceleration, 13 the envelope,
+# 15 jerk ("a 1 rad step in q_c is 14, never 13"). dq_c: 13 non-finite (ours, first), 15
+# start velocity, acceleration and jerk ("a 50 rad/s step in dq_c is 15, never 13 or 14"),
+# 13 the envelope. (check, signal, unit) by row.
 _POSITION_ROWS = (
-    (_E.joint_motion_generator_position_limits_violation, "range", "q_c", "rad"),
-    (_E.joint_position_motion_generator_start_pose_invalid, "start pose", "q_c - q_d", "rad"),
-    (_E.joint_motion_generator_velocity_discontinuity, "acceleration", "q_c", "rad/s^2"),
-    (_E.joint_motion_generator_velocity_limits_violation, "velocity", "q_c", "rad/s"),
-    (_E.joint_motion_generator_acceleration_discontinuity, "jerk", "q_c", "rad/s^3"),
+    ("range", "q_c", "rad"),
+    ("start pose", "q_c - q_d", "rad"),
+    ("acceleration", "q_c", "rad/s^2"),
+    ("velocity", "q_c", "rad/s"),
+    ("jerk", "q_c", "rad/s^3"),
 )
 _VELOCITY_ROWS = (
-    (_E.joint_motion_generator_velocity_limits_violation, "non-finite", "dq_c", "rad/s"),
-    (_E.joint_motion_generator_acceleration_discontinuity, *_START_VELOCITY),
-    (_E.joint_motion_generator_acceleration_discontinuity, "acceleration", "dq_c", "rad/s^2"),
-    (_E.joint_motion_generator_acceleration_discontinuity, "jerk", "dq_c", "rad/s^3"),
-    (_E.joint_motion_generator_velocity_limits_violation, "velocity", "dq_c", "rad/s"),
+    ("non-finite", "dq_c", "rad/s"),
+    ("start velocity", "dq_c - dq_d", "rad/s"),
+    ("acceleration", "dq_c", "rad/s^2"),
+    ("jerk", "dq_c", "rad/s^3"),
+    ("velocity", "dq_c", "rad/s"),
 )
 
 
@@ -85,8 +77,8 @@ def _flags(first):
 def _violation(rows, found) -> Violation | None:
     if found is None:
         return None
-    k, joint, value, limit = found
-    error, check, signal, unit = rows[k]
+    error, k, joint, value, limit = found
+    check, signal, unit = rows[k]
     if not np.isfinite(value):
         # NaN / inf has no distance to a bound (docs/fci-behaviour.md: a non-finite command is
         # "the limits violation of the generator"): the first such joint, limit NaN.
