@@ -246,6 +246,28 @@ def cartesian_rate(n: int, seconds: float, generator) -> float:
     return rate(motion(n, generator)[1], seconds)
 
 
+#: The breakdown's arm counts and issue 38's goal at each (a joint-position motion on the
+#: table against bare mj_step of the same worlds).
+BREAKDOWN_GOALS = {1: 0.2, 16: 0.7}
+
+
+def print_breakdown(n: int, goal: float, blocks: int) -> None:
+    """Where a joint-position cycle of ``n`` arms goes, and the cycle ``goal`` needs."""
+    pieces, total, bare_us = breakdown(n, blocks=blocks)
+    print(f"\nwhere a joint-position cycle goes, n={n} (us, wall clock, fastest of {blocks}):")
+    print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
+    print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
+    inner = {"bias", "mass_matrix", "jacobian"}
+    outer = sum(t for name, t in pieces.items() if name not in inner)
+    for name, label, _ in PIECES:
+        print(f"{label:<50}{pieces[name]:>8.1f}{pieces[name] / total:>8.1%}")
+    print(
+        f"{'other (controller glue, client loop)':<50}{total - outer:>8.1f}"
+        f"{(total - outer) / total:>8.1%}"
+    )
+    print(f"a ratio of {goal} (issue 38) needs a cycle of {bare_us / goal:.1f} us")
+
+
 #: per n: the accounting's share of one motion cycle
 ACCOUNTING_SHARE: dict[int, float] = {}
 #: per n: the safety controller's check, (CPU µs a call, its share of one motion cycle)
@@ -260,7 +282,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=2.0, help="measuring time per row")
     parser.add_argument(
-        "--breakdown", action="store_true", help="also time each piece of a cycle at n = 16"
+        "--breakdown", action="store_true", help="also time each piece of a cycle at n = 1, 16"
     )
     args = smoke.parse_args(parser, seconds=0.03, breakdown=True)
     rows = []
@@ -295,19 +317,8 @@ def main() -> None:
     for n, share in STEP_SHARE.items():
         print(f"  of which the C step (estimate, wrench at K, thresholds), n={n}: {share:.1%}")
     if args.breakdown:
-        pieces, total, bare_us = breakdown(16, blocks=20 if args.smoke else 500)
-        print("\nwhere a joint-position cycle goes, n=16 (us, wall clock, fastest of 500 blocks):")
-        print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
-        print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
-        inner = {"bias", "mass_matrix", "jacobian"}
-        outer = sum(t for name, t in pieces.items() if name not in inner)
-        for name, label, _ in PIECES:
-            print(f"{label:<50}{pieces[name]:>8.1f}{pieces[name] / total:>8.1%}")
-        print(
-            f"{'other (controller glue, client loop)':<50}{total - outer:>8.1f}"
-            f"{(total - outer) / total:>8.1%}"
-        )
-        print(f"a ratio of 0.55 needs a cycle of {bare_us / 0.55:.1f} us")
+        for n, goal in BREAKDOWN_GOALS.items():
+            print_breakdown(n, goal, blocks=20 if args.smoke else 500)
     by_name = {name: cycles for name, _, cycles in rows}
     n1 = by_name["controller joint-position motion, n=1"]
     n16 = by_name["controller joint-position motion, n=16"] * 16

@@ -1,6 +1,6 @@
-"""Shared by the Cartesian client-filter tests (tests/envs/test_cartesian_*.py) and the C
-kernel's (tests/envs/test_native_client.py): the FR3 limits libfranka rate-limits to, pose
-builders, and libfranka's own outputs on fixed inputs."""
+"""Shared by the Cartesian client-filter tests (tests/envs/test_cartesian_*.py): the FR3
+limits libfranka rate-limits to, pose builders, and libfranka's own outputs on fixed
+inputs."""
 
 from __future__ import annotations
 
@@ -75,8 +75,7 @@ def pose_from_rotvec(rotvec, t):
     return homogeneous(rotation_exp(np.array(rotvec, dtype=float)), t)
 
 
-#: (T_c, T_last, twist, dtwist, expected): libfranka's limitRate on poses (also the C
-#: kernel's test, tests/envs/test_native_client.py).
+#: (T_c, T_last, twist, dtwist, expected): libfranka's limitRate on poses.
 LIBFRANKA_POSE_LIMITER_CASES = [
     (
         pose_from_rotvec([0.3, -0.2, 0.1], [0.4, 0.1, 0.5]),

@@ -1,28 +1,29 @@
-/* C replacements of the env client's libfranka filter rules, each with the signature of
- * the numpy rule it replaces (envs/client_filters.py, envs/cartesian_filters.py), ``out``
- * given; envs/client_kernel.py selects them through the backend switch (native.load) and
- * hands over the constants (configure) from fci/tables.py and libfranka's
- * rate_limiting.h values in envs/cartesian_filters.py, so none is repeated here:
+/* libfranka's client-side filter rules, which the env's in-process client runs every cycle
+ * and envs/client_filters.py / envs/cartesian_filters.py expose with libfranka's checks:
+ * their only text (issue 38: one text per rule). envs/client_kernel.py loads the module
+ * (native.require) and hands over its constants (configure): fci/tables.py's cycle,
+ * libfranka's rate_limiting.h kNormEps and kFactorCartesianRotationPoseInterface, and
+ * sim/rotations.py's thresholds, so none is repeated here. Every rule takes (n, ...)
+ * arrays, ``out`` last:
  *
- *   lowpass_core(x, x_ref, gain, out)
- *   limit_velocities_core(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
- *   limit_positions_core(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
- *   limit_torques_core(tau_c, tau_last, d_max, out)
- *   limit_twist_core(twist_c, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out)
- *   cartesian_lowpass_core(T_c, T_ref, gain, out)
- *   limit_pose_core(T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out)
- *   reference_pose(O_T_EE_c, out)
+ *   lowpass(x, x_ref, gain, out)                               franka::lowpassFilter
+ *   limit_velocities(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
+ *   limit_positions(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
+ *   limit_torques(tau_c, tau_last, d_max, out)                 franka::limitRate (joints)
+ *   limit_twist(twist_c, twist_last, dtwist_last, limits, out)
+ *   limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out)   (Cartesian)
+ *   cartesian_lowpass(T_c, T_ref, gain, out)                   franka::cartesianLowpassFilter
+ *   reference_pose(O_T_EE_c, out)                              the state's pose, as read
  *
- * The low-pass filter and the joint, torque and twist rules are elementwise arithmetic in the numpy rule's order,
- * built without fused multiply-adds (setup.py); 3-vector dot products sum as numpy's
- * einsum sums three products, (x0 y0 + x2 y2) + x1 y1: the same bits as numpy on finite
- * inputs (tests/envs/test_native_client.py). The pose rules agree with numpy to rounding
- * (~1e-15), not bit for bit: they take libm's acos, atan2, sin and cos where numpy's SIMD
- * versions may round an ulp apart, and plain 3x3 products where numpy calls BLAS.
+ * (libfranka 0.21 src/lowpass_filter.cpp, src/rate_limiting.cpp; docs/limits.md §6.)
+ * Built without fused multiply-adds (setup.py); 3-vector dot products sum as
+ * (x0 y0 + x2 y2) + x1 y1, the order the deleted numpy text summed them in, so the
+ * env's command streams kept their bits when it went (the pose rules' trigonometry is
+ * libm's).
  *
- * Reference arrays may be the wire state's float32 fields (widened exactly, as numpy's
- * asarray does). Inputs are assumed finite: the env validates its action, and the state
- * is the controller's own (the numpy rules' public wrappers raise libfranka's errors). */
+ * Reference arrays may be the wire state's float32 fields (widened exactly). Inputs are
+ * assumed finite: the env validates its action once, the state is the controller's own,
+ * and the public functions raise libfranka's errors before calling in. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -78,23 +79,17 @@ static inline double dot3(const double *x, const double *y)
     return (x[0] * y[0] + x[2] * y[2]) + x[1] * y[1];
 }
 
-/* A float argument, or -1 with the error set. */
-static int get_double(PyObject *obj, double *out)
-{
-    *out = PyFloat_AsDouble(obj);
-    return (*out == -1.0 && PyErr_Occurred()) ? -1 : 0;
-}
-
 /* ---- one call: its arguments checked and borrowed, then the rule row by row --------------- */
 
-/* How a rule takes argument k: a float, or a float64 array (NUM_IN: float32 too, the wire
- * state's fields; OUT: the writable result, always the last argument). */
-enum { FLOAT, F64_IN, NUM_IN, OUT };
+/* How a rule takes argument k: a float64 array (NUM_IN: float32 too, the wire state's
+ * fields; OUT: the writable result, always the last argument). A value the same for every
+ * robot (a limit, a gain) is a broadcast view: numpy's stride-0 arrays are read as such. */
+enum { F64_IN, NUM_IN, OUT };
 /* An array axis of length ROWS is the robot axis, COLS the columns: the first argument's
  * first and second axes (any length on the first argument itself). */
 #define ROWS (-1)
 #define COLS (-2)
-#define MAX_ARGS 11 /* the most a rule takes: limit_pose_core's */
+#define MAX_ARGS 9 /* the most a rule takes: limit_positions's */
 
 typedef struct {
     int kind, ndim;
@@ -105,7 +100,7 @@ typedef struct {
 typedef struct {
     const char *name;
     int configured; /* reads configure()'s constants */
-    void (*rows)(const F64 *a, const double *s, Py_ssize_t n); /* a[k] / s[k]: argument k */
+    void (*rows)(const F64 *a, Py_ssize_t n); /* a[k]: argument k */
     const Arg *args;
     int nargs;
 } Kernel;
@@ -116,16 +111,11 @@ static PyObject *call_kernel(const Kernel *kernel, PyObject *const *args, Py_ssi
         (kernel->configured && check_configured() < 0))
         return NULL;
     F64 a[MAX_ARGS];
-    double s[MAX_ARGS];
     memset(a, 0, sizeof(a));
     PyObject *result = NULL;
     Py_ssize_t n = -1, cols = -1; /* "any" until the first argument is read */
     for (int k = 0; k < kernel->nargs; k++) {
         const Arg *arg = &kernel->args[k];
-        if (arg->kind == FLOAT) {
-            if (get_double(args[k], &s[k]) < 0) goto done;
-            continue;
-        }
         Py_ssize_t shape[3];
         for (int d = 0; d < arg->ndim; d++)
             shape[d] = arg->shape[d] == ROWS ? n : arg->shape[d] == COLS ? cols : arg->shape[d];
@@ -138,19 +128,20 @@ static PyObject *call_kernel(const Kernel *kernel, PyObject *const *args, Py_ssi
             cols = a[0].ndim > 1 ? a[0].shape[1] : -1;
         }
     }
-    kernel->rows(a, s, n);
+    kernel->rows(a, n);
     result = Py_NewRef(a[kernel->nargs - 1].view.obj);
 done:
     f64_release_all(a, kernel->nargs);
     return result;
 }
 
-/* The arguments of a rule (ARRAY(kind, name, ndim, axes...) and SCALAR(name), in order)
+/* The arguments of a rule (ARRAY(kind, name, ndim, axes...), in order)
  * and the module function NAME that calls it: NAME_rows on every robot. */
 #define ARRAY(kind, name, ndim, ...) {kind, ndim, {__VA_ARGS__}, name}
-#define SCALAR(name) {FLOAT, 0, {0}, name}
 #define KERNEL(name, configured, ...)                                                     \
     static const Arg name##_args[] = {__VA_ARGS__};                                        \
+    /* (a rule of more than MAX_ARGS arguments does not compile) */                        \
+    typedef char name##_fits[sizeof(name##_args) / sizeof(Arg) <= MAX_ARGS ? 1 : -1];      \
     static const Kernel name##_kernel = {#name, configured, name##_rows, name##_args,      \
                                          (int)(sizeof(name##_args) / sizeof(Arg))};       \
     static PyObject *name(PyObject *self, PyObject *const *args, Py_ssize_t nargs)         \
@@ -161,24 +152,24 @@ done:
 
 /* ---- the low-pass filter -------------------------------------------------------------- */
 
-/* lowpass_core(x, x_ref, gain, out): (n, k) each (x_ref float32 or float64), gain a float:
- * gain * x + (1 - gain) * x_ref. */
-static void lowpass_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+/* lowpass(x, x_ref, gain, out): (n, k) each (x_ref float32 or float64; gain one per
+ * element, a broadcast view for one gain): gain * x + (1 - gain) * x_ref. */
+static void lowpass_rows(const F64 *a, Py_ssize_t n)
 {
     enum { X, REF, GAIN, RESULT };
-    const double gain = s[GAIN];
-    const double gain_ref = 1.0 - gain;
     for (Py_ssize_t i = 0; i < n; i++)
-        for (Py_ssize_t j = 0; j < a[X].shape[1]; j++)
-            put2(&a[RESULT], i, j, gain * AT2(a[X], i, j) + gain_ref * num2(&a[REF], i, j));
+        for (Py_ssize_t j = 0; j < a[X].shape[1]; j++) {
+            const double gain = AT2(a[GAIN], i, j);
+            put2(&a[RESULT], i, j, gain * AT2(a[X], i, j) + (1.0 - gain) * num2(&a[REF], i, j));
+        }
 }
-KERNEL(lowpass_core, 0, ARRAY(F64_IN, "x", 2, ROWS, COLS), ARRAY(NUM_IN, "x_ref", 2, ROWS, COLS),
-       SCALAR("gain"), ARRAY(OUT, "out", 2, ROWS, COLS))
+KERNEL(lowpass, 0, ARRAY(F64_IN, "x", 2, ROWS, COLS), ARRAY(NUM_IN, "x_ref", 2, ROWS, COLS),
+       ARRAY(F64_IN, "gain", 2, ROWS, COLS), ARRAY(OUT, "out", 2, ROWS, COLS))
 
 /* ---- joints and torques -------------------------------------------------------------- */
 
-/* limit_velocities_core / limit_positions_core: (n, 7) commands and history, (n, 7)
- * bounds, (7,) A and J. ``positions``: q_last leads the arguments. */
+/* limit_velocities / limit_positions: (n, 7) commands, history, bounds, A and J (a
+ * broadcast view for one A and J per joint). ``positions``: q_last leads the arguments. */
 static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
 {
     enum { C, QLAST };
@@ -189,7 +180,7 @@ static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
         for (int j = 0; j < 7; j++) {
             double q_last = positions ? num2(&a[QLAST], i, j) : 0.0;
             double v_last = num2(&r[VLAST], i, j), a_last = num2(&r[ALAST], i, j);
-            double a_max = AT1(r[AMAX], j), j_max = AT1(r[JMAX], j);
+            double a_max = AT2(r[AMAX], i, j), j_max = AT2(r[JMAX], i, j);
             double v_c = positions ? (AT2(a[C], i, j) - q_last) / dt : AT2(a[C], i, j);
             double jerk = (((v_c - v_last) / dt) - a_last) / dt;
             double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
@@ -204,38 +195,38 @@ static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
 #define JOINT_HISTORY_AND_LIMITS                                                          \
     ARRAY(NUM_IN, "v_last", 2, ROWS, 7), ARRAY(NUM_IN, "a_last", 2, ROWS, 7),             \
         ARRAY(F64_IN, "upper", 2, ROWS, 7), ARRAY(F64_IN, "lower", 2, ROWS, 7),           \
-        ARRAY(F64_IN, "a_max", 1, 7), ARRAY(F64_IN, "j_max", 1, 7),                       \
+        ARRAY(F64_IN, "a_max", 2, ROWS, 7), ARRAY(F64_IN, "j_max", 2, ROWS, 7),                       \
         ARRAY(OUT, "out", 2, ROWS, 7)
 
-static void limit_velocities_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+static void limit_velocities_rows(const F64 *a, Py_ssize_t n)
 {
-    (void)s;
     joint_rows(a, n, 0);
 }
-KERNEL(limit_velocities_core, 1, ARRAY(F64_IN, "command", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
+KERNEL(limit_velocities, 1, ARRAY(F64_IN, "command", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
-static void limit_positions_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+static void limit_positions_rows(const F64 *a, Py_ssize_t n)
 {
-    (void)s;
     joint_rows(a, n, 1);
 }
-KERNEL(limit_positions_core, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
+KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
        ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
-/* limit_torques_core(tau_c, tau_last, d_max, out): d_max a float. */
-static void limit_torques_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+/* limit_torques(tau_c, tau_last, d_max, out): (n, 7) each (d_max a broadcast view for
+ * one rate). */
+static void limit_torques_rows(const F64 *a, Py_ssize_t n)
 {
     enum { C, LAST, DMAX, RESULT };
-    const double dt = DT, d_max = s[DMAX];
+    const double dt = DT;
     for (Py_ssize_t i = 0; i < n; i++)
         for (int j = 0; j < 7; j++) {
-            double last = num2(&a[LAST], i, j);
+            double last = num2(&a[LAST], i, j), d_max = AT2(a[DMAX], i, j);
             double rate = (AT2(a[C], i, j) - last) / dt;
             put2(&a[RESULT], i, j, last + np_maximum(np_minimum(rate, d_max), -d_max) * dt);
         }
 }
-KERNEL(limit_torques_core, 1, ARRAY(F64_IN, "tau_c", 2, ROWS, 7),
-       ARRAY(NUM_IN, "tau_last", 2, ROWS, 7), SCALAR("d_max"), ARRAY(OUT, "out", 2, ROWS, 7))
+KERNEL(limit_torques, 1, ARRAY(F64_IN, "tau_c", 2, ROWS, 7),
+       ARRAY(NUM_IN, "tau_last", 2, ROWS, 7), ARRAY(F64_IN, "d_max", 2, ROWS, 7),
+       ARRAY(OUT, "out", 2, ROWS, 7))
 
 /* ---- the twist ----------------------------------------------------------------------- */
 
@@ -267,7 +258,7 @@ static void limit_norm(const double *v_c, const double *v_last, const double *a_
 }
 
 /* One twist through the limiter, both halves. */
-static void limit_twist(const double *x, const double *last, const double *dlast,
+static void twist_limited(const double *x, const double *last, const double *dlast,
                         const double limits[6], double *out)
 {
     for (int h = 0; h < 2; h++)
@@ -275,28 +266,29 @@ static void limit_twist(const double *x, const double *last, const double *dlast
                    limits[3 * h + 2], out + 3 * h);
 }
 
-/* limit_twist_core(twist_c, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out) */
-static void limit_twist_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+/* limit_twist(twist_c, twist_last, dtwist_last, limits, out): (n, 6) each; a robot's
+ * limits are (v, a, j, v_rot, a_rot, j_rot) (a broadcast view for one set). */
+static void limit_twist_rows(const F64 *a, Py_ssize_t n)
 {
-    enum { C, LAST, DLAST, LIMITS, RESULT = 9 };
+    enum { C, LAST, DLAST, LIMITS, RESULT };
     for (Py_ssize_t i = 0; i < n; i++) {
-        double x[6], last[6], dlast[6], limited[6];
+        double x[6], last[6], dlast[6], limits[6], limited[6];
         for (int k = 0; k < 6; k++) {
             x[k] = AT2(a[C], i, k);
             last[k] = num2(&a[LAST], i, k);
             dlast[k] = num2(&a[DLAST], i, k);
+            limits[k] = AT2(a[LIMITS], i, k);
         }
-        limit_twist(x, last, dlast, s + LIMITS, limited);
+        twist_limited(x, last, dlast, limits, limited);
         for (int k = 0; k < 6; k++) put2(&a[RESULT], i, k, limited[k]);
     }
 }
 
 #define TWIST_HISTORY_AND_LIMITS                                                          \
     ARRAY(NUM_IN, "twist_last", 2, ROWS, 6), ARRAY(NUM_IN, "dtwist_last", 2, ROWS, 6),    \
-        SCALAR("v"), SCALAR("a"), SCALAR("j"), SCALAR("v_rot"), SCALAR("a_rot"),          \
-        SCALAR("j_rot")
+        ARRAY(F64_IN, "limits", 2, ROWS, 6)
 
-KERNEL(limit_twist_core, 1, ARRAY(F64_IN, "twist_c", 2, ROWS, 6), TWIST_HISTORY_AND_LIMITS,
+KERNEL(limit_twist, 1, ARRAY(F64_IN, "twist_c", 2, ROWS, 6), TWIST_HISTORY_AND_LIMITS,
        ARRAY(OUT, "out", 2, ROWS, 6))
 
 /* ---- rotations (sim/rotations.py, one rotation at a time) ------------------------------ */
@@ -459,12 +451,13 @@ static void rotation_of(const double *T, double *R)
         for (int c = 0; c < 3; c++) R[3 * r + c] = T[4 * r + c];
 }
 
-/* cartesian_lowpass_core(T_c, T_ref, gain, out): (n, 4, 4) each, gain a float. */
-static void cartesian_lowpass_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+/* cartesian_lowpass(T_c, T_ref, gain, out): (n, 4, 4) poses, (n,) gains (a broadcast view
+ * for one gain). */
+static void cartesian_lowpass_rows(const F64 *a, Py_ssize_t n)
 {
     enum { C, REF, GAIN, RESULT };
-    const double gain = s[GAIN];
     for (Py_ssize_t i = 0; i < n; i++) {
+        const double gain = AT1(a[GAIN], i);
         double T_c[16], T_ref[16], R_c[9], R_ref[9], q_c[4], q_ref[4], q[4], R[9], F[16];
         pose_at(&a[C], i, T_c);
         pose_at(&a[REF], i, T_ref);
@@ -484,20 +477,22 @@ static void cartesian_lowpass_core_rows(const F64 *a, const double *s, Py_ssize_
         pose_put(&a[RESULT], i, F);
     }
 }
-KERNEL(cartesian_lowpass_core, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
-       ARRAY(F64_IN, "T_ref", 3, ROWS, 4, 4), SCALAR("gain"), ARRAY(OUT, "out", 3, ROWS, 4, 4))
+KERNEL(cartesian_lowpass, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
+       ARRAY(F64_IN, "T_ref", 3, ROWS, 4, 4), ARRAY(F64_IN, "gain", 1, ROWS),
+       ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
-/* limit_pose_core(T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out) */
-static void limit_pose_core_rows(const F64 *a, const double *s, Py_ssize_t n)
+/* limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out): (n, 4, 4) poses, (n, 6)
+ * twists and limits (the rotational ones unscaled: kFactorCartesianRotationPoseInterface
+ * is applied here). */
+static void limit_pose_rows(const F64 *a, Py_ssize_t n)
 {
-    enum { C, LAST, TW, DTW, LIMITS, RESULT = 10 };
-    double limits[6];
-    for (int k = 0; k < 3; k++) limits[k] = s[LIMITS + k];
-    for (int k = 3; k < 6; k++) limits[k] = ROTATION_POSE_FACTOR * s[LIMITS + k];
+    enum { C, LAST, TW, DTW, LIMITS, RESULT };
     const double dt = DT;
     for (Py_ssize_t i = 0; i < n; i++) {
         double T_c[16], T_last[16], R_c[9], R_last[9], R_diff[9], twist[6], last[6], dlast[6];
-        double limited[6], T[16];
+        double limited[6], T[16], limits[6];
+        for (int k = 0; k < 3; k++) limits[k] = AT2(a[LIMITS], i, k);
+        for (int k = 3; k < 6; k++) limits[k] = ROTATION_POSE_FACTOR * AT2(a[LIMITS], i, k);
         pose_at(&a[C], i, T_c);
         pose_at(&a[LAST], i, T_last);
         rotation_of(T_c, R_c);
@@ -510,7 +505,7 @@ static void limit_pose_core_rows(const F64 *a, const double *s, Py_ssize_t n)
         mat3_mul(R_c, R_last, 1, R_diff);
         rotation_log(R_diff, twist + 3);
         for (int k = 3; k < 6; k++) twist[k] /= dt;
-        limit_twist(twist, last, dlast, limits, limited);
+        twist_limited(twist, last, dlast, limits, limited);
         /* integrated over one cycle: exp(w dt) on the left where |w| > kNormEps */
         const double *w = limited + 3;
         double R[9];
@@ -529,16 +524,15 @@ static void limit_pose_core_rows(const F64 *a, const double *s, Py_ssize_t n)
         pose_put(&a[RESULT], i, T);
     }
 }
-KERNEL(limit_pose_core, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
+KERNEL(limit_pose, 1, ARRAY(F64_IN, "T_c", 3, ROWS, 4, 4),
        ARRAY(F64_IN, "T_last", 3, ROWS, 4, 4), TWIST_HISTORY_AND_LIMITS,
        ARRAY(OUT, "out", 3, ROWS, 4, 4))
 
 /* reference_pose(O_T_EE_c, out): (n, 16) column-major (float32 or float64) to (n, 4, 4)
  * row-major, each rotation its nearest rotation. */
-static void reference_pose_rows(const F64 *a, const double *s, Py_ssize_t n)
+static void reference_pose_rows(const F64 *a, Py_ssize_t n)
 {
     enum { WIRE, RESULT };
-    (void)s;
     for (Py_ssize_t i = 0; i < n; i++) {
         double T[16], R[9];
         for (int r = 0; r < 4; r++)
@@ -556,14 +550,21 @@ KERNEL(reference_pose, 0, ARRAY(NUM_IN, "O_T_EE_c", 2, ROWS, 16),
 static PyMethodDef METHODS[] = {
     METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, "
                       "series_below): the rules' constants."),
-    METHOD(lowpass_core, "client_filters.lowpass_core, out given."),
-    METHOD(limit_velocities_core, "client_filters.limit_velocities_core, out given."),
-    METHOD(limit_positions_core, "client_filters.limit_positions_core, out given."),
-    METHOD(limit_torques_core, "client_filters.limit_torques_core, out given."),
-    METHOD(limit_twist_core, "cartesian_filters.limit_twist_core, out given."),
-    METHOD(cartesian_lowpass_core, "cartesian_filters.cartesian_lowpass_core, out given."),
-    METHOD(limit_pose_core, "cartesian_filters.limit_pose_core, out given."),
-    METHOD(reference_pose, "cartesian_filters.reference_pose, out given."),
+    METHOD(lowpass, "lowpass(x, x_ref, gain, out): franka::lowpassFilter."),
+    METHOD(limit_velocities, "limit_velocities(v_c, v_last, a_last, upper, lower, a_max, "
+                             "j_max, out): franka::limitRate for joint velocities."),
+    METHOD(limit_positions, "limit_positions(q_c, q_last, v_last, a_last, upper, lower, "
+                            "a_max, j_max, out): franka::limitRate for joint positions."),
+    METHOD(limit_torques, "limit_torques(tau_c, tau_last, d_max, out): franka::limitRate "
+                          "for torques."),
+    METHOD(limit_twist, "limit_twist(twist_c, twist_last, dtwist_last, limits, out): "
+                        "franka::limitRate for O_dP_EE_c."),
+    METHOD(cartesian_lowpass, "cartesian_lowpass(T_c, T_ref, gain, out): "
+                              "franka::cartesianLowpassFilter."),
+    METHOD(limit_pose, "limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out): "
+                       "franka::limitRate for O_T_EE_c."),
+    METHOD(reference_pose, "reference_pose(O_T_EE_c, out): the state's pose as the client "
+                           "reads it."),
     {NULL, NULL, 0, NULL},
 };
 

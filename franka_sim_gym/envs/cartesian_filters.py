@@ -16,11 +16,12 @@ safety box (``CommandGenerator(safety_box=...)``), which bounds the translationa
 velocity toward each wall of a workspace box before the rate limiter.
 
 Poses are row-major ``(n, 4, 4)`` numpy matrices, not the column-major 16-value wire
-layout (``fci.frames.from_wire`` / ``to_wire``); rotations go through the package's one
-rotation library, :mod:`franka_sim_gym.sim.rotations`. The public functions validate
-their arguments as libfranka does (ValueError with libfranka's message); each rule's
-arithmetic is one ``*_core`` function, the one the env's client calls every cycle, with
-C replacements of the same signatures in ``envs/_client_filters.c``.
+layout (``fci.frames.from_wire`` / ``to_wire``). The public functions validate their
+arguments as libfranka does (ValueError with libfranka's message) and broadcast them;
+each libfranka rule's arithmetic has one text, in C (``envs/_client_filters.c``,
+:mod:`franka_sim_gym.envs.client_kernel`), which the env's client calls every cycle. Its
+rotations (quaternions, slerp, log, exp, the nearest rotation) are the algorithms of
+:mod:`franka_sim_gym.sim.rotations`, one rotation at a time.
 """
 
 from __future__ import annotations
@@ -28,38 +29,20 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..fci.frames import from_wire, is_homogeneous
-from ..fci.tables import DELTA_T
-from ..sim.rotations import (
-    nearest_rotation,
-    quaternion_slerp,
-    quaternion_to_rotation,
-    rotation_exp,
-    rotation_log,
-    rotation_to_quaternion,
-)
+from ..fci.frames import is_homogeneous
 from .client_filters import LOWPASS_DEFAULT_CUTOFF, check_cutoff, finite, lowpass_gain
+from .client_kernel import NORM_EPS, ROTATION_POSE_FACTOR, RULES
 
 __all__ = [
     "BOX_DECELERATION",
     "NORM_EPS",
     "ROTATION_POSE_FACTOR",
     "box_velocity_core",
-    "cartesian_lowpass_core",
     "cartesian_lowpass_filter",
-    "limit_pose_core",
     "limit_rate_cartesian_pose",
     "limit_rate_cartesian_velocity",
-    "limit_twist_core",
     "reference_pose",
 ]
-
-#: include/franka/rate_limiting.h kNormEps: below this norm a Cartesian jerk,
-#: acceleration or angular velocity counts as zero.
-NORM_EPS = float(np.finfo(np.float64).eps)
-#: include/franka/rate_limiting.h kFactorCartesianRotationPoseInterface: the pose
-#: overload of limitRate scales the rotational limits by this factor.
-ROTATION_POSE_FACTOR = 0.99
 
 #: The safety box's braking deceleration [m/s^2]: half the conservative limiter's 1.0
 #: (commands.CARTESIAN_LIMITS), so the limiter behind the box follows its bound with
@@ -112,24 +95,11 @@ def cartesian_lowpass_filter(
     cutoff = check_cutoff(cutoff, _MSG_CARTESIAN_CUTOFF)
     T_c = finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
     T_ref = finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
-    return cartesian_lowpass_core(T_c, T_ref, np.asarray(lowpass_gain(cutoff)))
-
-
-def cartesian_lowpass_core(
-    T_c: np.ndarray, T_ref: np.ndarray, gain, out: np.ndarray | None = None
-) -> np.ndarray:
-    """:func:`cartesian_lowpass_filter`'s arithmetic, ``gain`` from ``lowpass_gain`` (a
-    scalar or (n,))."""
-    gain = np.asarray(gain, dtype=np.float64)
-    q_ref = rotation_to_quaternion(T_ref[..., :3, :3])
-    q = quaternion_slerp(q_ref, rotation_to_quaternion(T_c[..., :3, :3]), gain)
-    q /= np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
-    if out is None:
-        out = np.empty(np.broadcast_shapes(T_c.shape, T_ref.shape))
-    out[...] = T_c
-    g = gain[..., None]
-    out[..., :3, 3] = g * T_c[..., :3, 3] + (1.0 - g) * T_ref[..., :3, 3]
-    out[..., :3, :3] = quaternion_to_rotation(q)
+    gain = np.asarray(lowpass_gain(cutoff), dtype=np.float64)
+    lead = np.broadcast_shapes(T_c.shape[:-2], T_ref.shape[:-2], gain.shape)
+    poses = [np.broadcast_to(T, (*lead, 4, 4)).reshape(-1, 4, 4) for T in (T_c, T_ref)]
+    out = np.empty((*lead, 4, 4))
+    RULES.cartesian_lowpass(*poses, np.broadcast_to(gain, lead).reshape(-1), out.reshape(-1, 4, 4))
     return out
 
 
@@ -189,25 +159,12 @@ def limit_rate_cartesian_velocity(
     twist_last = finite("twist_last", twist_last)
     dtwist_last = finite("dtwist_last", dtwist_last)
     limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
-    return limit_twist_core(twist_c, twist_last, dtwist_last, *limits)
-
-
-def limit_twist_core(
-    twist_c, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out=None
-) -> np.ndarray:
-    """:func:`limit_rate_cartesian_velocity`'s arithmetic: both halves of the twist through
-    the 3-vector limiter at once, as (..., 2, 3) with the limits paired as (..., 2)."""
-    twist_last = np.asarray(twist_last, dtype=np.float64)
-    dtwist_last = np.asarray(dtwist_last, dtype=np.float64)
-    shape = np.broadcast_shapes(twist_c.shape, twist_last.shape, dtwist_last.shape)
-    halves = (*shape[:-1], 2, 3)
-    dx, dx_last, ddx_last = (
-        np.broadcast_to(x, shape).reshape(halves) for x in (twist_c, twist_last, dtwist_last)
-    )
-    limited = _limit_norm(dx, dx_last, ddx_last, _pair(v, v_rot), _pair(a, a_rot), _pair(j, j_rot))
-    if out is None:
-        return limited.reshape(shape)
-    out[...] = limited.reshape(shape)
+    twists = np.broadcast_arrays(twist_c, twist_last, dtwist_last)
+    lead = np.broadcast_shapes(twists[0].shape[:-1], limits.shape[:-1])
+    twists = [np.broadcast_to(x, (*lead, 6)).reshape(-1, 6) for x in twists]
+    out = np.empty((*lead, 6))
+    limits = np.broadcast_to(limits, (*lead, 6)).reshape(-1, 6)
+    RULES.limit_twist(*twists, limits, out.reshape(-1, 6))
     return out
 
 
@@ -264,31 +221,13 @@ def limit_rate_cartesian_pose(
     twist_last = finite("twist_last", twist_last)
     dtwist_last = finite("dtwist_last", dtwist_last)
     limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
-    return limit_pose_core(T_c, T_last, twist_last, dtwist_last, *limits)
-
-
-def limit_pose_core(
-    T_c, T_last, twist_last, dtwist_last, v, a, j, v_rot, a_rot, j_rot, out=None
-) -> np.ndarray:
-    """:func:`limit_rate_cartesian_pose`'s arithmetic."""
-    dt = DELTA_T
-    t_last, R_last = T_last[..., :3, 3], T_last[..., :3, :3]
-    twist = np.empty((*np.broadcast_shapes(T_c.shape, T_last.shape)[:-2], 6))
-    np.divide(T_c[..., :3, 3] - t_last, dt, out=twist[..., :3])
-    R_diff = T_c[..., :3, :3] @ np.swapaxes(R_last, -1, -2)
-    np.divide(rotation_log(R_diff), dt, out=twist[..., 3:])
-    f = ROTATION_POSE_FACTOR
-    twist = limit_twist_core(
-        twist, twist_last, dtwist_last, v, a, j, f * v_rot, f * a_rot, f * j_rot
-    )
-    w = twist[..., 3:]
-    rotating = np.sqrt(np.einsum("...i,...i->...", w, w)) > NORM_EPS
-    if out is None:
-        out = np.empty(twist.shape[:-1] + (4, 4))
-    out[...] = 0.0
-    out[..., 3, 3] = 1.0
-    out[..., :3, 3] = t_last + twist[..., :3] * dt
-    out[..., :3, :3] = np.where(rotating[..., None, None], rotation_exp(w * dt) @ R_last, R_last)
+    poses, twists = np.broadcast_arrays(T_c, T_last), np.broadcast_arrays(twist_last, dtwist_last)
+    lead = np.broadcast_shapes(poses[0].shape[:-2], twists[0].shape[:-1], limits.shape[:-1])
+    poses = [np.broadcast_to(x, (*lead, 4, 4)).reshape(-1, 4, 4) for x in poses]
+    twists = [np.broadcast_to(x, (*lead, 6)).reshape(-1, 6) for x in twists]
+    limits = np.broadcast_to(limits, (*lead, 6)).reshape(-1, 6)
+    out = np.empty((*lead, 4, 4))
+    RULES.limit_pose(*poses, *twists, limits, out.reshape(-1, 4, 4))
     return out
 
 
@@ -330,48 +269,16 @@ def reference_pose(O_T_EE_c: np.ndarray, out: np.ndarray | None = None) -> np.nd
     and its filters take ``rotation()``, the polar factor. Its orthonormal rotation
     keeps every pose built on it inside libfranka's ``isHomogeneousTransformation``.
     """
-    T = from_wire(np.asarray(O_T_EE_c, dtype=np.float64))
-    T[:, :3, :3] = nearest_rotation(T[:, :3, :3])
+    wire = np.asarray(O_T_EE_c)
+    if wire.dtype != np.float32:
+        wire = wire.astype(np.float64, copy=False)
     if out is None:
-        return T
-    out[...] = T
-    return out
+        out = np.empty((len(wire), 4, 4))
+    return RULES.reference_pose(wire, out)
 
 
-def _finite_limits(*limits: ArrayLike) -> list[np.ndarray]:
-    return [finite(name, value) for name, value in zip(_LIMIT_NAMES, limits, strict=True)]
-
-
-def _pair(translational, rotational) -> np.ndarray:
-    """Two limits side by side on a new last axis: (2,) for scalars, else (..., 2)."""
-    return np.stack(np.broadcast_arrays(translational, rotational), axis=-1)
-
-
-def _limit_norm(v_c, v_last, a_last, v_max, a_max, j_max) -> np.ndarray:
-    """The 3-vector limiter of src/rate_limiting.cpp: vectors (..., 3), limits (...)."""
-    dt = DELTA_T
-    eps = NORM_EPS
-    # Jerk by differentiation; its norm clamped to J (direction kept) and integrated.
-    jerk = ((v_c - v_last) / dt - a_last) / dt
-    jerk_norm = _norm(jerk)
-    jerking = jerk_norm > eps
-    jerk_step = np.minimum(jerk_norm, j_max)  # (libfranka also clamps at -J: a norm never is)
-    acc = a_last + jerk / np.where(jerking, jerk_norm, 1.0)[..., None] * jerk_step[..., None] * dt
-    acc = np.where(jerking[..., None], acc, a_last)
-    # Distance from v_last, along the acceleration's direction, to the sphere |v| = V.
-    acc_norm = _norm(acc)
-    moving = acc_norm > eps
-    unit = acc / np.where(moving, acc_norm, 1.0)[..., None]
-    dot = np.einsum("...i,...i->...", unit, v_last)
-    disc = dot * dot - np.einsum("...i,...i->...", v_last, v_last) + v_max * v_max
-    distance = np.sqrt(np.maximum(disc, 0.0)) - dot
-    safe = np.minimum(j_max / a_max * distance, a_max)
-    # disc < 0 (v_last outside the ball): libfranka's sqrt gives NaN and
-    # std::min(|a|, NaN) returns |a| -- the acceleration norm goes through unlimited.
-    size = np.where(disc < 0.0, acc_norm, np.minimum(acc_norm, safe))
-    return np.where(moving[..., None], v_last + unit * size[..., None] * dt, v_last)
-
-
-def _norm(x: np.ndarray) -> np.ndarray:
-    """Euclidean norm over the last axis."""
-    return np.sqrt(np.einsum("...i,...i->...", x, x))
+def _finite_limits(*limits: ArrayLike) -> np.ndarray:
+    """The six limits, each through :func:`finite` in libfranka's order, side by side on
+    a last axis: (6,) for scalars, (n, 6) for one per robot."""
+    checked = [finite(name, value) for name, value in zip(_LIMIT_NAMES, limits, strict=True)]
+    return np.stack(np.broadcast_arrays(*checked), axis=-1)

@@ -66,9 +66,9 @@ kMaxRotational*), and ``RobotTable.velocity_envelope`` is exactly
 Where libfranka throws ``std::invalid_argument`` (non-finite values, a cutoff
 that is not a positive finite number) these functions raise :class:`ValueError`
 with libfranka's message, prefixed by the offending argument. Each rule's arithmetic
-is one ``*_core`` function on validated inputs, the one the env's client calls every
-cycle (it validates its inputs once); ``envs/_client_filters.c`` holds C replacements
-of the cores, with the same signatures and bits (:mod:`franka_sim_gym.envs.client_kernel`).
+has one text, in C (``envs/_client_filters.c``, :mod:`franka_sim_gym.envs.client_kernel`):
+these functions check and broadcast their arguments and call it; the env's client, which
+validates its inputs once, calls it directly every cycle.
 
 :func:`interpolate` is not libfranka: it is the plain per-cycle interpolation
 of the env's ``"interpolate"`` action filter.
@@ -82,6 +82,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..fci.tables import DELTA_T
+from .client_kernel import RULES
 
 __all__ = [
     "DELTA_T",
@@ -91,13 +92,9 @@ __all__ = [
     "finite",
     "interpolate",
     "interpolate_core",
-    "limit_positions_core",
     "limit_rate_joint_positions",
     "limit_rate_joint_velocities",
     "limit_rate_torques",
-    "limit_torques_core",
-    "limit_velocities_core",
-    "lowpass_core",
     "lowpass_filter",
     "lowpass_gain",
 ]
@@ -182,57 +179,18 @@ def lowpass_filter(
     gain = lowpass_gain(cutoff)
     x = finite("x", x, _MSG_SIGNAL)
     x_ref = finite("x_ref", x_ref, _MSG_SIGNAL)
-    return lowpass_core(x, x_ref, gain)
+    return _rows(RULES.lowpass, x, x_ref, np.asarray(gain, dtype=np.float64))
 
 
-# -- the rules' arithmetic on validated inputs ---------------------------------------------
-# The public functions validate every argument, as libfranka does, on every call. A
-# caller that validated its inputs once (the env: a finite action, a checked cutoff and
-# constant limits; the states are the controller's own) calls these cores per cycle:
-# the same arithmetic, without ~10 array checks a cycle. References may be the wire
-# state's float32 fields (converted exactly); ``out``: an array to write the result into.
-
-
-def lowpass_core(x: np.ndarray, x_ref: np.ndarray, gain, out: np.ndarray | None = None):
-    """:func:`lowpass_filter`'s arithmetic, ``gain`` from :func:`lowpass_gain`."""
-    return np.add(gain * x, (1.0 - gain) * np.asarray(x_ref, dtype=np.float64), out=out)
-
-
-def limit_velocities_core(
-    v_c, v_last, a_last, upper, lower, a_max, j_max, out: np.ndarray | None = None
-) -> np.ndarray:
-    """:func:`limit_rate_joint_velocities`'s arithmetic: the scalar velocity limiter of
-    src/rate_limiting.cpp, elementwise."""
-    dt = DELTA_T
-    v_last = np.asarray(v_last, dtype=np.float64)
-    a_last = np.asarray(a_last, dtype=np.float64)
-    # Differentiate to get jerk.
-    jerk = (((v_c - v_last) / dt) - a_last) / dt
-    # Limit jerk and integrate to get acceleration.
-    acc = a_last + np.maximum(np.minimum(jerk, j_max), -j_max) * dt
-    # Compute acceleration limits.
-    ratio = j_max / a_max
-    safe_max = np.minimum(ratio * (upper - v_last), a_max)
-    safe_min = np.maximum(ratio * (lower - v_last), -a_max)
-    # Limit acceleration and integrate to get the velocity.
-    return np.add(v_last, np.maximum(np.minimum(acc, safe_max), safe_min) * dt, out=out)
-
-
-def limit_positions_core(
-    q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out: np.ndarray | None = None
-) -> np.ndarray:
-    """:func:`limit_rate_joint_positions`'s arithmetic: the command differentiated against
-    the last position, through :func:`limit_velocities_core`, re-integrated."""
-    q_last = np.asarray(q_last, dtype=np.float64)
-    v = limit_velocities_core((q_c - q_last) / DELTA_T, v_last, a_last, upper, lower, a_max, j_max)
-    return np.add(q_last, v * DELTA_T, out=out)
-
-
-def limit_torques_core(tau_c, tau_last, d_max, out: np.ndarray | None = None) -> np.ndarray:
-    """:func:`limit_rate_torques`'s arithmetic."""
-    tau_last = np.asarray(tau_last, dtype=np.float64)
-    rate = (tau_c - tau_last) / DELTA_T
-    return np.add(tau_last, np.maximum(np.minimum(rate, d_max), -d_max) * DELTA_T, out=out)
+def _rows(rule, *arrays: np.ndarray) -> np.ndarray:
+    """``rule`` (envs/_client_filters.c) on ``arrays`` broadcast together: their (..., k)
+    shape laid out as (m, k) rows, the result in that shape."""
+    arrays = np.broadcast_arrays(*arrays)
+    shape = arrays[0].shape
+    k = shape[-1] if shape else 1
+    out = np.empty(shape)
+    rule(*(a.reshape(-1, k) for a in arrays), out.reshape(-1, k))
+    return out
 
 
 def limit_rate_joint_velocities(
@@ -281,7 +239,7 @@ def limit_rate_joint_velocities(
     """
     dq_c = finite("dq_c", dq_c, _MSG_COMMAND)
     limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
-    return limit_velocities_core(dq_c, *limiter)
+    return _rows(RULES.limit_velocities, dq_c, *limiter)
 
 
 def limit_rate_joint_positions(
@@ -316,7 +274,7 @@ def limit_rate_joint_positions(
     q_c = finite("q_c", q_c, _MSG_COMMAND)
     q_last = finite("q_last", q_last)
     limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
-    return limit_positions_core(q_c, q_last, *limiter)
+    return _rows(RULES.limit_positions, q_c, q_last, *limiter)
 
 
 def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLike) -> np.ndarray:
@@ -333,7 +291,7 @@ def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLik
     tau_c = finite("tau_c", tau_c, _MSG_COMMAND)
     tau_last = finite("tau_last", tau_last)
     d_max = finite("dtau_max", dtau_max)
-    return limit_torques_core(tau_c, tau_last, d_max)
+    return _rows(RULES.limit_torques, tau_c, tau_last, d_max)
 
 
 def _finite_limiter_args(*values: ArrayLike) -> list[np.ndarray]:

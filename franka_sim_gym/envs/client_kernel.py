@@ -1,61 +1,57 @@
-"""The backend of the env client's per-cycle filter rules: numpy, or their C replacements.
+"""The one text of the env client's per-cycle filter rules: ``envs/_client_filters.c``,
+loaded and configured.
 
-Every rule the client runs each cycle is a ``*_core`` function of
-:mod:`~franka_sim_gym.envs.client_filters` or :mod:`~franka_sim_gym.envs.cartesian_filters`
-(the reference, written once, batch-first). ``envs/_client_filters.c`` holds a C
-replacement of each, with its signature (``out`` given): the low-pass filter and the
-joint, torque and twist limiters bit for bit, the pose rules to rounding
-(tests/envs/test_native_client.py). The one backend switch (``native.load``,
-``FRANKA_SIM_GYM_NATIVE=0`` for numpy) picks them; the C module receives its constants
-here: fci/tables.py's cycle, libfranka's rate_limiting.h values in cartesian_filters.py
-and the rotation library's thresholds (sim/rotations.py).
+libfranka's low-pass filter, its joint, torque, twist and pose rate limiters and the
+state's pose as the client reads it exist once, in C (issue 38: one text per rule; no
+numpy twin, no switch). :mod:`~franka_sim_gym.envs.client_filters` and
+:mod:`~franka_sim_gym.envs.cartesian_filters` put libfranka's argument checks and
+broadcasting in front of them; the env's client (``commands.CommandGenerator``), which
+validates its inputs once, calls :data:`RULES` every cycle. The module receives its
+constants here: fci/tables.py's cycle, libfranka's ``rate_limiting.h`` values below and
+the rotation library's thresholds (sim/rotations.py).
 
-Why C at all: at one arm a cycle's cost is the number of numpy calls, not their
-arithmetic. The numpy rules cost 10-90 us a cycle (the pose path ~350 us), against
-~25 us for the rest of a cycle; their C replacements ~1-5 us (benchmarks/env_rate.py
-``--shares`` prints each interface's share of an env step).
+Why C: at one arm a cycle's cost is the number of its numpy calls, not their arithmetic.
+The numpy texts these rules had cost 10-90 us a cycle (the pose path ~350 us), against
+~1-5 us in C (benchmarks/env_rate.py ``--shares`` prints each interface's share of an env
+step).
 """
 
 from __future__ import annotations
 
-from types import ModuleType, SimpleNamespace
+import numpy as np
 
 from .. import native
 from ..fci.tables import DELTA_T
 from ..sim import rotations
-from . import cartesian_filters as cartesian
-from . import client_filters as joint
 
-__all__ = ["NUMPY_RULES", "load", "rules"]
+__all__ = ["NORM_EPS", "ROTATION_POSE_FACTOR", "RULES"]
 
-#: The numpy rules, by the names the C module gives its replacements.
-NUMPY_RULES = SimpleNamespace(
-    lowpass_core=joint.lowpass_core,
-    limit_velocities_core=joint.limit_velocities_core,
-    limit_positions_core=joint.limit_positions_core,
-    limit_torques_core=joint.limit_torques_core,
-    limit_twist_core=cartesian.limit_twist_core,
-    cartesian_lowpass_core=cartesian.cartesian_lowpass_core,
-    limit_pose_core=cartesian.limit_pose_core,
-    reference_pose=cartesian.reference_pose,
+#: include/franka/rate_limiting.h kNormEps: below this norm a Cartesian jerk,
+#: acceleration or angular velocity counts as zero.
+NORM_EPS = float(np.finfo(np.float64).eps)
+#: include/franka/rate_limiting.h kFactorCartesianRotationPoseInterface: the pose
+#: overload of limitRate scales the rotational limits by this factor.
+ROTATION_POSE_FACTOR = 0.99
+
+#: The rules (envs/_client_filters.c), configured. Missing or stale, importing this
+#: module is an ImportError saying how to build it (native.require).
+RULES = native.require(
+    "envs._client_filters",
+    "configure",
+    "lowpass",
+    "limit_velocities",
+    "limit_positions",
+    "limit_torques",
+    "limit_twist",
+    "cartesian_lowpass",
+    "limit_pose",
+    "reference_pose",
 )
-
-
-def load() -> ModuleType | None:
-    """The C replacements (configured), or None where not built or switched off."""
-    kernel = native.load("envs._client_filters")
-    if kernel is not None:
-        kernel.configure(
-            DELTA_T,
-            cartesian.NORM_EPS,
-            cartesian.ROTATION_POSE_FACTOR,
-            rotations.NEAR_PI,
-            rotations.TURNING_ABOVE,
-            rotations.SERIES_BELOW,
-        )
-    return kernel
-
-
-def rules(kernel: ModuleType | None) -> ModuleType | SimpleNamespace:
-    """The rules a client runs: ``kernel``'s where given, else :data:`NUMPY_RULES`."""
-    return NUMPY_RULES if kernel is None else kernel
+RULES.configure(
+    DELTA_T,
+    NORM_EPS,
+    ROTATION_POSE_FACTOR,
+    rotations.NEAR_PI,
+    rotations.TURNING_ABOVE,
+    rotations.SERIES_BELOW,
+)

@@ -52,8 +52,8 @@ from ..fci.tables import DELTA_T, FR3, JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTabl
 from ..fci.wire import MoveControllerMode, MoveMotionGeneratorMode
 from ..sim.rotations import rotation_exp, rotation_log
 from . import client_filters as cf
-from . import client_kernel
 from .cartesian_filters import BOX_DECELERATION, box_velocity_core
+from .client_kernel import RULES
 
 INTERFACES = (
     "joint_position",
@@ -217,15 +217,20 @@ class CommandGenerator:
         self.table = table
         self.scale = scale or ActionScale()
         self.cutoff = cutoff
-        # Validated once here; every cycle runs the rules' cores (client_kernel: numpy,
-        # or their C replacements, which take one gain for all robots).
-        self._gain = cf.lowpass_gain(cutoff)
-        self._rules = client_kernel.rules(CLIENT_KERNEL if isinstance(self._gain, float) else None)
+        # Validated once here; every cycle runs the rules' one text (client_kernel.RULES:
+        # envs/_client_filters.c), which takes a value per robot (and per joint): the
+        # gains and limits below are broadcast views of one value, made once.
+        gain = np.asarray(cf.lowpass_gain(cutoff), dtype=np.float64)
+        cols = 6 if interface == "cartesian_velocity" else 7
+        self._gain = np.broadcast_to(gain.reshape(-1, 1) if gain.ndim else gain, (n, cols))
+        self._pose_gain = np.broadcast_to(gain, (n,))
         m = LIMITER_MARGIN
-        self._ddq_max, self._dddq_max = table.ddq_max - m["ddq"], table.dddq_max - m["dddq"]
-        self._dtau_max = table.dtau_max - m["dtau"]
+        self._ddq_max = np.broadcast_to(table.ddq_max - m["ddq"], (n, 7))
+        self._dddq_max = np.broadcast_to(table.dddq_max - m["dddq"], (n, 7))
+        self._dtau_max = np.broadcast_to(table.dtau_max - m["dtau"], (n, 7))
+        self._limits = np.broadcast_to(np.asarray(self.cartesian_limits), (n, 6))
         self._band_shift = JOINT_VELOCITY_LIMIT_TOLERANCE + m["dq"]
-        self._lowpassed = np.zeros((n, 6 if interface == "cartesian_velocity" else 7))
+        self._lowpassed = np.zeros((n, cols))
         self._out = np.zeros_like(self._lowpassed)
         self._doubled = np.zeros((n, 14))  # [q_d | q_d], then the velocity band in place
         self._lower = np.zeros((n, 7))
@@ -308,7 +313,7 @@ class CommandGenerator:
             self._start = state["O_dP_EE_c"].astype(np.float64)
             self._target = six * self._twist_scale
             return
-        T = self._rules.reference_pose(state["O_T_EE_c"], np.empty((len(a), 4, 4)))
+        T = RULES.reference_pose(state["O_T_EE_c"], np.empty((len(a), 4, 4)))
         target = T.copy()
         target[:, :3, 3] += six[:, :3] * sc.translation
         target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
@@ -331,9 +336,8 @@ class CommandGenerator:
             out[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], target[:, :3, 3], s)
             out[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
             return out
-        rules = self._rules
-        ref = rules.reference_pose(state["O_T_EE_c"], self._ref_pose)
-        out = rules.cartesian_lowpass_core(target, ref, self._gain, self._pose_lowpassed)
+        ref = RULES.reference_pose(state["O_T_EE_c"], self._ref_pose)
+        out = RULES.cartesian_lowpass(target, ref, self._pose_gain, self._pose_lowpassed)
         if self.safety_box is not None:  # the step from the commanded pose, as a velocity
             t_ref, t = ref[:, :3, 3], out[:, :3, 3]
             v_last = state["O_dP_EE_c"][:, :3]
@@ -341,14 +345,8 @@ class CommandGenerator:
             t[...] = t_ref + v * DELTA_T
         if self.action_filter != "limit_rate":
             return out
-        return rules.limit_pose_core(
-            out,
-            ref,
-            state["O_dP_EE_c"],
-            state["O_ddP_EE_c"],
-            *self.cartesian_limits,
-            self._pose_out,
-        )
+        twist = (state["O_dP_EE_c"], state["O_ddP_EE_c"])
+        return RULES.limit_pose(out, ref, *twist, self._limits, self._pose_out)
 
     def _fields(self, state: np.ndarray) -> dict[str, np.ndarray]:
         """The state's fields the filters read, as views made once per state array (the
@@ -362,13 +360,13 @@ class CommandGenerator:
     def _filtered(self, state: np.ndarray) -> np.ndarray:
         """Cycle k's joint, torque or twist command: libfranka's low-pass filter against
         the state's reference, then (``"limit_rate"``) its rate limiter."""
-        target, interface, rules = self._target, self.interface, self._rules
+        target, interface = self._target, self.interface
         fields = self._fields(state)
         ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).
             ref = np.where(self._first[:, None], target, ref)
-        x = rules.lowpass_core(target, ref, self._gain, self._lowpassed)
+        x = RULES.lowpass(target, ref, self._gain, self._lowpassed)
         if self.safety_box is not None:  # (the twist interface: box set, see __init__)
             p = state["O_T_EE"][:, 12:15]  # measured: O_T_EE_c stays at the motion's start
             v_last = fields["O_dP_EE_c"][:, :3]
@@ -378,9 +376,9 @@ class CommandGenerator:
         out = self._out
         if interface == "cartesian_velocity":
             twist = (fields["O_dP_EE_c"], fields["O_ddP_EE_c"])
-            return rules.limit_twist_core(x, *twist, *self.cartesian_limits, out)
+            return RULES.limit_twist(x, *twist, self._limits, out)
         if interface == "torque":
-            return rules.limit_torques_core(x, fields["tau_J_d"], self._dtau_max, out)
+            return RULES.limit_torques(x, fields["tau_J_d"], self._dtau_max, out)
         # The velocity band at the last commanded position (libfranka evaluates it at the
         # reference), the client's margin inside libfranka's tolerance: [upper | -lower],
         # computed in place from [q_d | q_d] (float32 widened exactly).
@@ -391,8 +389,8 @@ class CommandGenerator:
         a_max, j_max = self._ddq_max, self._dddq_max
         history = (fields["dq_d"], fields["ddq_d"], upper, lower, a_max, j_max, out)
         if interface == "joint_position":
-            return rules.limit_positions_core(x, q_d, *history)
-        return rules.limit_velocities_core(x, *history)
+            return RULES.limit_positions(x, q_d, *history)
+        return RULES.limit_velocities(x, *history)
 
 
 def check_safety_box(box, interface: str, action_filter: str):
@@ -421,9 +419,6 @@ def check_safety_box(box, interface: str, action_filter: str):
         )
     return lower, upper, BOX_DECELERATION
 
-
-#: The client filters' C replacements (envs/_client_filters.c; None: not built, or off).
-CLIENT_KERNEL = client_kernel.load()
 
 #: The state field each interface's filters run against (libfranka's ControlLoop).
 _REFERENCE = {

@@ -89,7 +89,7 @@ class CartesianStepper:
         self.n = n
         self.modes = modes
         self.writer = writer
-        self.kinematics = ArmKinematics(physics.model, physics.layout, kernel=True)
+        self.kinematics = ArmKinematics(physics.model, physics.layout)
         #: the IK did not converge (logged once per motion)
         self.ik_failed_logged = np.zeros(n, dtype=bool)
         self.none = np.zeros(n, dtype=bool)

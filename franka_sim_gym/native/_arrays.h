@@ -2,7 +2,7 @@
  * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
  * state fields and of stacked scratch rows are fine), with their shape checked before a
  * single element is read or written; (n,) one-byte flags (uint8, or numpy's bool read only);
- * the argument count; numpy's minimum / maximum; the module with its cycle. No rule of the robot lives here. */
+ * the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 
@@ -160,21 +160,9 @@ static inline void bytes_release(Bytes *b)
 #define ALWAYS_INLINE inline
 #endif
 
-/* fci/tables.py DELTA_T, the 1 ms cycle every kernel differences and integrates over;
- * each module exports it as DELTA_T and native.load refuses a module whose value
- * differs (a stale build). */
-#define KERNEL_DT 1e-3
-
-/* A kernel module, with its DELTA_T. */
-static inline PyObject *kernel_module(PyModuleDef *def)
-{
-    PyObject *m = PyModule_Create(def);
-    if (m && PyModule_AddObject(m, "DELTA_T", PyFloat_FromDouble(KERNEL_DT)) < 0) {
-        Py_DECREF(m);
-        return NULL;
-    }
-    return m;
-}
+/* A kernel module. (Every constant a rule needs, the cycle among them, is passed in by its
+ * caller: fci/tables.py DELTA_T is the cycle's one definition.) */
+static inline PyObject *kernel_module(PyModuleDef *def) { return PyModule_Create(def); }
 
 /* One METH_FASTCALL entry of a kernel module's METHODS table. */
 #define METHOD(name, doc) {#name, (PyCFunction)(void (*)(void))name, METH_FASTCALL, doc}

@@ -1,15 +1,12 @@
-/* The IK's damped Gauss-Newton solve, shared by sim/_ik.c (ArmKinematics.solve) and
- * fci/_cartesian_rules.c (the Cartesian generators' plain cycle): the C replacement of its
- * numpy reference, sim/kinematics.py ArmKinematics.solve (its rule: sim/ik.py).
+/* The IK's damped Gauss-Newton solve, the one text of sim/kinematics.py
+ * ArmKinematics.solve (sim/_ik.c calls it; its settings and result are sim/ik.py's).
  *
  * The evaluation reads the arms' rows of a private MjData (the flange site's position
  * and rotation, the joints' axes and anchors) as MuJoCo's mj_kinematics leaves them; the
  * solve calls mj_kinematics itself, through the pointer the Python bindings' own
  * libmujoco exports (sim/ik.py mj_kinematics_addresses), so the kinematics stay
- * MuJoCo's and the whole solve is one C call. The IK's products and its 6x6 solve (an
- * elimination with pivoting in place of LAPACK's) may differ from numpy's in the last
- * bits: the same passes and verdicts, the solution to ~1e-14
- * (tests/sim/test_ik_native.py). No rule of the robot lives here. */
+ * MuJoCo's and the whole solve is one C call. Its 6x6 solve is an elimination with
+ * partial pivoting (native/_solve6.h). No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 #define FRANKA_SIM_GYM_NATIVE_IK_CORE_H
 

@@ -1,15 +1,15 @@
-/* The C replacement of sim/dynamics.py jacobian_at, chosen by the backend switch
- * (native.load, dynamics.py JACOBIAN_KERNEL):
+/* The Jacobian at a point of the arm's last link, the one text of sim/dynamics.py
+ * jacobian_at (issue 38: no numpy twin), which the contact estimate (at K), the load's
+ * weight, the Cartesian servo and the IK read:
  *
  *   jacobian_at(axes, anchors, point, out)
  *       (n, 6, 7): column j is [z_j x (p - o_j); z_j], axes / anchors (n, 7, 3), point
  *       (n, 3)
  *
- * The numpy rule contracts with the Levi-Civita symbol; each component of the cross
- * product is then one product minus another plus zeros, added from a zero, which is
- * what this computes: the same bits for finite inputs, the sign of a zero result
- * included (tests/sim/test_dynamics_parity.py). Built without fused multiply-adds
- * (setup.py). */
+ * Each component of the cross product is one product minus another plus zeros, added
+ * from a zero (the sum the deleted Levi-Civita contraction made, so trajectories kept
+ * their bits, the sign of a zero included). Built without fused multiply-adds (setup.py);
+ * tests/sim/test_dynamics.py holds it to MuJoCo's own mj_jac. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 

@@ -1,5 +1,5 @@
-/* The C replacement of the IK solve, sim/kinematics.py ArmKinematics.solve (its rule:
- * sim/ik.py), chosen by the backend switch (native.load):
+/* The IK solve, sim/kinematics.py ArmKinematics.solve: its one text (issue 38: no numpy
+ * twin; its settings and result are sim/ik.py's), required (native.require):
  *
  *   ik_solve(q_init, q, target, F_T_EE, elbow, active, rows_valid, ik)
  *       the whole solve in one call: q = q_init (the held elbows set), then damped
@@ -8,10 +8,9 @@
  *       the last pass found them (ik: ArmKinematics.native_solve, the solver's arrays,
  *       settings and the mj_kinematics addresses).
  *
- * The solve itself is native/_ik_core.h, which the Cartesian generators' plain cycle
- * (fci/_cartesian_rules.c) shares. The IK's products and its 6x6 solve (an elimination
- * with pivoting in place of LAPACK's) may differ from numpy's in the last bits: the same
- * passes and verdicts, the solution to ~1e-14 (tests/sim/test_ik_native.py). */
+ * The solve itself is native/_ik_core.h; tests/sim/test_ik.py holds it to the poses it
+ * solves for (MuJoCo's forward kinematics), the held elbow, the capped step and the
+ * verdicts. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>

@@ -1,5 +1,5 @@
-/* The C replacement of sim/views.py ArmRows' loops over the robots, chosen by the backend
- * switch (native.load, views.py ROWS_KERNEL):
+/* sim/views.py ArmRows' loops over the robots (required, native.require: no switch; rows
+ * that are not C-contiguous float64 views are copied by numpy instead):
  *
  *   scatter(values, targets, rows)
  *       targets[rows[k]] = values[k]: ``targets`` a tuple of C-contiguous float64 arrays

@@ -18,16 +18,14 @@ import mujoco
 import numpy as np
 
 from .. import native
-from .rotations import LEVI_CIVITA
 from .views import ArmRows
 
 if TYPE_CHECKING:
     from .arm import ArmPhysics
 
 
-#: The C replacement of :func:`jacobian_at` (sim/_dynamics.c, the same bits on finite
-#: inputs), or None where not built or the backend switch is off.
-JACOBIAN_KERNEL = native.load("sim._dynamics")
+#: The one text of :func:`jacobian_at` (sim/_dynamics.c; issue 38: no numpy twin).
+_DYNAMICS = native.require("sim._dynamics", "jacobian_at")
 
 
 def jacobian_at(
@@ -37,16 +35,11 @@ def jacobian_at(
 
     Revolute joints only: column j is [z_j x (p - o_j); z_j] with z_j the joint's unit
     axis and o_j a point of it (``axes``, ``anchors``: (n, 7, 3), in the frame of
-    ``point``). The cross products are one contraction with the Levi-Civita symbol.
+    ``point``). Its only text is C (sim/_dynamics.c).
     """
     if out is None:
         out = np.empty((len(point), 6, 7))
-    if JACOBIAN_KERNEL is not None:
-        return JACOBIAN_KERNEL.jacobian_at(axes, anchors, point, out)
-    lever = point[:, None, :] - anchors
-    np.einsum("iab,nja,njb->nij", LEVI_CIVITA, axes, lever, out=out[:, :3])
-    out[:, 3:] = axes.transpose(0, 2, 1)
-    return out
+    return _DYNAMICS.jacobian_at(axes, anchors, point, out)
 
 
 def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -> np.ndarray:

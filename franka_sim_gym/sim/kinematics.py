@@ -21,22 +21,16 @@ import numpy as np
 
 from .. import native
 from .dynamics import jacobian_at
-from .ik import (
-    ELBOW_JOINT,
-    MAX_STEP,
-    IkResult,
-    damped_step,
-    mj_kinematics_addresses,
-    pose_error,
-)
+from .ik import ELBOW_JOINT, MAX_STEP, IkResult, mj_kinematics_addresses
 from .layout import ArmLayout
 from .views import strided_rows
 from .world import build_world
 
 __all__ = ["IK_KERNEL", "ArmKinematics"]
 
-#: The C replacement of ArmKinematics.solve (sim/_ik.c), None where not built or off.
-IK_KERNEL = native.load("sim._ik")
+#: The one text of ArmKinematics.solve (sim/_ik.c, native/_ik_core.h; issue 38: no numpy
+#: twin).
+IK_KERNEL = native.require("sim._ik", "ik_solve")
 
 
 class ArmKinematics:
@@ -54,14 +48,12 @@ class ArmKinematics:
             A Gauss-Newton residual is smooth along a smooth trajectory (it scales
             with the square of the per-cycle step), so the joint-side checks, which
             difference solutions three times over 1 ms, do not see it.
-        kernel: :meth:`solve` through its C replacement (sim/_ik.c) where the backend
-            switch provides it (``native.load``) and the arms' rows of MjData are views;
-            False: the numpy solve always (the reference the C solve is tested against;
-            it agrees to rounding, see :mod:`franka_sim_gym.sim.ik`).
 
-    The solve runs every cycle at 1 kHz on small arrays: the evaluation's buffers are
-    allocated once, and the arms' rows of MjData are read and written through views where
-    the layout allows (every world ``world.py`` builds).
+    The solve runs every cycle at 1 kHz on small arrays, in C (sim/_ik.c), which calls
+    MuJoCo's own ``mj_kinematics`` between its passes and reads and writes the arms' rows
+    of the private MjData through views (every world ``world.py`` builds lays them out
+    evenly). Where MuJoCo's function or those views cannot be had, construction raises
+    a RuntimeError saying which.
     """
 
     def __init__(
@@ -71,7 +63,6 @@ class ArmKinematics:
         damping: float = 1e-4,
         max_iterations: int = 8,
         tolerance: float = 1e-7,
-        kernel: bool = True,
     ) -> None:
         # The arms' frames alone: the hands, the table and the objects change no link's pose.
         model, layout = build_world(n_arms=layout.n, spacing=0.0)
@@ -89,9 +80,10 @@ class ArmKinematics:
         self._sites = np.asarray(layout.flange_site, dtype=np.intp)
         self._base = np.asarray(layout.base_pos, dtype=np.float64)
         self._qpos = layout.qpos_adr
-        # The arms' rows of MjData as views (they stay put), or None where an index is
-        # not evenly spaced: gathered each evaluation.
+        # The arms' rows of MjData as views (they stay put).
         self._rows = self._mjdata_rows()
+        if self._rows is None:  # pragma: no cover - every world world.py builds has them
+            raise RuntimeError("ArmKinematics: the arms' rows of MjData are not evenly spaced")
         # The last evaluation, reused when the next one is at the same q and frame;
         # written in place by every evaluation (forward and jacobian return copies).
         self._cached_q = np.full((n, 7), np.nan)
@@ -101,15 +93,18 @@ class ArmKinematics:
         self._R = np.empty((n, 3, 3))
         self._R_out = self._R  # the rotations of the last evaluation (_R or MjData's rows)
         self._J = np.empty((n, 6, 7))
-        self._e = np.empty((n, 6))  # the numpy solve's pose error
         # MjData's rows are at _cached_q / _cached_F (the evaluation's buffers may not be:
         # the C solve reads and moves the rows directly).
         self._rows_valid = False
         self._converged = np.empty(n, dtype=bool)  # the C solve's verdicts and errors
         self._errors = np.empty((2, n))
-        addresses = mj_kinematics_addresses(model, self.data) if kernel else None
-        use_c = IK_KERNEL is not None and addresses is not None and self._rows is not None
-        self._native_solve = self._solver_tuple(addresses) if use_c else None
+        addresses = mj_kinematics_addresses(model, self.data)
+        if addresses is None:
+            raise RuntimeError(
+                "ArmKinematics: MuJoCo's mj_kinematics cannot be called from sim/_ik.c (no "
+                "library exporting it beside the mujoco package, or no struct addresses)"
+            )
+        self._native_solve = self._solver_tuple(addresses)
 
     def _mjdata_rows(self) -> tuple | None:
         """Views of the private MjData's rows every evaluation reads and writes: qpos,
@@ -141,18 +136,9 @@ class ArmKinematics:
         if same_q and self._same_frame(F_T_EE):
             return self._p, self._R_out, self._J
         self._cached_F = None if F_T_EE is None else F_T_EE.copy()
-        d = self.data
-        if self._rows is not None:
-            qpos, site_pos, R_site, axes, anchors = self._rows
-            qpos[...] = q
-            mujoco.mj_kinematics(self.model, d)
-        else:
-            d.qpos[self._qpos] = q
-            mujoco.mj_kinematics(self.model, d)
-            site_pos = d.site_xpos[self._sites]
-            R_site = d.site_xmat[self._sites].reshape(self.n, 3, 3)
-            axes = d.xaxis[self._joints]  # (n, 7, 3)
-            anchors = d.xanchor[self._joints]
+        qpos, site_pos, R_site, axes, anchors = self._rows
+        qpos[...] = q
+        mujoco.mj_kinematics(self.model, self.data)
         if F_T_EE is not None:  # the EE frame on the flange: p + R_site F_p, R_site F_R
             p_world = site_pos + (R_site @ F_T_EE[:, :3, 3:])[..., 0]
             R = np.matmul(R_site, F_T_EE[:, :3, :3], out=self._R)
@@ -195,12 +181,13 @@ class ArmKinematics:
     ) -> IkResult:
         """Damped Gauss-Newton from ``q_init`` to the (n, 4, 4) ``target`` poses.
 
-        Each pass evaluates the arms at q, takes the pose error (:func:`ik.pose_error`),
-        counts an arm converged once both its position and rotation errors are within
-        ``tolerance``, and steps the active unconverged arms (:func:`ik.damped_step`),
-        up to ``max_iterations`` steps. Runs in C (sim/_ik.c) where the backend
-        switch provides it, else in numpy: the same passes and verdicts, the solution
-        the same to rounding.
+        Each pass evaluates the arms at q, takes the pose error (position, and the
+        rotation's as vee((E - E^T) / 2) of E = R_target R^T: sin(angle) times the axis),
+        counts an arm converged once both
+        its position and rotation errors are within ``tolerance``, and steps the active
+        unconverged arms by the damped least-squares step J^T (J J^T + lambda^2 I)^-1 e,
+        its largest joint change capped at ``ik.MAX_STEP``, up to ``max_iterations``
+        steps. Its only text is C (sim/_ik.c, native/_ik_core.h).
 
         Args:
             target: commanded EE poses in the base frame (row-major 4x4).
@@ -211,38 +198,11 @@ class ArmKinematics:
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
             out: an (n, 7) array to iterate in and return as the solution (default: new).
         """
-        if self._native_solve is not None:
-            return self._solve_native(target, q_init, F_T_EE, elbow, rows, out)
-        return self._solve_numpy(target, q_init, F_T_EE, elbow, rows, out)
-
-    def _solve_numpy(self, target, q_init, F_T_EE, elbow, rows, out) -> IkResult:
-        """:meth:`solve` in numpy: the reference."""
-        n = self.n
-        q = np.array(q_init, dtype=np.float64, copy=True) if out is None else out
-        if out is not None:
-            q[...] = q_init
-        active = np.ones(n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
-        held = None
-        if elbow is not None:
-            held = active & np.isfinite(elbow)
-            q[held, ELBOW_JOINT] = elbow[held]
-        tol2 = self.tolerance**2
-        for iteration in range(self.max_iterations + 1):
-            p, R, J = self._evaluate(q, F_T_EE)
-            e = pose_error(target, p, R, self._e)
-            # squared position and rotation errors, (n, 2); NaN: not converged
-            err2 = np.einsum("nkj,nkj->nk", e.reshape(n, 2, 3), e.reshape(n, 2, 3))
-            converged = (err2 <= tol2).all(axis=1)
-            todo = active & ~converged
-            if iteration == self.max_iterations or not np.count_nonzero(todo):
-                break
-            q += damped_step(J, e, self.damping, held, todo)
-        position_error, rotation_error = np.sqrt(err2).T
-        return IkResult(q, converged | ~active, position_error, rotation_error)
+        return self._solve_native(target, q_init, F_T_EE, elbow, rows, out)
 
     def _solve_native(self, target, q_init, F_T_EE, elbow, rows, out) -> IkResult:
-        """:meth:`solve` in one ``ik_solve`` call (sim/_ik.c): the same passes as the numpy
-        solve, with MuJoCo's own ``mj_kinematics`` called from C between them."""
+        """:meth:`solve` in one ``ik_solve`` call (sim/_ik.c), MuJoCo's own
+        ``mj_kinematics`` called from C between its passes."""
         q = np.empty((self.n, 7)) if out is None else out
         if rows is not None:
             rows = np.asarray(rows, dtype=bool)
@@ -267,10 +227,10 @@ class ArmKinematics:
         )  # fmt: skip
 
     @property
-    def native_solve(self) -> tuple | None:
-        """The C solve's arrays, settings and mj_kinematics addresses (native/_ik_core.h),
-        None where :meth:`solve` runs in numpy. Call :meth:`solved_natively` after every
-        solve that used them outside this class."""
+    def native_solve(self) -> tuple:
+        """The C solve's arrays, settings and mj_kinematics addresses (native/_ik_core.h).
+        Call :meth:`solved_natively` after every solve that used them outside this
+        class."""
         return self._native_solve
 
     @property
@@ -281,5 +241,5 @@ class ArmKinematics:
 
     def solved_natively(self) -> None:
         """A C solve ran on this object's MjData: its rows are at the last iterate, the
-        numpy evaluation's buffers are not."""
+        evaluation's buffers are not."""
         self._rows_valid, self._cached = True, False

@@ -14,9 +14,10 @@ import numpy as np
 
 from .. import native
 
-#: The C replacement of ArmRows' loops over the robots (sim/_rows.c: copies, the same
-#: bits), or None where not built or the backend switch is off.
-ROWS_KERNEL = native.load("sim._rows")
+#: ArmRows' loops over the robots (sim/_rows.c: copies, no rule; required like every C
+#: module, issue 38: no switch). Rows a C loop cannot take (not evenly spaced, not
+#: float64) are copied by numpy, the same bits.
+ROWS_KERNEL = native.require("sim._rows", "Gathers", "scatter")
 
 
 def strided_rows(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
@@ -80,8 +81,7 @@ class ArmRows:
         # the rows as the C loops take them: contiguous float64 views, or None
         self._sources = None
         if (
-            ROWS_KERNEL is not None
-            and self.views is not None
+            self.views is not None
             and self.out.dtype == np.float64
             and all(v.flags.c_contiguous for v in self.views)
         ):
@@ -144,7 +144,7 @@ class Gathering:
         self.rows: tuple[ArmRows, ...] = tuple(rows)
         pairs = tuple(pair for r in self.rows for pair in r.pairs())
         self._plan = None
-        if ROWS_KERNEL is not None and len(pairs) == len(self.rows):
+        if len(pairs) == len(self.rows):
             self._plan = ROWS_KERNEL.Gathers(pairs)
 
     def gather(self) -> None:

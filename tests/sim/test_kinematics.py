@@ -12,7 +12,7 @@ from franka_sim_gym.sim.world import HOME_Q
 
 def _setup(n: int = 1):
     physics = ArmPhysics(n_arms=n)
-    return physics, ArmKinematics(physics.model, physics.layout, kernel=False)  # numpy
+    return physics, ArmKinematics(physics.model, physics.layout)
 
 
 def test_forward_kinematics_is_the_physics_flange_pose():

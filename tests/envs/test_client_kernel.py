@@ -1,0 +1,117 @@
+"""envs/_client_filters.c, the one text of the client's filter rules (envs/client_kernel.py):
+what the public functions' tests (test_client_filters.py, test_cartesian_*.py) do not reach.
+Each robot reads its own gain and limits (the env passes broadcast views of one value; a
+user may pass one per robot), an acceleration that rounds to nothing leaves the twist as
+it was, and a bad argument is named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from franka_sim_gym.envs import cartesian_filters as cc
+from franka_sim_gym.envs import client_filters as cf
+from franka_sim_gym.envs.client_kernel import RULES
+from franka_sim_gym.fci.tables import FR3
+from franka_sim_gym.fci.wire import ROBOT_STATE_DTYPE
+from franka_sim_gym.sim.rotations import rotation_exp
+from tests.cartesian_filter_helpers import LIMITS, random_pose
+
+#: The conservative Cartesian limits the env uses by default (commands.CARTESIAN_LIMITS).
+TWIST_LIMITS = (0.5, 1.0, 200.0, 1.0, 2.0, 400.0)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and bool(np.array_equal(a.view(np.uint64), b.view(np.uint64)))
+
+
+def test_each_robot_is_low_passed_with_its_own_cutoff():
+    rng = np.random.default_rng(0)
+    x, ref = rng.normal(size=(3, 7)), rng.normal(size=(3, 7))
+    cutoffs = np.array([[10.0], [100.0], [500.0]])
+    batch = cf.lowpass_filter(x, ref, cutoffs)
+    for i in range(3):
+        assert _same(batch[i], cf.lowpass_filter(x[i], ref[i], float(cutoffs[i, 0])))
+    assert not np.allclose(batch[0], batch[2])
+
+
+def test_each_robot_and_joint_is_rate_limited_with_its_own_limits():
+    rng = np.random.default_rng(1)
+    dq_c, dq, ddq = rng.normal(size=(2, 7)), rng.normal(size=(2, 7)), rng.normal(size=(2, 7))
+    upper, lower = np.full((2, 7), 2.0), np.full((2, 7), -2.0)
+    a_max = np.stack([FR3.ddq_max, 0.5 * FR3.ddq_max])
+    j_max = np.stack([FR3.dddq_max, 0.1 * FR3.dddq_max])
+    batch = cf.limit_rate_joint_velocities(dq_c, dq, ddq, upper, lower, a_max, j_max)
+    for i in range(2):
+        one = cf.limit_rate_joint_velocities(
+            dq_c[i], dq[i], ddq[i], upper[i], lower[i], a_max[i], j_max[i]
+        )
+        assert _same(batch[i], one)
+    assert not np.allclose(batch[0], batch[1] - (dq[1] - dq[0]))
+    tau_c, tau = rng.normal(0, 5, (2, 7)), np.zeros((2, 7))
+    rates = np.array([[1000.0] * 7, [10.0, 20, 30, 40, 50, 60, 70]])
+    limited = cf.limit_rate_torques(tau_c, tau, rates)
+    # every joint of the second robot at its own rate (|tau_c| / 1 ms >> 70 Nm/s)
+    np.testing.assert_allclose(np.abs(limited[1]), rates[1] * 1e-3, rtol=1e-12)
+    assert _same(limited[0], cf.limit_rate_torques(tau_c[0], tau[0], 1000.0))
+
+
+def test_each_robot_gets_its_own_cartesian_limits_and_cutoff():
+    rng = np.random.default_rng(2)
+    twist_c = rng.normal(size=(2, 6))
+    zero = np.zeros((2, 6))
+    # one set of limits per robot; the jerk limits bind (from rest), on both halves
+    limits = [np.array([x, 0.1 * x]) for x in LIMITS]
+    batch = cc.limit_rate_cartesian_velocity(twist_c, zero, zero, *limits)
+    for i in range(2):
+        mine = [x[i] for x in limits]
+        alone = cc.limit_rate_cartesian_velocity(twist_c[i], zero[i], zero[i], *mine)
+        assert _same(batch[i], alone)
+    assert not np.allclose(batch[0], batch[1])
+    T_c = np.stack([random_pose(rng) for _ in range(2)])
+    T_last = T_c.copy()
+    T_last[:, :3, 3] -= 0.01
+    T_last[:, :3, :3] = rotation_exp(np.array([0.03, -0.02, 0.05])) @ T_c[:, :3, :3]
+    poses = cc.limit_rate_cartesian_pose(T_c, T_last, zero, zero, *limits)
+    lowpassed = cc.cartesian_lowpass_filter(T_c, T_last, np.array([10.0, 500.0]))
+    for i in range(2):
+        mine = [x[i] for x in limits]
+        alone = cc.limit_rate_cartesian_pose(T_c[i], T_last[i], zero[i], zero[i], *mine)
+        assert _same(poses[i], alone)
+        alone = cc.cartesian_lowpass_filter(T_c[i], T_last[i], [10.0, 500.0][i])
+        assert _same(lowpassed[i], alone)
+
+
+def test_an_acceleration_that_rounds_to_nothing_leaves_the_twist_as_it_was():
+    """At rest with a last acceleration of ~1e-13: the jerk takes it back to |a| <= eps,
+    where libfranka returns v_last itself (its kNormEps branch)."""
+    rng = np.random.default_rng(2)
+    limits = np.broadcast_to(np.array(TWIST_LIMITS), (16, 6))
+    for _ in range(50):
+        state = np.zeros(16, dtype=ROBOT_STATE_DTYPE)
+        state["O_ddP_EE_c"] = rng.normal(0, 1e-13, (16, 6))
+        out = np.full((16, 6), np.nan)
+        RULES.limit_twist(np.zeros((16, 6)), state["O_dP_EE_c"], state["O_ddP_EE_c"], limits, out)
+        assert not out.any()
+
+
+def test_the_c_text_names_a_bad_argument():
+    six, limits = np.zeros((2, 6)), np.ones((2, 6))
+    with pytest.raises(ValueError, match="^twist_last: axis 0 has length 1, expected 2"):
+        RULES.limit_twist(six, six[:1], six, limits, np.zeros((2, 6)))
+    with pytest.raises(ValueError, match="^out: expected a 2-D float64 array"):
+        RULES.limit_twist(six, six, six, limits, np.zeros((2, 6)).astype(int))
+    seven = np.zeros((2, 7))
+    with pytest.raises(ValueError, match="^a_max: axis 1 has length 6, expected 7"):
+        RULES.limit_velocities(seven, seven, seven, seven, seven, np.ones((2, 6)), seven, seven)
+    with pytest.raises(TypeError, match=r"limit_torques\(\) takes 4 arguments \(3 given\)"):
+        RULES.limit_torques(seven, seven, seven)
+    with pytest.raises(ValueError, match="^gain: axis 0 has length 1, expected 2"):
+        RULES.lowpass(seven, seven, np.ones((1, 7)), seven)
+    T, wire = np.tile(np.eye(4), (2, 1, 1)), np.zeros((2, 16))
+    with pytest.raises(ValueError, match="^dtwist_last: axis 1 has length 5, expected 6"):
+        RULES.limit_pose(T, T, six, six[:, :5], limits, np.zeros((2, 4, 4)))
+    with pytest.raises(ValueError, match="^out: expected a 3-D float64 array"):
+        RULES.reference_pose(wire, np.zeros((2, 16)))
+    with pytest.raises(ValueError, match="^limit_rate_joint_velocities|^command: axis 1"):
+        cf.limit_rate_joint_velocities(np.zeros(3), np.zeros(3), np.zeros(3), 1, -1, 1, 1)
