@@ -5,6 +5,7 @@ twin, no switch): ``fci/limits/_joint.c`` (the joint generators' precedence tabl
 velocity envelope's law, the safety controller's errors 3 and 4, the torque interface's
 34 and 32), ``fci/_contact.c`` (the contact estimate, the wrench at K, the collision
 levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the Jacobian at a point),
+``sim/_truth.c`` (a reality draw's drive friction and link weights),
 ``envs/_client_filters.c`` (libfranka's client filters), and ``sim/_rows.c`` (no rule:
 the copies of every robot's MjData rows). docs/architecture.md, "One implementation per
 rule", says which rules are where and why.
@@ -30,6 +31,7 @@ REQUIRED = (
     "sim._ik",
     "sim._dynamics",
     "sim._rows",
+    "sim._truth",
     "envs._client_filters",
 )
 

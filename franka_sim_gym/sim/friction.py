@@ -22,6 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import native
+
+#: The law's one text (sim/_truth.c ``friction``; issue 38).
+RULES = native.require("sim._truth", "friction", "link_weights", "forces")
+
 #: Gaz et al. 2019's friction parameters, joints 1..7, as the authors publish them with
 #: their model (github.com/marcocognetti/FrankaEmikaPandaDynModel,
 #: cpp/panda_dyn_model_example/include/franka_model.h, FI_1i, FI_2i, FI_3i):
@@ -35,8 +40,8 @@ for _a in (GAZ_A, GAZ_ALPHA, GAZ_PHI):
 
 class JointFriction:
     """The friction law of n robots, scaled per robot and joint (:meth:`set_scale`):
-    ``torque(dq)`` is the module docstring's tau_f(dq) times the scale, in five numpy
-    calls.
+    ``torque(dq)`` is the module docstring's tau_f(dq) times the scale, in one C call
+    (sim/_truth.c).
 
     Args:
         n: robots.
@@ -47,7 +52,6 @@ class JointFriction:
         self.gain = np.zeros((n, 7))
         self._half_alpha = np.broadcast_to(GAZ_ALPHA / 2.0, (n, 7)).copy()
         self._shift = self._half_alpha * GAZ_PHI
-        self._at_rest = np.tanh(self._shift)
         self.out = np.zeros((n, 7))
 
     def set_scale(self, robots, scale) -> None:
@@ -57,10 +61,10 @@ class JointFriction:
     def torque(self, dq: np.ndarray) -> np.ndarray:
         """(n, 7) the friction torque at joint velocity ``dq`` (``out``, overwritten by
         the next call)."""
-        out = self.out
-        np.multiply(dq, self._half_alpha, out=out)
-        out += self._shift
-        np.tanh(out, out=out)
-        out -= self._at_rest
-        out *= self.gain
-        return out
+        return RULES.friction(dq, *self.terms, self.out)
+
+    @property
+    def terms(self) -> tuple[np.ndarray, ...]:
+        """The law's per-robot terms as sim/_truth.c takes them: the gain (scale A / 2),
+        alpha / 2 and alpha phi / 2."""
+        return self.gain, self._half_alpha, self._shift

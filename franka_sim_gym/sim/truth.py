@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from .friction import JointFriction
+from .friction import RULES, JointFriction
 from .scene import TABLE
 from .views import ArmRows
 
@@ -45,9 +45,10 @@ class LinkWeights:
 
     dm_i and d(mc)_i link i's differences in mass and first moment (link frame), z_j joint
     j's axis, p_i and R_i link i's origin and rotation (joint i sits at its link's
-    origin), G the gravity's magnitude along -z; nine numpy calls a cycle for every arm.
-    (Applied as link wrenches, ``xfrc_applied``, MuJoCo's step would map them at ~0.7 us a
-    link-set per arm: more than this at 64 arms.)
+    origin), G the gravity's magnitude along -z; one C call a cycle for every arm
+    (sim/_truth.c ``link_weights``; ``forces`` with the drives' friction). (Applied as
+    link wrenches, ``xfrc_applied``, MuJoCo's step would map them at ~0.7 us a link-set
+    per arm.)
 
     Args:
         physics: the arms (their nominal model, and the links' rotations gathered with the
@@ -71,11 +72,6 @@ class LinkWeights:
         self._dm = np.zeros((n, 7, 1))
         self._dmc = np.zeros((n, 7, 3))
         self._tail = np.zeros((n, 7, 1))
-        self._w = np.zeros((n, 7, 3))
-        self._t = np.zeros((n, 7, 3))
-        self._sums = np.zeros((n, 7, 3))
-        self._a = np.zeros((n, 7))
-        self._b = np.zeros((n, 7))
         self.out = np.zeros((n, 7))
 
     def set(self, robots, mass_scale, com_offset) -> None:
@@ -91,16 +87,13 @@ class LinkWeights:
 
     def torque(self) -> np.ndarray:
         """(n, 7) dg at the arms' current state (``out``, overwritten by the next call)."""
-        R = self._xmat.out.reshape(-1, 7, 3, 3)
-        w = np.einsum("nkab,nkb->nka", R, self._dmc, out=self._w)  # R_i d(mc)_i
-        p = self._origins
-        w += np.multiply(p, self._dm, out=self._t)  # + dm_i p_i
-        sums = np.add.accumulate(w[:, ::-1], axis=1, out=self._sums)[:, ::-1]  # over i >= j
-        v = np.subtract(sums, np.multiply(p, self._tail, out=self._t), out=self._t)
-        axes = self._axes
-        np.multiply(v[..., 1], axes[..., 0], out=self._a)
-        np.multiply(v[..., 0], axes[..., 1], out=self._b)
-        return np.subtract(self._a, self._b, out=self.out)
+        return RULES.link_weights(*self.terms, self.out)
+
+    @property
+    def terms(self) -> tuple[np.ndarray, ...]:
+        """What sim/_truth.c reads: the links' rotations (n, 7, 9), G d(mc), G dm, G's
+        tail sums of dm, the joints' anchors and axes."""
+        return self._xmat.out, self._dmc, self._dm, self._tail, self._origins, self._axes
 
 
 class ArmTruth:
@@ -168,5 +161,5 @@ class ArmTruth:
     def before_step(self) -> None:
         """The joints' extra forces for the next step, at the current (true) state: the
         drives' friction and the links' weight differences."""
-        force = np.subtract(self.friction.torque(self._dq), self.weights.torque(), out=self._force)
-        self._applied.scatter(force)
+        terms = (*self.friction.terms, *self.weights.terms)
+        self._applied.scatter(RULES.forces(self._dq, *terms, self._force))
