@@ -19,9 +19,9 @@ import mujoco
 import numpy as np
 import smoke  # benchmarks/smoke.py: --smoke
 
-from franka_sim_gym.fci.collision import ACCELERATION_PHASE
 from franka_sim_gym.fci.config import ControllerConfig
-from franka_sim_gym.fci.contact import ALPHA, RESOLUTION_DECIMALS, RULES, WRENCH_DAMPING
+from franka_sim_gym.fci.contact.collision import ACCELERATION_PHASE
+from franka_sim_gym.fci.contact.estimate import ALPHA, RESOLUTION_DECIMALS, RULES, WRENCH_DAMPING
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from franka_sim_gym.native import describe
@@ -159,9 +159,9 @@ def motion_rate(n: int, seconds: float) -> float:
     # safety_rule; 2: the self-collision distances), every cycle of a motion.
     safety = rate(ctrl.safety.check, seconds / 4)
     SAFETY[n] = (1e6 / safety, cycles / safety)
-    # What the robot senses of contact (fci/contact_sensing.py), every cycle: the model
+    # What the robot senses of contact (fci/contact/sensing.py), every cycle: the model
     # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K
-    # and the collision thresholds (one C call: fci/_contact.c sense).
+    # and the collision thresholds (one C call: fci/contact/_contact.c sense).
     contact, field = ctrl.contact, ctrl.contact.field
     in_motion = ctrl.modes.in_motion
     sensing = rate(lambda: contact.sense(in_motion, None), seconds / 4)
@@ -274,7 +274,7 @@ ACCOUNTING_SHARE: dict[int, float] = {}
 SAFETY: dict[int, tuple[float, float]] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
-#: per n: the C step's share (estimate, wrench, thresholds: fci/_contact.c sense)
+#: per n: the C step's share (estimate, wrench, thresholds: fci/contact/_contact.c sense)
 STEP_SHARE: dict[int, float] = {}
 
 

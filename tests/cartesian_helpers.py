@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from franka_sim_gym.fci.errors import error_names
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import MoveMotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from tests.fci_helpers import LoopClient, make_controller
 
 CP = MoveMotionGeneratorMode.kCartesianPosition

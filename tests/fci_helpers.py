@@ -7,8 +7,8 @@ import numpy as np
 from franka_sim_gym.fci.config import ControllerConfig
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.events import EventKind
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from franka_sim_gym.sim.arm import ArmPhysics
 
 JP = MoveMotionGeneratorMode.kJointPosition

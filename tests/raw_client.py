@@ -8,13 +8,13 @@ import time
 import numpy as np
 
 from franka_sim_gym.fci import frames
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.wire import (
     ROBOT_COMMAND_DTYPE,
     ROBOT_STATE_DTYPE,
     ROBOT_STATE_SIZE,
     MotionGeneratorMode,
 )
+from franka_sim_gym.fci.wire import protocol as p
 
 
 class RawClient:

@@ -115,7 +115,7 @@ class FrankaFCIEnv(gym.Env):
         collision_thresholds: SetCollisionBehavior in libfranka's 4-argument form,
             ``(lower_torque, upper_torque, lower_force, upper_force)`` (Nm, N; 7, 7, 6
             and 6 values or scalars), set at every reset (default: the robot's,
-            fci/collision.py). A force above an upper threshold is a collision reflex
+            fci/contact/collision.py). A force above an upper threshold is a collision reflex
             (``joint_reflex`` / ``cartesian_reflex``) that ends the episode.
         reality: how the robot differs from its own model and from ideal sensors, per
             episode (docs/reality.md): "ideal" (default: no difference), "fr3" (one

@@ -22,13 +22,13 @@ import numpy as np
 
 from ..fci.controller import FciController
 from ..fci.events import EventKind
-from ..fci.protocol import MoveStatus
 from ..fci.wire import (
     ROBOT_COMMAND_DTYPE,
     MoveControllerMode,
     MoveMotionGeneratorMode,
     RobotMode,
 )
+from ..fci.wire.protocol import MoveStatus
 
 #: The home trajectory's peak joint velocity [rad/s], acceleration [rad/s^2] and
 #: jerk [rad/s^3]: well inside the FR3's 2.62 rad/s (joints 1-4), 10 rad/s^2 and

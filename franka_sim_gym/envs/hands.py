@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fci.controller import FciController
-from ..fci.statuses import SetterStatus
+from ..fci.wire.statuses import SetterStatus
 from ..sim.arm import ArmPhysics
 from ..sim.finger_drive import FingerServos
 from ..sim.gripper import MAX_WIDTH

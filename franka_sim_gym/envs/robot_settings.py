@@ -13,12 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fci.collision import four_argument_form
+from ..fci.contact.collision import four_argument_form
 from ..fci.controller import FciController
 from ..fci.impedance import invalid_stiffness
 from ..fci.setters import invalid_joint_stiffness
-from ..fci.statuses import SetterStatus
 from ..fci.wire import MoveControllerMode
+from ..fci.wire.statuses import SetterStatus
 
 #: controller_mode's values: the internal servo under a motion generator.
 CONTROLLER_MODES = {

@@ -34,9 +34,9 @@ from ..sim.kinematics import ArmKinematics
 from . import arrival, frames
 from .accounting import CycleAccounting
 from .async_position import AsyncPositionGenerator
-from .cartesian import CartesianGenerators
+from .cartesian.generators import CartesianGenerators
 from .config import ControllerConfig
-from .contact_sensing import ContactSensing
+from .contact.sensing import ContactSensing
 from .cycle_input import CycleInput
 from .engine import MotionLimitEngine
 from .errors import ERROR_COUNT, error_names
@@ -53,11 +53,11 @@ from .reference import JointReference
 from .requests import ControllerRequests
 from .safety_controller import SafetyController
 from .state import StateWriter
-from .statuses import AutomaticErrorRecoveryStatus, MoveStatus
 from .tables import MAX_LOST_CYCLES
 from .wire import (
     RobotMode,
 )
+from .wire.statuses import AutomaticErrorRecoveryStatus, MoveStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 

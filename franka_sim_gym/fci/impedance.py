@@ -22,7 +22,7 @@ import numpy as np
 
 from ..sim.cartesian_servo import CartesianTarget
 from ..sim.kinematics import ArmKinematics
-from .statuses import SetterStatus
+from .wire.statuses import SetterStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 

@@ -63,7 +63,7 @@ class Modes:
         self.joint_velocity = self.in_motion & (gen == JOINT_VELOCITY)
         #: a joint generator drives the internal servo's reference
         self.tracking = self.joint_position | self.joint_velocity
-        #: a Cartesian generator drives the servo through IK (fci/cartesian.py)
+        #: a Cartesian generator drives the servo through IK (fci/cartesian/generators.py)
         self.cartesian_position = self.in_motion & (gen == CARTESIAN_POSITION)
         self.cartesian_velocity = self.in_motion & (gen == CARTESIAN_VELOCITY)
         self.cartesian = self.cartesian_position | self.cartesian_velocity

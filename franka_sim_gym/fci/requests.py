@@ -4,7 +4,7 @@ the setters, a session's end and the env's reset.
 Each is applied at a cycle boundary and answers at once, or later through an event
 that :meth:`FciController.step` returns (Move's final status, recovery done). Move's
 arguments are checked here (the modes, the asynchronous generator's caps); the
-setters' values by ``fci/setters.py``, the collision thresholds by ``fci/collision.py``
+setters' values by ``fci/setters.py``, the collision thresholds by ``fci/contact/collision.py``
 and the Cartesian stiffness by ``fci/impedance.py``.
 """
 
@@ -19,9 +19,9 @@ from ..sim.arm import ArmPhysics
 from . import setters
 from .accounting import CycleAccounting
 from .async_position import AsyncPositionGenerator, refusal
-from .cartesian import CartesianGenerators
+from .cartesian.generators import CartesianGenerators
 from .config import ControllerConfig
-from .contact_sensing import ContactSensing
+from .contact.sensing import ContactSensing
 from .cycle_input import CycleInput
 from .hold import IdleHold
 from .impedance import CartesianImpedance
@@ -29,7 +29,6 @@ from .modes import JOINT_IMPEDANCE, Modes
 from .recovery import RecoveryWait
 from .reference import JointReference
 from .state import StateWriter
-from .statuses import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 from .violations import ViolationLog
 from .wire import (
     MoveControllerMode,
@@ -37,6 +36,7 @@ from .wire import (
     RobotMode,
     state_motion_generator_mode,
 )
+from .wire.statuses import AutomaticErrorRecoveryStatus, MoveStatus, SetterStatus, StopMoveStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 
@@ -194,7 +194,7 @@ class ControllerRequests(ABC):
     def set_collision_behavior(self, robot: int, thresholds) -> SetterStatus:
         """SetCollisionBehavior (command 3): the contact and collision thresholds, applied
         from the next cycle (``thresholds``: the payload's eight arrays by name,
-        fci/collision.py THRESHOLD_NAMES; libfranka's 4-argument form sends each pair
+        fci/contact/collision.py THRESHOLD_NAMES; libfranka's 4-argument form sends each pair
         twice). Non-finite or negative thresholds: kInvalidArgumentRejected."""
         return self.contact.configure(robot, thresholds)
 

@@ -13,7 +13,7 @@ import logging
 import numpy as np
 
 from . import frames
-from .statuses import SetterStatus
+from .wire.statuses import SetterStatus
 
 log = logging.getLogger("franka_sim_gym.fci")
 

@@ -3,7 +3,7 @@
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
 twin, no switch): ``fci/limits/_joint.c`` (the joint generators' precedence tables, the
 velocity envelope's law, the safety controller's errors 3 and 4, the torque interface's
-34 and 32), ``fci/_contact.c`` (the contact estimate, the wrench at K, the collision
+34 and 32), ``fci/contact/_contact.c`` (the contact estimate, the wrench at K, the collision
 levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the Jacobian at a point),
 ``sim/_truth.c`` (a reality draw's drive friction and link weights),
 ``envs/_client_filters.c`` (libfranka's client filters), and ``sim/_rows.c`` (no rule:
@@ -27,7 +27,7 @@ from types import ModuleType
 #: The C extensions setup.py builds (one per ``<layer>/_<name>.c``), all required.
 REQUIRED = (
     "fci.limits._joint",
-    "fci._contact",
+    "fci.contact._contact",
     "sim._ik",
     "sim._dynamics",
     "sim._rows",

@@ -1,5 +1,5 @@
 /* solve6: the 6 x 6 linear solve shared by the C kernels (the IK's step in
- * native/_ik_core.h, the contact wrench in fci/_contact.c). */
+ * native/_ik_core.h, the contact wrench in fci/contact/_contact.c). */
 #ifndef FRANKA_SIM_GYM_SOLVE6_H
 #define FRANKA_SIM_GYM_SOLVE6_H
 

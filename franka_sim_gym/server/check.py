@@ -12,8 +12,8 @@ import socket
 import time
 from collections.abc import Callable
 
-from ..fci import protocol as p
 from ..fci.wire import ROBOT_STATE_SIZE
+from ..fci.wire import protocol as p
 
 
 def probe(host: str, port: int = p.COMMAND_PORT, timeout: float = 1.0) -> str | None:

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from ..fci.config import ControllerConfig, env_flag, env_float
-from ..fci.protocol import COMMAND_PORT
+from ..fci.wire.protocol import COMMAND_PORT
 from ..reality import RealityDraw, draw, load_profile
 from ..sim.arm import ArmPhysics
 from ..sim.finger_drive import FingerDrive

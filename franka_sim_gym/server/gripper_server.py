@@ -37,8 +37,8 @@ from enum import IntEnum
 
 import numpy as np
 
-from ..fci.protocol import Frame, FrameDecoder, FramingError
 from ..fci.wire import GRIPPER_STATE_DTYPE
+from ..fci.wire.protocol import Frame, FrameDecoder, FramingError
 from ..sim.gripper import TEMPERATURE_C, FrankaHand, HandModel, Outcome
 from .client_slot import ClientSlot, stop_serving
 from .logging_util import RateLimitedLog

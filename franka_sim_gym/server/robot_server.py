@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fci import protocol as p
 from ..fci.config import ControllerConfig
 from ..fci.controller import FciController
 from ..fci.events import EventKind
 from ..fci.wire import ROBOT_COMMAND_DTYPE, ROBOT_COMMAND_SIZE
+from ..fci.wire import protocol as p
 from ..reality import DrawBatch, RealityDraw
 from ..sim.arm import ArmPhysics
 from ..sim.world import URDF_PATH

@@ -14,7 +14,7 @@ import logging
 import socket
 from typing import Protocol
 
-from ..fci import protocol as p
+from ..fci.wire import protocol as p
 from .tcp_session import SlotHost, TcpSession
 
 log = logging.getLogger("franka_sim_gym.server")

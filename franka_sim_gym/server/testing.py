@@ -20,7 +20,7 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..fci.protocol import COMMAND_PORT
+from ..fci.wire.protocol import COMMAND_PORT
 from .check import wait_until_ready
 from .gripper_server import GRIPPER_PORT
 

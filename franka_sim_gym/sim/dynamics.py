@@ -5,7 +5,7 @@ sensors; the model terms are those of the arm as simulated (the URDF's inertials
 mounted hand as a rigid end effector), evaluated at the state MuJoCo just reached.
 Contact forces are *not* read here: they reach an estimate only through the motion
 and the measured torques they cause, as on the robot. The external-force estimator
-itself is the controller's (fci/contact.py); this is the backend it reads.
+itself is the controller's (fci/contact/estimate.py); this is the backend it reads.
 
 Everything is (n, 7) per arm, in the arm's base frame (bases are not rotated).
 """

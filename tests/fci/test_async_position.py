@@ -8,9 +8,9 @@ import pytest
 
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.events import EventKind
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from franka_sim_gym.sim.world import HOME_Q
 from tests.fci_helpers import EXT, IMP, JP, JV, LoopClient, make_controller
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.errors import Error
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from tests.fci_helpers import IMP, JP, LoopClient, make_controller
 
 DT = 1e-3

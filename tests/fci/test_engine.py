@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from franka_sim_gym.fci.errors import Error
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from tests.fci_helpers import IMP, JP, LoopClient, make_controller
 
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.modes import CARTESIAN_IMPEDANCE, JOINT_IMPEDANCE
-from franka_sim_gym.fci.statuses import MoveStatus
 from franka_sim_gym.fci.wire import MoveControllerMode, MoveMotionGeneratorMode
-from tests.fci.test_contact_sensing import thresholds
+from franka_sim_gym.fci.wire.statuses import MoveStatus
+from tests.fci.contact.test_contact_sensing import thresholds
 from tests.fci_helpers import EXT, IMP, JP, NONE, LoopClient, make_controller
 from tests.sim.test_scene import OVER_THE_TABLE, table_contacts
 

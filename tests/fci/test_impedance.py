@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci.statuses import MoveStatus, SetterStatus
 from franka_sim_gym.fci.wire import MoveControllerMode, MoveMotionGeneratorMode
-from tests.fci.test_contact_sensing import thresholds
+from franka_sim_gym.fci.wire.statuses import MoveStatus, SetterStatus
+from tests.fci.contact.test_contact_sensing import thresholds
 from tests.fci_helpers import JP, LoopClient, make_controller
 from tests.sim.test_scene import OVER_THE_TABLE, table_contacts
 

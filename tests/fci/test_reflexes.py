@@ -14,8 +14,8 @@ import pytest
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.errors import Error, error_bits
 from franka_sim_gym.fci.events import EventKind
-from franka_sim_gym.fci.protocol import AutomaticErrorRecoveryStatus, MoveStatus
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire.protocol import AutomaticErrorRecoveryStatus, MoveStatus
 from franka_sim_gym.sim.world import HOME_Q
 from tests.fci_helpers import EXT, IMP, JP, JV, NONE, LoopClient, make_controller
 

@@ -15,8 +15,8 @@ import time
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.wire import MotionGeneratorMode
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.cli import build_parser, lockstep_options
 from franka_sim_gym.server.lockstep import DEFAULT_TIMEOUT_S, AnswerWait
 from tests.raw_client import RawClient

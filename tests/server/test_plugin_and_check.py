@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.testing import free_loopback_address
 from tests.raw_client import RawClient
 

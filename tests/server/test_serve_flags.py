@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.check import wait_until_ready
 from franka_sim_gym.server.testing import SimServer, free_loopback_address
 from franka_sim_gym.sim.world import URDF_PATH

@@ -10,8 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.wire import MotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire import protocol as p
 from tests.raw_client import RawClient
 
 pytestmark = pytest.mark.socket

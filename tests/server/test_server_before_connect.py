@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.testing import start_server
 from tests.raw_client import RawClient
 from tests.server.test_server_bad_input import wait_for_log

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.frames import IDENTITY16
+from franka_sim_gym.fci.wire import protocol as p
 from tests.raw_client import RawClient
 
 pytestmark = pytest.mark.socket

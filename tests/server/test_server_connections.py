@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.client_slot import MAX_UNCONNECTED
 from franka_sim_gym.server.connection import CONNECT_TIMEOUT_S
 from tests.raw_client import RawClient

@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from franka_sim_gym.fci import protocol as p
+from franka_sim_gym.fci.wire import protocol as p
 from tests.raw_client import RawClient
 
 pytestmark = pytest.mark.socket

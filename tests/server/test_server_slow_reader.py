@@ -10,10 +10,10 @@ import time
 
 import pytest
 
-from franka_sim_gym.fci import protocol as p
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.tables import MAX_LOST_CYCLES
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire import protocol as p
 from franka_sim_gym.server.outbox import MAX_OUTBOX_BYTES
 from tests.raw_client import RawClient
 from tests.server.test_server_bad_input import wait_for_log

@@ -24,7 +24,7 @@ import pytest
 
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.controller import FciController
-from franka_sim_gym.fci.protocol import SetterStatus
+from franka_sim_gym.fci.wire.protocol import SetterStatus
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.finger_drive import FingerDrive
 from franka_sim_gym.sim.gripper import Outcome

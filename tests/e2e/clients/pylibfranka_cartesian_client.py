@@ -118,7 +118,7 @@ def scenario_fast_ramp(host: str) -> dict:
     """After 800 states at rest (the external wrench estimate settled): a pose motion
     along +x at 3.5 m/s^2 (jerk 500 m/s^3) to 0.2 m/s and back to rest. Its joint side
     accelerates past the FR3's 10 rad/s^2 (cartesian_motion_generator_joint_velocity_
-    discontinuity, tests/fci/test_cartesian_rows.py); it passes under
+    discontinuity, tests/fci/cartesian/test_cartesian_rows.py); it passes under
     `serve --joint-discontinuity-scale 2`."""
     robot = connect(host)
     for _ in range(800):

@@ -13,9 +13,9 @@ import pytest
 
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.errors import Error, error_names
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.fci.wire import MoveMotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from franka_sim_gym.sim.world import HOME_Q
 from tests.fci_helpers import LoopClient, make_controller
 

@@ -1,4 +1,4 @@
-"""What a judged Cartesian step leaves in the history (cartesian_reference.py).
+"""What a judged Cartesian step leaves in the history (fci/cartesian/reference.py).
 
 The commanded (or extrapolated) pose and twist with their derivatives, the twist the
 state reports and its rate, the elbow's history while one is streamed, and the IK
@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cartesian_reference import CartesianReference
-from .cartesian_step import WARM_JERK, Step, usable
-from .modes import Modes
-from .rows import put_rows
-from .tables import DELTA_T
+from ..modes import Modes
+from ..rows import put_rows
+from ..tables import DELTA_T
+from .reference import CartesianReference
+from .step import WARM_JERK, Step, usable
 
 
 class CartesianRecorder:

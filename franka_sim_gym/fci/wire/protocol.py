@@ -1,5 +1,5 @@
-"""TCP messages of robot server v10 (port 1337): requests, replies (framing: framing.py;
-the request payloads' layouts and their decoding: request_payloads.py, re-exported here).
+"""TCP messages of robot server v10 (port 1337): requests, replies (framing: fci/wire/framing.py;
+the request payloads' layouts and their decoding: fci/wire/request_payloads.py, re-exported here).
 
 Spec: docs/wire-protocol.md §2 (framing), §3 (commands, status enums, payloads),
 §4 (Connect), §5.1 (Move), §6 (GetRobotModel). Everything is little-endian and

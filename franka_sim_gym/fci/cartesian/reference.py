@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .reference import RING
+from ..reference import RING
 
 #: columns of one robot's history (the layout of ``CartesianHistory``): T, the pose's
 #: [v | omega] and [a | alpha], the frozen [a | alpha], twist, dtwist, the frozen dtwist,

@@ -1,13 +1,13 @@
-"""SetCollisionBehavior's thresholds (fci/collision.py): the defaults and what a payload
+"""SetCollisionBehavior's thresholds (fci/contact/collision.py): the defaults and what a payload
 may carry. The comparisons and the phases are the sensing step's C text
-(tests/fci/test_contact_rules.py)."""
+(tests/fci/contact/test_contact_rules.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci.collision import (
+from franka_sim_gym.fci.contact.collision import (
     DEFAULT_FORCE_THRESHOLDS,
     DEFAULT_TORQUE_THRESHOLDS,
     THRESHOLD_NAMES,

@@ -28,21 +28,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sim.arm import ArmPhysics
-from .accounting import CycleAccounting
-from .cartesian_checks import CartesianChecks
-from .cartesian_record import CartesianRecorder
-from .cartesian_reference import CartesianReference
-from .cartesian_step import Candidates, CartesianStepper, usable
-from .config import ControllerConfig
-from .cycle_input import CycleInput
-from .engine import MotionLimitEngine
-from .frames import from_wire, to_wire
-from .late import LateIntents
-from .modes import Modes
-from .rows import put_rows
-from .state import StateWriter
-from .tables import MAX_LOST_CYCLES
+from ...sim.arm import ArmPhysics
+from ..accounting import CycleAccounting
+from ..config import ControllerConfig
+from ..cycle_input import CycleInput
+from ..engine import MotionLimitEngine
+from ..frames import from_wire, to_wire
+from ..late import LateIntents
+from ..modes import Modes
+from ..rows import put_rows
+from ..state import StateWriter
+from ..tables import MAX_LOST_CYCLES
+from .checks import CartesianChecks
+from .record import CartesianRecorder
+from .reference import CartesianReference
+from .step import Candidates, CartesianStepper, usable
 
 
 class CartesianGenerators:
@@ -72,7 +72,7 @@ class CartesianGenerators:
         self.engine = engine
         self.late = late
         #: the history (pose, twist, elbow, reported twist, IK joint history), its last
-        #: real sample and the ring of published ones (cartesian_reference.py)
+        #: real sample and the ring of published ones (fci/cartesian/reference.py)
         self.reference = CartesianReference(n)
         self.stepper = CartesianStepper(physics, modes, writer)
         self.checks = CartesianChecks(modes, config, writer, engine)

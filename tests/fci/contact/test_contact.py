@@ -1,4 +1,4 @@
-"""The external-torque estimate and the wrench at K (fci/contact.py), held to MuJoCo.
+"""The external-torque estimate and the wrench at K (fci/contact/estimate.py), held to MuJoCo.
 
 MuJoCo's contact forces are the ground truth: the estimator never reads them, it runs
 on q, dq, tau_J and the arm's model terms (sim/dynamics.py), as the robot runs on its
@@ -10,7 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_sim_gym.fci.contact import (
+from franka_sim_gym.fci.contact.estimate import (
     ExternalTorqueEstimator,
     in_frame,
     wrench_from_torque,

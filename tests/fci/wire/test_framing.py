@@ -1,4 +1,4 @@
-"""The robot's TCP stream cut into frames (fci/framing.py): our robustness contract."""
+"""The robot's TCP stream cut into frames (fci/wire/framing.py): our robustness contract."""
 
 from __future__ import annotations
 
@@ -7,8 +7,14 @@ import struct
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from franka_sim_gym.fci.framing import HEADER, MAX_MESSAGE_SIZE, Frame, FrameDecoder, FramingError
-from franka_sim_gym.fci.protocol import (
+from franka_sim_gym.fci.wire.framing import (
+    HEADER,
+    MAX_MESSAGE_SIZE,
+    Frame,
+    FrameDecoder,
+    FramingError,
+)
+from franka_sim_gym.fci.wire.protocol import (
     Command,
     SetLoadRequest,
     encode_connect_request,

@@ -3,7 +3,7 @@ its wire layout, and the decoding of a payload (docs/wire-protocol.md §3, §4, 
 
 Little-endian and packed. Layouts only: values are returned raw, never judged (range
 checks, NaN, a version mismatch are the controller's business). The messages around
-them (headers, replies, the encoders) are ``fci/protocol.py``'s, which re-exports
+them (headers, replies, the encoders) are ``fci/wire/protocol.py``'s, which re-exports
 everything here.
 """
 

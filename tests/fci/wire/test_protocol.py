@@ -7,7 +7,7 @@ import struct
 
 import pytest
 
-from franka_sim_gym.fci.protocol import (
+from franka_sim_gym.fci.wire.protocol import (
     COMMAND_PORT,
     HEADER,
     MAX_MESSAGE_SIZE,

@@ -26,16 +26,16 @@ carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
 
 The rules (the filter step, the frame K, the wrench at K, its copy in K's axes, and the
-whole cycle's step with the collision levels, fci/contact_sensing.py) have one text, C:
-``fci/_contact.c`` (issue 38: one text per rule, compiled), :data:`RULES`.
+whole cycle's step with the collision levels, fci/contact/sensing.py) have one text, C:
+``fci/contact/_contact.c`` (issue 38: one text per rule, compiled), :data:`RULES`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import native
-from .tables import DELTA_T
+from ... import native
+from ..tables import DELTA_T
 
 __all__ = [
     "RULES",
@@ -61,9 +61,9 @@ RESOLUTION_DECIMALS = 4
 WRENCH_DAMPING = 1e-8
 
 
-#: The rules' only text (fci/_contact.c; a required extension: there is no other).
+#: The rules' only text (fci/contact/_contact.c; a required extension: there is no other).
 RULES = native.require(
-    "fci._contact", "filter_residual", "wrench_from_torque", "in_frame", "k_frame", "sense"
+    "fci.contact._contact", "filter_residual", "wrench_from_torque", "in_frame", "k_frame", "sense"
 )
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.errors import ERROR_NAMES, Error
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from tests.cartesian_helpers import CP, CV, DT, accelerate_x, errors, pose0, ramp_x, start
 
 # -- every row, provoked to exactly its index ---------------------------------------------------

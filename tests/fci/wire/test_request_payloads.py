@@ -1,4 +1,4 @@
-"""The request payloads of v10 (fci/request_payloads.py, docs/wire-protocol.md §3-§6): sizes,
+"""The request payloads of v10 (fci/wire/request_payloads.py, docs/wire-protocol.md §3-§6): sizes,
 round trips, byte positions, errors."""
 
 from __future__ import annotations
@@ -10,14 +10,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from franka_sim_gym.fci.protocol import (
+from franka_sim_gym.fci.wire.protocol import (
     HEADER,
     Command,
     encode_connect_request,
     encode_message,
     encode_move_request,
 )
-from franka_sim_gym.fci.request_payloads import (
+from franka_sim_gym.fci.wire.request_payloads import (
     REQUEST_SIZE,
     AutomaticErrorRecoveryRequest,
     ConnectRequest,

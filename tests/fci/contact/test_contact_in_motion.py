@@ -1,5 +1,5 @@
 """The external-force estimate along free-space motions, and what a reflex during a move
-to pylibfranka's example pose is (fci/contact.py; docs/robot-state.md, the contact group).
+to pylibfranka's example pose is (fci/contact/estimate.py; docs/robot-state.md, the contact group).
 
 The motion is the one pylibfranka's ``examples/cartesian_velocity_example.py`` runs (a
 joint move, then 8 s of Cartesian velocity under ControllerMode::CartesianImpedance: a
@@ -12,15 +12,15 @@ import math
 
 import numpy as np
 
-from franka_sim_gym.fci.collision import (
+from franka_sim_gym.fci.contact.collision import (
     DEFAULT_FORCE_THRESHOLDS,
     DEFAULT_TORQUE_THRESHOLDS,
     THRESHOLD_NAMES,
 )
 from franka_sim_gym.fci.errors import Error, error_names
 from franka_sim_gym.fci.events import EventKind
-from franka_sim_gym.fci.statuses import MoveStatus, SetterStatus
 from franka_sim_gym.fci.wire import MoveControllerMode, MoveMotionGeneratorMode
+from franka_sim_gym.fci.wire.statuses import MoveStatus, SetterStatus
 from tests.fci_helpers import LoopClient, make_controller
 from tests.sim.test_scene import table_contacts
 

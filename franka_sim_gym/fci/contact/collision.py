@@ -19,7 +19,7 @@ is in it, any other cycle nominal (a choice, docs/motion-limits.md).
 
 This module holds the thresholds (their defaults, what a payload may carry, each robot's
 configured ones). The comparisons, the phase and the flags are the cycle's sensing step,
-whose only text is C (fci/_contact.c ``sense``, called by fci/contact_sensing.py).
+whose only text is C (fci/contact/_contact.c ``sense``, called by fci/contact/sensing.py).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)
 #: |ddq_d| above which a motion is in its acceleration phase [rad/s^2] (a choice).
 ACCELERATION_PHASE = 0.5
 
-#: The payload's arrays in wire order (fci/request_payloads.py SetCollisionBehaviorRequest).
+#: The payload's arrays in wire order (fci/wire/request_payloads.py SetCollisionBehaviorRequest).
 THRESHOLD_NAMES = (
     "lower_torque_thresholds_acceleration",
     "upper_torque_thresholds_acceleration",
@@ -100,7 +100,7 @@ class CollisionBehavior:
 
     def __init__(self, n: int) -> None:
         #: (n, 2, 26) per phase: lower torque (7), upper torque (7), lower force (6),
-        #: upper force (6), side by side (one array for the C text, fci/_contact.c)
+        #: upper force (6), side by side (one array for the C text, fci/contact/_contact.c)
         self.thresholds = np.empty((n, 2, 26))
         self.lower_torque = self.thresholds[:, :, 0:7]
         self.upper_torque = self.thresholds[:, :, 7:14]

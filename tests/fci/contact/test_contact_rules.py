@@ -1,5 +1,5 @@
 """The contact estimate's and the collision levels' rules, their one C text
-(fci/_contact.c), against what docs/robot-state.md and fci/collision.py say of them.
+(fci/contact/_contact.c), against what docs/robot-state.md and fci/contact/collision.py say of them.
 
 The levels are driven through the whole sensing step (``sense``) with inputs whose
 published estimate and wrench are the values under test: an estimate already equal to
@@ -12,13 +12,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci import contact
-from franka_sim_gym.fci.collision import (
+from franka_sim_gym.fci.contact import estimate as contact
+from franka_sim_gym.fci.contact.collision import (
     ACCELERATION_PHASE,
     DEFAULT_TORQUE_THRESHOLDS,
     CollisionBehavior,
 )
-from tests.fci.test_collision import payload
+from tests.fci.contact.test_collision import payload
 
 C = contact.RULES
 DECIMALS = contact.RESOLUTION_DECIMALS
@@ -137,7 +137,7 @@ def test_at_a_threshold_is_not_above_it():
 
 
 def test_the_acceleration_phase_uses_its_own_thresholds():
-    """fci/collision.py: in motion with some |ddq_d| above ACCELERATION_PHASE, the
+    """fci/contact/collision.py: in motion with some |ddq_d| above ACCELERATION_PHASE, the
     acceleration phase's thresholds; otherwise (out of motion, at the bound, NaN) nominal."""
     b = CollisionBehavior(5)
     for i in range(5):

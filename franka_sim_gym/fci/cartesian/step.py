@@ -15,16 +15,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..sim.arm import ArmPhysics
-from ..sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
-from ..sim.kinematics import ArmKinematics
-from ..sim.rotations import rotation_exp
-from . import extrapolation
-from .cartesian_reference import CartesianHistory
-from .limits import cartesian as rules
-from .modes import Modes
-from .state import StateWriter
-from .tables import DELTA_T
+from ...sim.arm import ArmPhysics
+from ...sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
+from ...sim.kinematics import ArmKinematics
+from ...sim.rotations import rotation_exp
+from .. import extrapolation
+from ..limits import cartesian as rules
+from ..modes import Modes
+from ..state import StateWriter
+from ..tables import DELTA_T
+from .reference import CartesianHistory
 
 log = logging.getLogger("franka_sim_gym.fci")
 

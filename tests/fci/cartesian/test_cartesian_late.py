@@ -15,8 +15,8 @@ import pytest
 
 from franka_sim_gym.fci import frames
 from franka_sim_gym.fci.errors import ERROR_NAMES, Error, error_names
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveMotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from tests.fci_helpers import IMP, LoopClient, make_controller
 
 CP = MoveMotionGeneratorMode.kCartesianPosition

@@ -1,5 +1,5 @@
 /* The contact estimate's and the collision levels' rules: their only text (issue 38: one
- * text per rule, compiled; fci/contact.py, fci/contact_sensing.py and fci/collision.py hand
+ * text per rule, compiled; fci/contact/estimate.py, fci/contact/sensing.py and fci/contact/collision.py hand
  * them the state and the constants). Every constant (the filter's gain, the damping, the
  * published decimals, collision.py's acceleration phase) is an argument:
  *
@@ -12,7 +12,7 @@
  *   k_frame(O_T_EE, EE_T_K, point, rotation)
  *       K's origin and axes in the base frame, O_T_K = O_T_EE EE_T_K
  *   sense(...)
- *       contact_sensing.py's step after the model terms, one call per cycle: the three
+ *       fci/contact/sensing.py's step after the model terms, one call per cycle: the three
  *       rules above per robot, then the collision levels (collision.py's thresholds and
  *       phases) on the published values: the contact flags, the flags over an upper
  *       threshold and the phase written, the robots over one counted
@@ -243,16 +243,16 @@ done:
     return result;
 }
 
-/* The columns of one phase's thresholds (fci/collision.py CollisionBehavior.thresholds). */
+/* The columns of one phase's thresholds (fci/contact/collision.py CollisionBehavior.thresholds). */
 enum { LOWER_TORQUE = 0, UPPER_TORQUE = 7, LOWER_FORCE = 14, UPPER_FORCE = 20, THRESHOLDS = 26 };
 
 /* sense(tau_ext, tau_J, m_ddq, bias, jacobian, rotation, ddq_d, in_motion, thresholds,
  *       alpha, damping, decimals, acceleration_phase,
  *       tau, wrench, k_wrench, joint_contact, cartesian_contact,
  *       joint_over, cartesian_over, accelerating) -> int
- * The whole step of fci/contact_sensing.py ContactSensing.sense after the model terms:
+ * The whole step of fci/contact/sensing.py ContactSensing.sense after the model terms:
  * filter_residual into tau, wrench_from_torque into wrench, in_frame into k_wrench, then
- * the collision levels (fci/collision.py: SetCollisionBehavior's thresholds) on the
+ * the collision levels (fci/contact/collision.py: SetCollisionBehavior's thresholds) on the
  * published tau and wrench. A robot is in its acceleration phase when it is in motion and
  * some |ddq_d| is above ``acceleration_phase`` (a NaN is not); each |tau_j| and |F_c| is
  * compared with its lower threshold (``*_contact``, 1.0 / 0.0) and its upper one

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci import frames
-from franka_sim_gym.fci.protocol import MoveStatus
 from franka_sim_gym.fci.wire import RobotMode
+from franka_sim_gym.fci.wire.protocol import MoveStatus
 from franka_sim_gym.sim.rotations import rotation_exp
 from tests.cartesian_helpers import CP, CV, DT, errors, pose0, start
 from tests.fci_helpers import LoopClient, make_controller

@@ -1,9 +1,9 @@
 """The contact group of the RobotState, every cycle, and the collision reflexes (6, 7).
 
 After physics stepped and the measured state is written: the external-torque estimate
-(fci/contact.py) on the measured q, dq, tau_J and the arm's model with the configured
+(fci/contact/estimate.py) on the measured q, dq, tau_J and the arm's model with the configured
 load; the wrench at K (O_T_EE · EE_T_K); SetCollisionBehavior's levels
-(fci/collision.py). It writes ``tau_ext_hat_filtered``, ``O_F_ext_hat_K``,
+(fci/contact/collision.py). It writes ``tau_ext_hat_filtered``, ``O_F_ext_hat_K``,
 ``K_F_ext_hat_K``, ``joint_contact`` and ``cartesian_contact`` every cycle, latches
 ``joint_collision`` / ``cartesian_collision`` during a motion, and reports
 ``joint_reflex`` (6) / ``cartesian_reflex`` (7) to the engine like the safety
@@ -20,19 +20,19 @@ import logging
 
 import numpy as np
 
-from ..sim.arm import ArmPhysics
-from ..sim.dynamics import ArmDynamics, weight_torque
-from . import contact
+from ...sim.arm import ArmPhysics
+from ...sim.dynamics import ArmDynamics, weight_torque
+from ..engine import MotionLimitEngine
+from ..errors import Error
+from ..wire.statuses import SetterStatus
+from . import estimate as contact
 from .collision import (
     ACCELERATION_PHASE,
     THRESHOLD_NAMES,
     CollisionBehavior,
     invalid_thresholds,
 )
-from .contact import ALPHA, RESOLUTION_DECIMALS, WRENCH_DAMPING, ExternalTorqueEstimator
-from .engine import MotionLimitEngine
-from .errors import Error
-from .statuses import SetterStatus
+from .estimate import ALPHA, RESOLUTION_DECIMALS, WRENCH_DAMPING, ExternalTorqueEstimator
 
 _AXES = ("x", "y", "z", "R", "P", "Y")
 log = logging.getLogger("franka_sim_gym.fci")
@@ -147,7 +147,7 @@ class ContactSensing:
         if load_weight is not None:
             bias = bias + load_weight
         point, rotation = self.k_point, self.k_rotation
-        rules = contact.RULES  # the rules' C text (fci/_contact.c)
+        rules = contact.RULES  # the rules' C text (fci/contact/_contact.c)
         rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)
         jacobian = self.dynamics.jacobian(point)
         tau, wrench = f["tau_ext_hat_filtered"], f["O_F_ext_hat_K"]

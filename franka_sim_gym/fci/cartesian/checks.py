@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cartesian_step import Step
-from .config import ControllerConfig
-from .engine import MotionLimitEngine
-from .errors import Error
-from .limits import cartesian as rules
-from .modes import Modes
-from .state import StateWriter
+from ..config import ControllerConfig
+from ..engine import MotionLimitEngine
+from ..errors import Error
+from ..limits import cartesian as rules
+from ..modes import Modes
+from ..state import StateWriter
+from .step import Step
 
 
 class CartesianChecks:

@@ -1,4 +1,4 @@
-"""Contact and collision in the controller (fci/contact_sensing.py): the contact group of
+"""Contact and collision in the controller (fci/contact/sensing.py): the contact group of
 the RobotState, SetCollisionBehavior applied, joint_reflex / cartesian_reflex."""
 
 from __future__ import annotations
@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from franka_sim_gym.fci.collision import THRESHOLD_NAMES
+from franka_sim_gym.fci.contact.collision import THRESHOLD_NAMES
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.events import EventKind
 from franka_sim_gym.fci.frames import from_wire
-from franka_sim_gym.fci.statuses import MoveStatus, SetterStatus
 from franka_sim_gym.fci.wire import MoveMotionGeneratorMode, RobotMode
+from franka_sim_gym.fci.wire.statuses import MoveStatus, SetterStatus
 from tests.fci_helpers import LoopClient, make_controller
 from tests.sim.test_scene import OVER_THE_TABLE
 
