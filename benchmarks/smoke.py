@@ -1,6 +1,6 @@
 """``--smoke``, which every benchmark here takes: a run of a second or so through every
 row of its table, so that `make test` runs each script as documented
-(tests/scripts/test_benchmarks.py). Its figures mean nothing; the defaults measure."""
+(tests/commands/test_benchmarks.py). Its figures mean nothing; the defaults measure."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Shared by the Cartesian client-filter tests (tests/envs/test_cartesian_*.py): the FR3
+"""Shared by the Cartesian client-filter tests (tests/envs/test_cartesian_*.py,
+test_client_kernel.py): the FR3
 limits libfranka rate-limits to, pose builders, and libfranka's own outputs on fixed
 inputs."""
 

@@ -1,4 +1,4 @@
-"""Shared by the in-process Cartesian tests (tests/fci/test_cartesian*.py): a started
+"""Shared by the in-process Cartesian tests (tests/fci/cartesian/): a started
 Cartesian motion, its start pose, its errors, and +x pose streams."""
 
 from __future__ import annotations

@@ -195,7 +195,7 @@ static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
 #define JOINT_HISTORY_AND_LIMITS                                                          \
     ARRAY(NUM_IN, "v_last", 2, ROWS, 7), ARRAY(NUM_IN, "a_last", 2, ROWS, 7),             \
         ARRAY(F64_IN, "upper", 2, ROWS, 7), ARRAY(F64_IN, "lower", 2, ROWS, 7),           \
-        ARRAY(F64_IN, "a_max", 2, ROWS, 7), ARRAY(F64_IN, "j_max", 2, ROWS, 7),                       \
+        ARRAY(F64_IN, "a_max", 2, ROWS, 7), ARRAY(F64_IN, "j_max", 2, ROWS, 7),           \
         ARRAY(OUT, "out", 2, ROWS, 7)
 
 static void limit_velocities_rows(const F64 *a, Py_ssize_t n)
@@ -230,7 +230,7 @@ KERNEL(limit_torques, 1, ARRAY(F64_IN, "tau_c", 2, ROWS, 7),
 
 /* ---- the twist ----------------------------------------------------------------------- */
 
-/* cartesian_filters._limit_norm on one 3-vector. */
+/* libfranka's 3-vector limiter (limitRate's twist overload) on one half of a twist. */
 static void limit_norm(const double *v_c, const double *v_last, const double *a_last,
                        double v_max, double a_max, double j_max, double *out)
 {
@@ -259,7 +259,7 @@ static void limit_norm(const double *v_c, const double *v_last, const double *a_
 
 /* One twist through the limiter, both halves. */
 static void twist_limited(const double *x, const double *last, const double *dlast,
-                        const double limits[6], double *out)
+                          const double limits[6], double *out)
 {
     for (int h = 0; h < 2; h++)
         limit_norm(x + 3 * h, last + 3 * h, dlast + 3 * h, limits[3 * h], limits[3 * h + 1],
@@ -569,4 +569,4 @@ static PyMethodDef METHODS[] = {
 };
 
 KERNEL_MODULE(_client_filters,
-              "C replacements of the env client's libfranka filter rules (same signatures).")
+              "libfranka's client filter rules, which the env's client runs every cycle.")

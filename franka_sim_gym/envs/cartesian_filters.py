@@ -95,11 +95,11 @@ def cartesian_lowpass_filter(
     cutoff = check_cutoff(cutoff, _MSG_CARTESIAN_CUTOFF)
     T_c = finite("T_c", T_c, _MSG_CARTESIAN_SIGNAL)
     T_ref = finite("T_ref", T_ref, _MSG_CARTESIAN_SIGNAL)
-    gain = np.asarray(lowpass_gain(cutoff), dtype=np.float64)
-    lead = np.broadcast_shapes(T_c.shape[:-2], T_ref.shape[:-2], gain.shape)
+    lead = np.broadcast_shapes(T_c.shape[:-2], T_ref.shape[:-2])
+    gain = _per_pose("cutoff", np.asarray(lowpass_gain(cutoff), dtype=np.float64), lead)
     poses = [np.broadcast_to(T, (*lead, 4, 4)).reshape(-1, 4, 4) for T in (T_c, T_ref)]
     out = np.empty((*lead, 4, 4))
-    RULES.cartesian_lowpass(*poses, np.broadcast_to(gain, lead).reshape(-1), out.reshape(-1, 4, 4))
+    RULES.cartesian_lowpass(*poses, gain.reshape(-1), out.reshape(-1, 4, 4))
     return out
 
 
@@ -160,10 +160,10 @@ def limit_rate_cartesian_velocity(
     dtwist_last = finite("dtwist_last", dtwist_last)
     limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
     twists = np.broadcast_arrays(twist_c, twist_last, dtwist_last)
-    lead = np.broadcast_shapes(twists[0].shape[:-1], limits.shape[:-1])
-    twists = [np.broadcast_to(x, (*lead, 6)).reshape(-1, 6) for x in twists]
+    lead = twists[0].shape[:-1]
+    twists = [x.reshape(-1, 6) for x in twists]
     out = np.empty((*lead, 6))
-    limits = np.broadcast_to(limits, (*lead, 6)).reshape(-1, 6)
+    limits = _per_pose("the limits", limits, lead, 6).reshape(-1, 6)
     RULES.limit_twist(*twists, limits, out.reshape(-1, 6))
     return out
 
@@ -222,10 +222,10 @@ def limit_rate_cartesian_pose(
     dtwist_last = finite("dtwist_last", dtwist_last)
     limits = _finite_limits(v_max, a_max, j_max, v_rot_max, a_rot_max, j_rot_max)
     poses, twists = np.broadcast_arrays(T_c, T_last), np.broadcast_arrays(twist_last, dtwist_last)
-    lead = np.broadcast_shapes(poses[0].shape[:-2], twists[0].shape[:-1], limits.shape[:-1])
+    lead = np.broadcast_shapes(poses[0].shape[:-2], twists[0].shape[:-1])
     poses = [np.broadcast_to(x, (*lead, 4, 4)).reshape(-1, 4, 4) for x in poses]
     twists = [np.broadcast_to(x, (*lead, 6)).reshape(-1, 6) for x in twists]
-    limits = np.broadcast_to(limits, (*lead, 6)).reshape(-1, 6)
+    limits = _per_pose("the limits", limits, lead, 6).reshape(-1, 6)
     out = np.empty((*lead, 4, 4))
     RULES.limit_pose(*poses, *twists, limits, out.reshape(-1, 4, 4))
     return out
@@ -275,6 +275,19 @@ def reference_pose(O_T_EE_c: np.ndarray, out: np.ndarray | None = None) -> np.nd
     if out is None:
         out = np.empty((len(wire), 4, 4))
     return RULES.reference_pose(wire, out)
+
+
+def _per_pose(name: str, value: np.ndarray, lead: tuple[int, ...], *tail: int) -> np.ndarray:
+    """``value`` broadcast to the poses' (or twists') leading shape ``lead`` (plus ``tail``):
+    one value, or one per pose; anything that would add poses (an (n, 1) against (n,)
+    poses) is a ValueError naming ``name``."""
+    try:
+        return np.broadcast_to(value, (*lead, *tail))
+    except ValueError:
+        got = np.shape(value)[: np.ndim(value) - len(tail)]
+        raise ValueError(
+            f"{name} must be one value or one per pose (shape {lead}), got shape {got}"
+        ) from None
 
 
 def _finite_limits(*limits: ArrayLike) -> np.ndarray:

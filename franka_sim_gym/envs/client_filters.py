@@ -179,18 +179,26 @@ def lowpass_filter(
     gain = lowpass_gain(cutoff)
     x = finite("x", x, _MSG_SIGNAL)
     x_ref = finite("x_ref", x_ref, _MSG_SIGNAL)
-    return _rows(RULES.lowpass, x, x_ref, np.asarray(gain, dtype=np.float64))
+    return _elementwise(RULES.lowpass, x, x_ref, np.asarray(gain, dtype=np.float64))
 
 
-def _rows(rule, *arrays: np.ndarray) -> np.ndarray:
-    """``rule`` (envs/_client_filters.c) on ``arrays`` broadcast together: their (..., k)
-    shape laid out as (m, k) rows, the result in that shape."""
+def _elementwise(rule, *arrays: np.ndarray) -> np.ndarray:
+    """``rule`` (envs/_client_filters.c) on ``arrays`` broadcast together, element by
+    element: these rules treat every joint value on its own (their limits are per value
+    once broadcast), so the broadcast values are laid out as rows of seven, the C rules'
+    shape (the last row padded with copies of the last value), and the result is given
+    back in the broadcast shape (a scalar for scalars)."""
     arrays = np.broadcast_arrays(*arrays)
     shape = arrays[0].shape
-    k = shape[-1] if shape else 1
-    out = np.empty(shape)
-    rule(*(a.reshape(-1, k) for a in arrays), out.reshape(-1, k))
-    return out
+    size = arrays[0].size
+    if size == 0:
+        return np.empty(shape)
+    pad = -size % 7
+    rows = [np.pad(a.reshape(-1), (0, pad), mode="edge").reshape(-1, 7) for a in arrays]
+    out = np.empty((size + pad) // 7 * 7)
+    rule(*rows, out.reshape(-1, 7))
+    result = out[:size].reshape(shape)
+    return result[()] if result.ndim == 0 else result
 
 
 def limit_rate_joint_velocities(
@@ -239,7 +247,7 @@ def limit_rate_joint_velocities(
     """
     dq_c = finite("dq_c", dq_c, _MSG_COMMAND)
     limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
-    return _rows(RULES.limit_velocities, dq_c, *limiter)
+    return _elementwise(RULES.limit_velocities, dq_c, *limiter)
 
 
 def limit_rate_joint_positions(
@@ -274,7 +282,7 @@ def limit_rate_joint_positions(
     q_c = finite("q_c", q_c, _MSG_COMMAND)
     q_last = finite("q_last", q_last)
     limiter = _finite_limiter_args(dq_last, ddq_last, upper, lower, ddq_max, dddq_max)
-    return _rows(RULES.limit_positions, q_c, q_last, *limiter)
+    return _elementwise(RULES.limit_positions, q_c, q_last, *limiter)
 
 
 def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLike) -> np.ndarray:
@@ -291,7 +299,7 @@ def limit_rate_torques(tau_c: ArrayLike, tau_last: ArrayLike, dtau_max: ArrayLik
     tau_c = finite("tau_c", tau_c, _MSG_COMMAND)
     tau_last = finite("tau_last", tau_last)
     d_max = finite("dtau_max", dtau_max)
-    return _rows(RULES.limit_torques, tau_c, tau_last, d_max)
+    return _elementwise(RULES.limit_torques, tau_c, tau_last, d_max)
 
 
 def _finite_limiter_args(*values: ArrayLike) -> list[np.ndarray]:

@@ -220,10 +220,12 @@ class CommandGenerator:
         # Validated once here; every cycle runs the rules' one text (client_kernel.RULES:
         # envs/_client_filters.c), which takes a value per robot (and per joint): the
         # gains and limits below are broadcast views of one value, made once.
-        gain = np.asarray(cf.lowpass_gain(cutoff), dtype=np.float64)
+        gain = np.asarray(cf.lowpass_gain(cutoff), dtype=np.float64).reshape(-1)
+        if gain.size not in (1, n):
+            raise ValueError(f"cutoff must be one value or one per arm ({n}), got {cutoff!r}")
         cols = 6 if interface == "cartesian_velocity" else 7
-        self._gain = np.broadcast_to(gain.reshape(-1, 1) if gain.ndim else gain, (n, cols))
         self._pose_gain = np.broadcast_to(gain, (n,))
+        self._gain = np.broadcast_to(self._pose_gain[:, None], (n, cols))
         m = LIMITER_MARGIN
         self._ddq_max = np.broadcast_to(table.ddq_max - m["ddq"], (n, 7))
         self._dddq_max = np.broadcast_to(table.dddq_max - m["dddq"], (n, 7))

@@ -1,5 +1,5 @@
-/* 3x3 rotation arithmetic shared by the Cartesian kernels (fci/_cartesian_rules.c, the
- * twist target; envs/_client_filters.c, the client's pose limiter). Row-major arrays of
+/* 3x3 rotation arithmetic of the C texts (envs/_client_filters.c, the client's pose
+ * limiter). Row-major arrays of
  * nine doubles; each product sums over k = 0, 1, 2 in that order. No rule of the robot
  * lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ROTATION_H

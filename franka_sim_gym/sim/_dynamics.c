@@ -55,4 +55,4 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_dynamics, "C replacement of the arms' Jacobian at a point (sim/dynamics.py).")
+KERNEL_MODULE(_dynamics, "The arms' Jacobian at a point (sim/dynamics.py jacobian_at).")

@@ -66,4 +66,4 @@ static PyMethodDef METHODS[] = {
 };
 
 KERNEL_MODULE(_ik,
-              "The damped differential IK solve (the C replacement of ArmKinematics.solve).")
+              "The damped differential IK solve (sim/kinematics.py ArmKinematics.solve).")

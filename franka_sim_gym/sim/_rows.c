@@ -231,7 +231,7 @@ static PyMethodDef METHODS[] = {
 
 static struct PyModuleDef _rows_definition = {
     PyModuleDef_HEAD_INIT, "_rows",
-    "C replacement of the loops over the robots' MjData rows (sim/views.py).", -1, METHODS,
+    "The loops over the robots' MjData rows (sim/views.py).", -1, METHODS,
     NULL, NULL, NULL, NULL};
 
 PyMODINIT_FUNC PyInit__rows(void)

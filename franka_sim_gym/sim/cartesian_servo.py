@@ -35,7 +35,7 @@ import numpy as np
 #: drifting. The robot's value is not published: a choice (franka_ros's Cartesian
 #: impedance example controller uses 20 as its default too).
 NULLSPACE_STIFFNESS = 20.0
-#: Damping of the (J J^T) solve of the nullspace projector, as in contact.py's wrench.
+#: Damping of the (J J^T) solve of the nullspace projector, as in fci/contact/estimate.py's wrench.
 PROJECTOR_DAMPING = 1e-8
 
 

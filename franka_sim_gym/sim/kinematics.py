@@ -5,9 +5,8 @@ The kinematics are MuJoCo's own, on a world of n bare arms stacked at the origin
 one arm of the physics world computes them (the same chain from the same origin), so
 the pose the IK solves for is exactly the pose the simulated arm reaches -- no second
 kinematic model to drift from the first -- and one ``mj_kinematics`` serves all n arms.
-The IK's rule (the pose error, the damped Gauss-Newton
-step, its settings) is :mod:`franka_sim_gym.sim.ik`; rotations are
-:mod:`franka_sim_gym.sim.rotations`.
+The IK solve (the pose error, the damped Gauss-Newton step) has one text, in C
+(sim/_ik.c, native/_ik_core.h); its settings and result are :mod:`franka_sim_gym.sim.ik`.
 
 Batch-first: every call handles all n arms (one ``mj_kinematics`` for the stacked world
 per evaluation, the Jacobian assembled for every arm at once from MuJoCo's
@@ -104,7 +103,7 @@ class ArmKinematics:
                 "ArmKinematics: MuJoCo's mj_kinematics cannot be called from sim/_ik.c (no "
                 "library exporting it beside the mujoco package, or no struct addresses)"
             )
-        self._native_solve = self._solver_tuple(addresses)
+        self._solver = self._solver_tuple(addresses)
 
     def _mjdata_rows(self) -> tuple | None:
         """Views of the private MjData's rows every evaluation reads and writes: qpos,
@@ -198,21 +197,15 @@ class ArmKinematics:
             rows: (n,) bool, the arms to solve (others keep ``q_init``).
             out: an (n, 7) array to iterate in and return as the solution (default: new).
         """
-        return self._solve_native(target, q_init, F_T_EE, elbow, rows, out)
-
-    def _solve_native(self, target, q_init, F_T_EE, elbow, rows, out) -> IkResult:
-        """:meth:`solve` in one ``ik_solve`` call (sim/_ik.c), MuJoCo's own
-        ``mj_kinematics`` called from C between its passes."""
         q = np.empty((self.n, 7)) if out is None else out
         if rows is not None:
             rows = np.asarray(rows, dtype=bool)
         if elbow is not None:
             elbow = np.asarray(elbow, dtype=np.float64)
         q_init = np.asarray(q_init, dtype=np.float64)
-        IK_KERNEL.ik_solve(
-            q_init, q, target, F_T_EE, elbow, rows, self._rows_valid, self._native_solve
-        )
-        self.solved_natively()
+        IK_KERNEL.ik_solve(q_init, q, target, F_T_EE, elbow, rows, self._rows_valid, self._solver)
+        # MjData's rows are now at the last iterate, the evaluation's buffers are not.
+        self._rows_valid, self._cached = True, False
         converged = self._converged.copy() if rows is None else self._converged | ~rows
         position_error, rotation_error = self._errors.copy()  # (the next solve reuses them)
         return IkResult(q, converged, position_error, rotation_error)
@@ -228,18 +221,6 @@ class ArmKinematics:
 
     @property
     def native_solve(self) -> tuple:
-        """The C solve's arrays, settings and mj_kinematics addresses (native/_ik_core.h).
-        Call :meth:`solved_natively` after every solve that used them outside this
-        class."""
-        return self._native_solve
-
-    @property
-    def rows_valid(self) -> bool:
-        """MjData's rows are at the last solve's iterate (a C solve may skip
-        mj_kinematics when it starts there)."""
-        return self._rows_valid
-
-    def solved_natively(self) -> None:
-        """A C solve ran on this object's MjData: its rows are at the last iterate, the
-        evaluation's buffers are not."""
-        self._rows_valid, self._cached = True, False
+        """The C solve's arrays, settings and mj_kinematics addresses (native/_ik_core.h),
+        as :meth:`solve` passes them to ``ik_solve``."""
+        return self._solver

@@ -91,7 +91,7 @@ class ArmRows:
 
     def pairs(self) -> tuple[tuple[tuple[np.ndarray, ...], np.ndarray], ...]:
         """The (sources, out) pair sim/_rows.c's ``Gathers`` copies (empty where the C
-        loop does not apply: no kernel, rows not evenly spaced, not float64)."""
+        loop does not apply: rows not evenly spaced, not float64)."""
         return () if self._sources is None else ((self._sources, self.out),)
 
     def gather(self) -> np.ndarray:
@@ -134,7 +134,7 @@ class ArmRows:
 
 class Gathering:
     """Several :class:`ArmRows` refreshed together: one C call copying all of them where
-    sim/_rows.c is built and every one of them takes its C loop, else each one's gather.
+    every one of them takes sim/_rows.c's loop, else each one's gather.
 
     Args:
         rows: the slices, gathered in this order.

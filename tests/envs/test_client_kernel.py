@@ -33,6 +33,13 @@ def test_each_robot_is_low_passed_with_its_own_cutoff():
     for i in range(3):
         assert _same(batch[i], cf.lowpass_filter(x[i], ref[i], float(cutoffs[i, 0])))
     assert not np.allclose(batch[0], batch[2])
+    # one cutoff per joint too: every element its own gain
+    per_joint = rng.uniform(5.0, 900.0, (3, 7))
+    batch = cf.lowpass_filter(x, ref, per_joint)
+    for i in range(3):
+        for j in range(7):
+            alone = cf.lowpass_filter(x[i, j], ref[i, j], per_joint[i, j])
+            assert _same(np.atleast_1d(batch[i, j]), np.atleast_1d(alone))
 
 
 def test_each_robot_and_joint_is_rate_limited_with_its_own_limits():
@@ -47,7 +54,6 @@ def test_each_robot_and_joint_is_rate_limited_with_its_own_limits():
             dq_c[i], dq[i], ddq[i], upper[i], lower[i], a_max[i], j_max[i]
         )
         assert _same(batch[i], one)
-    assert not np.allclose(batch[0], batch[1] - (dq[1] - dq[0]))
     tau_c, tau = rng.normal(0, 5, (2, 7)), np.zeros((2, 7))
     rates = np.array([[1000.0] * 7, [10.0, 20, 30, 40, 50, 60, 70]])
     limited = cf.limit_rate_torques(tau_c, tau, rates)
@@ -113,5 +119,24 @@ def test_the_c_text_names_a_bad_argument():
         RULES.limit_pose(T, T, six, six[:, :5], limits, np.zeros((2, 4, 4)))
     with pytest.raises(ValueError, match="^out: expected a 3-D float64 array"):
         RULES.reference_pose(wire, np.zeros((2, 16)))
-    with pytest.raises(ValueError, match="^limit_rate_joint_velocities|^command: axis 1"):
-        cf.limit_rate_joint_velocities(np.zeros(3), np.zeros(3), np.zeros(3), 1, -1, 1, 1)
+    poses = np.tile(np.eye(4), (6, 1, 1))
+    with pytest.raises(ValueError, match=r"^cutoff must be one value or one per pose \(shape"):
+        cc.cartesian_lowpass_filter(poses, poses, np.full((6, 1), 100.0))
+    twist = np.zeros((6, 6))
+    per_robot = [np.full((6, 1), x) for x in TWIST_LIMITS]  # an (n, 1) would add poses
+    with pytest.raises(ValueError, match=r"^the limits must be one value or one per pose"):
+        cc.limit_rate_cartesian_velocity(twist, twist, twist, *per_robot)
+
+
+def test_the_joint_rules_take_any_shapes_that_broadcast():
+    """The joint and torque rules treat each value on its own: a scalar, three joints, or
+    (n, 7), each element as the (n, 7) batch computes it."""
+    rng = np.random.default_rng(3)
+    tau_c, tau_last = rng.normal(0, 5, (2, 7)), rng.normal(0, 5, (2, 7))
+    batch = cf.limit_rate_torques(tau_c, tau_last, 1000.0)
+    alone = cf.limit_rate_torques(float(tau_c[1, 4]), float(tau_last[1, 4]), 1000.0)
+    assert isinstance(alone, np.float64) and alone == batch[1, 4]
+    v = cf.limit_rate_joint_velocities(tau_c[:, :3], tau_last[:, :3], 0.0, 2.0, -2.0, 10.0, 5e3)
+    full = cf.limit_rate_joint_velocities(tau_c, tau_last, 0.0, 2.0, -2.0, 10.0, 5e3)
+    assert v.shape == (2, 3) and _same(v, np.ascontiguousarray(full[:, :3]))
+    assert cf.lowpass_filter(np.zeros((2, 0)), np.zeros((2, 0))).shape == (2, 0)

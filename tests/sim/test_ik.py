@@ -60,6 +60,7 @@ def test_the_solve_reaches_tracked_targets_holds_elbows_and_leaves_other_arms(n,
         free = active & (np.ones(n, bool) if elbow is None else ~np.isfinite(elbow))
         assert position[free].max(initial=0) < 1e-7 and rotation[free].max(initial=0) < 1e-7
         np.testing.assert_allclose(result.position_error[free], position[free], atol=1e-9)
+        np.testing.assert_allclose(result.rotation_error[free], rotation[free], atol=1e-9)
         if elbow is not None:
             held = np.isfinite(elbow) & active
             np.testing.assert_array_equal(result.q[held, 2], elbow[held])
@@ -74,6 +75,9 @@ def test_an_unreachable_target_is_unconverged_and_a_far_one_steps_at_most_max_st
     result = kin.solve(target, q)
     np.testing.assert_array_equal(result.converged, [True, False])
     assert result.position_error[1] > 0.5 and result.position_error[0] < 1e-7
+    position, rotation = _pose_errors(kin, result.q, target, None)
+    np.testing.assert_allclose(result.position_error, position, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(result.rotation_error, rotation, rtol=1e-6, atol=1e-12)
     one_step = _kinematics(1, max_iterations=1)
     far = one_step.forward(q[:1] + 1.5)
     stepped = one_step.solve(far, q[:1]).q

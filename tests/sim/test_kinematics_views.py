@@ -1,6 +1,5 @@
 """sim/views.py gives MjData's rows as strided views where the layout allows (sim/arm.py,
-sim/kinematics.py): the views select the rows the indices name, and the gathering
-fallback gives the same bits."""
+sim/kinematics.py): the views select the rows the indices name."""
 
 from __future__ import annotations
 

@@ -7,19 +7,19 @@ Per cycle, for every robot running a Cartesian generator whose accounting is ope
 
 1. the candidate is the command that arrived, or — for a lost cycle — the
    extrapolation by the lost-cycle law (docs/fci-behaviour.md "What the sim does with a lost
-   cycle"), up to 20 cycles (``cartesian_step``);
+   cycle"), up to 20 cycles (``step``);
 2. its Cartesian derivatives (and the elbow's) are differenced against the history,
    a twist is integrated onto the IK target pose, the target is solved to joint space
    from the previous cycle's solution and the solution's acceleration and jerk form
-   the joint side (``cartesian_step``);
-3. the precedence table names one error (``cartesian_checks``, the rules in
+   the joint side (``step``);
+3. the precedence table names one error (``checks``, the rules in
    limits/cartesian.py), logged always, aborting under enforcement;
-4. what survives is recorded (``cartesian_record``) and its IK solution is the joint
+4. what survives is recorded (``record``) and its IK solution is the joint
    servo's reference (the arm follows the commanded pose).
 
 Late datagrams are handled on arrival (:meth:`CartesianGenerators.late_datagrams`,
 docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for"), as for
-joint motions. The history lives in ``cartesian_reference.CartesianReference`` (not in
+joint motions. The history lives in ``reference.CartesianReference`` (not in
 JointReference): q_d keeps reporting the measured q during a Cartesian motion
 (docs/fci-behaviour.md).
 """

@@ -138,7 +138,7 @@ class ContactSensing:
         measured fields are written)."""
         physics, f = self.physics, self.field
         # The model at the state the step started from, paired with the torque of that
-        # step (contact.py, ExternalTorqueEstimator); the load's weight is of that state
+        # step (estimate.py, ExternalTorqueEstimator); the load's weight is of that state
         # too (the controller computes it before the step).
         dynamics = self.dynamics
         m_ddq, bias = self.estimator.model_terms(
