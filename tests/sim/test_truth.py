@@ -10,13 +10,7 @@ import pytest
 
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.friction import GAZ_A, GAZ_ALPHA, GAZ_PHI, RULES, JointFriction
-
-
-def gaz(dq: np.ndarray) -> np.ndarray:
-    """Gaz et al. 2019's friction law as the paper writes it."""
-    return GAZ_A / (1 + np.exp(-GAZ_ALPHA * (dq + GAZ_PHI))) - GAZ_A / (
-        1 + np.exp(-GAZ_ALPHA * GAZ_PHI)
-    )
+from tests.fci.test_reality import gaz  # Gaz et al.'s law as the paper writes it
 
 
 def test_the_friction_law_is_gaz_et_al_s_at_each_robots_own_scale():
