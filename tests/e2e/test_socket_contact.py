@@ -2,7 +2,10 @@
 
 `serve --enforce-motion-limits` (collision reflexes abort like every other reflex);
 pylibfranka descends onto the table under SetCollisionBehavior's thresholds, franky
-runs the reaction pattern of its own examples.
+runs the reaction pattern of its own examples. The pylibfranka scenarios run in
+lockstep (`--lockstep`: the same cycles and physics, at the client's pace instead of
+the wall clock's, 3-4 times faster here); the wall-clock server has its own tests
+(test_socket_realtime.py, test_socket_pylibfranka.py).
 """
 
 from __future__ import annotations
@@ -11,12 +14,15 @@ import pytest
 
 pytestmark = pytest.mark.socket
 
+#: the pylibfranka scenarios' server: in lockstep, no gripper server beside it
+LOCKSTEP = ("--lockstep", "--no-gripper")
+
 
 @pytest.mark.parametrize("upper", [20.0, 60.0])
 def test_a_descent_onto_the_table_ends_in_a_collision_reflex_near_the_threshold(
     serve, client, upper
 ):
-    server = serve("--enforce-motion-limits")
+    server = serve(*LOCKSTEP, "--enforce-motion-limits")
     r = client("contact", "descend", server.host, env={"FORCE": f"10,{upper}"}, timeout=90)
     assert "exception" not in r, r
     assert r["error"] is not None and "motion aborted by reflex" in r["error"], r
@@ -65,7 +71,7 @@ def test_frankys_force_reaction_fires_at_the_table(serve, client):
 def test_under_cartesian_impedance_a_pose_2_cm_into_the_table_presses_stiffness_times_2_cm(
     serve, client, stiffness
 ):
-    server = serve("--enforce-motion-limits")
+    server = serve(*LOCKSTEP, "--enforce-motion-limits")
     r = client(
         "contact", "impedance_press", server.host, env={"STIFFNESS": str(stiffness)}, timeout=90
     )
@@ -92,7 +98,7 @@ def test_pylibfranka_cartesian_velocity_examples_motion_in_free_space_senses_not
     """pylibfranka's cartesian_velocity_example.py's calls and motion (its joint moves in
     free space) under the example's 20 N thresholds: it completes, no flag rises, the
     estimate stays far below the default lower thresholds (12 to 20 Nm, 20 to 25 N)."""
-    server = serve("--enforce-motion-limits", "--enforce-comm-constraints")
+    server = serve(*LOCKSTEP, "--enforce-motion-limits", "--enforce-comm-constraints")
     r = client("example_motion", "free", server.host, timeout=120)
     assert "exception" not in r, r
     assert r["error"] is None, r
@@ -107,7 +113,7 @@ def test_pylibfranka_cartesian_velocity_examples_own_goal_meets_the_table(serve,
     -pi/4) puts the flange 2.6 cm above the table plane: the joint move collides with the
     table and ends in cartesian_reflex at the table; every state before the impact read
     no external force."""
-    server = serve("--enforce-motion-limits", "--enforce-comm-constraints")
+    server = serve(*LOCKSTEP, "--enforce-motion-limits", "--enforce-comm-constraints")
     r = client("example_motion", "example_goal", server.host, timeout=120)
     assert "exception" not in r, r
     assert r["stage"] == "joint", r
