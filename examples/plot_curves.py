@@ -4,8 +4,9 @@
         runs/push_rl/eval.csv:"SAC + HER" --level 0.06:"behaviour cloning" \
         --title FrankaFCIPush-v0 --note "published: ..." --out docs/img/push_demos.png
 
-Each CSV is train_sb3.py's eval.csv (steps, success rate, reflex rate, ...) or one of
-docs/data's (samples, ...): its
+Each CSV is train_sb3.py's eval.csv (steps, success rate, reflex rate, ...),
+train_bc.py's curve.csv (fitting steps, ...: give ``--xlabel``) or one of docs/data's
+(samples, ...): its
 success rate is drawn solid against samples, its reflex rate dashed in the same colour.
 ``--level VALUE:LABEL`` draws a horizontal line (a baseline measured once, e.g. the
 behaviour-cloning policy or the scripted solver); ``--note`` writes a text under the
@@ -35,6 +36,11 @@ def main() -> None:
     parser.add_argument("--level", action="append", default=[], help="VALUE:LABEL")
     parser.add_argument("--title", default="")
     parser.add_argument("--note", default="")
+    parser.add_argument(
+        "--xlabel",
+        default="samples (environment steps)",
+        help="the x axis (train_bc.py's curve.csv: fitting steps)",
+    )
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     import matplotlib
@@ -52,11 +58,11 @@ def main() -> None:
     for k, spec in enumerate(args.level):
         value, _, label = spec.partition(":")
         ax.axhline(float(value), color=f"C{k + len(args.curves)}", ls=":", label=label)
-    ax.set_xlabel("samples (environment steps)")
+    ax.set_xlabel(args.xlabel)
     ax.set_ylabel("rate over the evaluation episodes")
     ax.set_ylim(-0.03, 1.03)
     ax.set_title(args.title)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="best")
     if args.note:
         fig.text(0.01, 0.01, args.note, fontsize=7, va="bottom", wrap=True)
         fig.subplots_adjust(bottom=0.25)

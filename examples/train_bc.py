@@ -20,11 +20,19 @@ examples/evaluate.py finds it) and train_config.json to --out; last line
 single actor of ``--seed``), and evaluates the mean of their actions
 (franka_sim_gym.training.ensemble); the members are saved as model.zip and
 model_member<k>.zip, listed in train_config.json, and load back as one policy.
+
+``--curve EVERY`` also evaluates the policy after every EVERY fitting steps (each member
+at that step; the same 100 episodes) and writes the learning curve to curve.csv in
+--out: fitting steps, the fitting's wall time to that step (all members), the success
+and reflex rates and the reflexes by error name (examples/plot_curves.py draws it). The
+last row is the final policy; with or without the curve it is the same, bit for bit.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
+import csv
 import json
 import time
 from pathlib import Path
@@ -50,10 +58,19 @@ def main() -> None:
         "--ensemble", type=int, default=1, metavar="K", help="fit K actors, act on their mean"
     )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
+    parser.add_argument(
+        "--curve",
+        type=int,
+        default=0,
+        metavar="EVERY",
+        help="also evaluate every EVERY fitting steps and write curve.csv",
+    )
     parser.add_argument("--out", type=Path, default=Path("runs/bc"))
     args = parser.parse_args()
     if args.ensemble < 1:
         parser.error(f"--ensemble {args.ensemble}: an ensemble has at least one member")
+    if args.curve < 0 or args.curve > args.steps:
+        parser.error(f"--curve {args.curve}: evaluate every 1 to --steps ({args.steps}) steps")
 
     import gymnasium as gym
     import torch
@@ -87,11 +104,24 @@ def main() -> None:
         seed_normalization(venv, dataset)
         venv.training = False
         normalize = venv.normalize_obs
-    start = time.perf_counter()
+    # the curve's points: the fitting steps, each member's actor there, the time to there
+    points = [args.steps]
+    if args.curve:
+        points = sorted({*range(args.curve, args.steps + 1, args.curve), args.steps})
+    actors: dict[int, list] = {step: [] for step in points}
+    fitted = dict.fromkeys(points, 0.0)
     models, losses = [], []
     for k in range(args.ensemble):
         seed = member_seed(args.seed, k)
         model = SAC("MultiInputPolicy", venv, buffer_size=1, seed=seed, policy_kwargs=policy_kwargs)
+        start = time.perf_counter()
+
+        def keep(step: int, model=model, start=start) -> None:
+            if step in fitted:
+                fitted[step] += time.perf_counter() - start
+                if args.curve:
+                    actors[step].append(copy.deepcopy(model.policy.actor.state_dict()))
+
         losses = behaviour_cloning(
             model.policy,
             dataset,
@@ -101,14 +131,35 @@ def main() -> None:
             seed=seed,
             log_every=max(1, args.steps // 5),
             normalize=normalize,
+            on_step=keep,
         )
         models.append(model)
-    wall = time.perf_counter() - start
+    wall = fitted[args.steps]
     registered = gym.spec(spec.id).kwargs
     env_kwargs = {k: v for k, v in spec.kwargs.items() if k not in registered or registered[k] != v}
     policy = models[0] if len(models) == 1 else Ensemble(models)
     policy = policy if normalize is None else NormalizedPolicy(policy, venv)
-    result = evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=10_000)
+    curve = []
+    for step in points:
+        if args.curve:  # (at the last point these are the final actors)
+            for model, actor in zip(models, actors[step], strict=True):
+                model.policy.actor.load_state_dict(actor)
+        result = evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=10_000)
+        curve.append(
+            {
+                "steps": step,
+                "wall_s": round(fitted[step], 1),
+                "success_rate": result["success_rate"],
+                "reflex_rate": result["reflex_rate"],
+                "reflexes_by_error": json.dumps(result["reflexes_by_error"]),
+            }
+        )
+        if args.curve:
+            print(
+                f"bc curve: steps={step} success_rate={result['success_rate']:.3f} "
+                f"reflex_rate={result['reflex_rate']:.3f}",
+                flush=True,
+            )
     args.out.mkdir(parents=True, exist_ok=True)
     for k, model in enumerate(models):
         model.save(args.out / member_file(k))
@@ -120,6 +171,11 @@ def main() -> None:
     if len(models) > 1:
         config["members"] = [member_file(k) for k in range(len(models))]
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
+    if args.curve:
+        with open(args.out / "curve.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(curve[0]))
+            writer.writeheader()
+            writer.writerows(curve)
     print(
         f"{spec.id} {env_kwargs}: {dataset.total_episodes} demonstrations, "
         f"{dataset.total_steps} steps; final loss {losses[-1]:.5f}"

@@ -182,10 +182,15 @@ def behaviour_cloning(
     log_every: int = 0,
     normalize=None,
     exploration_std: float | None = None,
+    on_step: Callable[[int], None] | None = None,
 ) -> list[float]:
     """Fit an SB3 actor-critic policy's actor to a dataset's actions: ``steps`` Adam
     steps on the mean squared error between its deterministic action and the recorded
     one, on batches drawn uniformly from every recorded step. Returns the losses.
+
+    ``on_step(k)``, when given, is called after the k-th step (k = 1 ... steps), in the
+    policy's training mode (e.g. to keep a copy of the actor: examples/train_bc.py's
+    learning curve).
 
     ``policy`` is ``model.policy`` of an SB3 SAC / TD3 (anything with ``actor`` and
     ``obs_to_tensor``); its observation preprocessing is the model's own, after
@@ -223,6 +228,8 @@ def behaviour_cloning(
         losses.append(loss.item())
         if log_every and (step + 1) % log_every == 0:
             print(f"bc step {step + 1}: loss {np.mean(losses[-log_every:]):.5f}", flush=True)
+        if on_step is not None:
+            on_step(step + 1)
     policy.set_training_mode(False)
     return losses
 
