@@ -87,8 +87,8 @@ class PushSolver:
     back up and around when the block drifts off the line."""
 
     #: TCP height for travelling over the block [m]: 3.2 cm above its top, a margin a
-    #: clone's height error does not eat (at 6 cm its fingers met the block's edge:
-    #: docs/demonstrations.md, "Push: what else was tried")
+    #: clone's height error does not eat (at 6 cm, crossing from 5 cm, its fingers met
+    #: the block's edge: docs/demonstrations.md, "Push: what else was tried")
     HIGH = 2 * HALF + 0.032
     #: it crosses over the block only once within this of its travel height [m]
     CROSS = 0.003
@@ -186,10 +186,10 @@ class PickAndPlaceSolver:
     #: TCP height of the grasp [m]: 5 mm above the block's centre, so a descent that
     #: overshoots a few millimetres does not press the fingertips onto the table
     GRASP = HALF + 0.005
+    #: the hand closes once this close above the grasp height [m] (no wait to settle)
+    CLOSE = 0.004
     #: how far off the block's centre (across) the hand may be while going down [m]
     ALIGN = 0.005
-    #: the most the pushing speed grows in a step [m/s]
-    GATHER = 0.04
     #: grasp descent [m/s]: the block's width between open fingers leaves 2 cm a side
     DESCEND = 0.12
     #: ... and within this of the grasp height [m], this slower [m/s]
@@ -221,7 +221,7 @@ class PickAndPlaceSolver:
         aligned = across < self.ALIGN
         p = self.phase
         p[(p == 0) & aligned & (ee[:, 2] > self.HIGH - 0.01) & (width > 0.075)] = 1
-        p[(p == 1) & (ee[:, 2] < grasp_z + 0.004)] = 2
+        p[(p == 1) & (ee[:, 2] < grasp_z + self.CLOSE)] = 2
         p[(p == 2) & (width < 2 * HALF + 0.0015)] = 3  # the fingers have met the block
         to_goal = np.linalg.norm(goal[:, :2] - ee[:, :2], axis=1)
         on_table = goal[:, 2] < HALF + self.ON_TABLE
@@ -245,7 +245,10 @@ class PickAndPlaceSolver:
         # down only while lined up over the block; else hold the height and line up
         target[rows, 2] = np.where(aligned[rows], grasp_z, ee[rows, 2])
         last = ee[:, 2] < grasp_z + self.LAST
-        speed[rows] = np.where(last[rows], self.SLOW, min(self.DESCEND, lim.descend))
+        if not lim.naive:
+            speed[rows] = np.where(last[rows], self.SLOW, min(self.DESCEND, lim.descend))
+        else:
+            speed[rows] = lim.descend
         rows = p == 2
         hand[rows] = -1.0
         rows = p == 3

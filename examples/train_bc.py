@@ -25,7 +25,9 @@ model_member<k>.zip, listed in train_config.json, and load back as one policy.
 at that step; the same 100 episodes) and writes the learning curve to curve.csv in
 --out: fitting steps, the fitting's wall time to that step (all members), the success
 and reflex rates and the reflexes by error name (examples/plot_curves.py draws it). The
-last row is the final policy; with or without the curve it is the same, bit for bit.
+last row is the final policy; with or without the curve it is the same, bit for bit
+(its rates; the wall time, each member's from its construction to its last step, also
+counts the curve's copies of the actors).
 """
 
 from __future__ import annotations

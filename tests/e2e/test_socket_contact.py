@@ -2,10 +2,12 @@
 
 `serve --enforce-motion-limits` (collision reflexes abort like every other reflex);
 pylibfranka descends onto the table under SetCollisionBehavior's thresholds, franky
-runs the reaction pattern of its own examples. The pylibfranka scenarios run in
-lockstep (`--lockstep`: the same cycles and physics, at the client's pace instead of
-the wall clock's, 3-4 times faster here); the wall-clock server has its own tests
-(test_socket_realtime.py, test_socket_pylibfranka.py).
+runs the reaction pattern of its own examples. The pylibfranka descents, presses and the
+example's motions run in lockstep (`--lockstep`: the same cycles and physics, at the
+client's pace instead of the wall clock's, 3-4 times faster here; their
+`--enforce-comm-constraints` is the example's setting, and in lockstep it fires only
+after answers 50 ms late); the wall-clock server has its own tests
+(test_socket_realtime.py, test_socket_pylibfranka.py, franky's here).
 """
 
 from __future__ import annotations

@@ -62,9 +62,10 @@ def test_provocation_raises_the_named_reflex_then_recovery_restores_motion(
 
 
 def test_self_collision_fold_trips_2_before_joint_4_reaches_its_stop(serve, client):
-    # The fold is ~14 s of robot time under enforcement. In lockstep (the tick waits for
-    # the client's answer) no cycle is lost to a loaded machine, whose stolen cycles on
-    # the wall clock trip a discontinuity in the preparatory motion, as on the robot.
+    # The fold is ~14 s of robot time under enforcement. In lockstep the tick waits for
+    # the client's answer (up to --lockstep-timeout, 50 ms by default), so a loaded
+    # machine's stolen milliseconds lose no cycle; on the wall clock they tripped a
+    # discontinuity in the preparatory motion, as on the robot.
     server = serve("--lockstep", "--no-gripper", "--enforce-motion-limits")
     r = client("pylibfranka_reflex", "reflex", server.host, env={"REFLEX": "fold"}, timeout=120)
     server.stop()
