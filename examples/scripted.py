@@ -245,10 +245,8 @@ class PickAndPlaceSolver:
         # down only while lined up over the block; else hold the height and line up
         target[rows, 2] = np.where(aligned[rows], grasp_z, ee[rows, 2])
         last = ee[:, 2] < grasp_z + self.LAST
-        if not lim.naive:
-            speed[rows] = np.where(last[rows], self.SLOW, min(self.DESCEND, lim.descend))
-        else:
-            speed[rows] = lim.descend
+        slow = np.where(last[rows], self.SLOW, min(self.DESCEND, lim.descend))
+        speed[rows] = lim.descend if lim.naive else slow
         rows = p == 2
         hand[rows] = -1.0
         rows = p == 3
