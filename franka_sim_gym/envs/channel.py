@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..reality import streams
+from ..reality import stream
 from ..reality.ahead import Ahead
 
 
@@ -285,7 +285,7 @@ class DrawnLinks:
         self.loss[arms] = draws["communication.loss"]
         self.jitter[arms] = draws["communication.jitter"]
         self.cycles[arms] = draws["communication.jitter_cycles"].astype(np.int64)
-        self.ahead.reseed(arms, [streams(d.seed)["communication"] for d in draws.draws])
+        self.ahead.reseed(arms, [stream(d.seed, "communication") for d in draws.draws])
         for i in arms.tolist():
             self._queues[i].clear()
         self._queued[arms] = False

@@ -8,7 +8,7 @@ its sensors report (``franka_sim_gym.fci``); the env's channel the link. One dra
 given to all of them. numpy only: every layer may import it.
 """
 
-from .draw import DrawBatch, RealityDraw, draw, episode_seed, streams
+from .draw import DrawBatch, RealityDraw, draw, episode_seed, stream, streams
 from .profile import ENTRIES, SECTIONS, RealityProfile, load_profile
 from .shipped import PROFILES
 
@@ -22,5 +22,6 @@ __all__ = [
     "draw",
     "episode_seed",
     "load_profile",
+    "stream",
     "streams",
 ]

@@ -49,7 +49,9 @@ class Ahead:
     def _fill(self, i: int) -> None:
         """Robot i's next BLOCK samples, the first at this cycle."""
         block = self._sample(self._rngs[i], i, BLOCK)
-        self._ring[:, i] = np.roll(block, self._cycle % BLOCK, axis=0)
+        at = self._cycle % BLOCK  # sample k goes to slot (cycle + k) mod BLOCK
+        self._ring[at:, i] = block[: BLOCK - at]
+        self._ring[:at, i] = block[BLOCK - at :]
         self._refill[i] = self._cycle + BLOCK
 
     def advance(self) -> None:
@@ -63,6 +65,11 @@ class Ahead:
     def take(self, count: int) -> np.ndarray:
         """(count, n, width): every robot's samples of this cycle and the ``count - 1``
         next, a copy; afterwards the stream is ``count`` cycles on (as many advances)."""
+        if self._cycle + count <= self._next:  # no robot runs out before the last
+            out = self._ring.take(np.arange(self._cycle, self._cycle + count) % BLOCK, axis=0)
+            self._cycle += count - 1
+            self.advance()  # the refills due at the last advance, if any
+            return out
         out = np.empty((count, *self._ring.shape[1:]))
         for k in range(count):
             out[k] = self._ring[self._cycle % BLOCK]

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -96,26 +97,47 @@ def _rounded(value):
     return value
 
 
+def stream(seed: int, name: str) -> np.random.Generator:
+    """The generator of one of a seed's purposes (``name`` in :data:`STREAMS`): child
+    ``STREAMS.index(name)`` of the seed's SeedSequence, built alone (what
+    ``SeedSequence(seed).spawn(3)[i]`` gives, without the other two)."""
+    child = np.random.SeedSequence(int(seed), spawn_key=(STREAMS.index(name),))
+    return np.random.Generator(np.random.PCG64(child))
+
+
 def streams(seed: int) -> dict[str, np.random.Generator]:
     """The generators one seed feeds: the profile's draw, the sensors' noise, the link's
     losses and delays; independent of one another (SeedSequence children)."""
-    sequence = np.random.SeedSequence(int(seed))
-    children = sequence.spawn(len(STREAMS))
-    pairs = zip(STREAMS, children, strict=True)
-    return {name: np.random.Generator(np.random.PCG64(c)) for name, c in pairs}
+    return {name: stream(seed, name) for name in STREAMS}
+
+
+def _plan() -> tuple[list[tuple[str, tuple, slice, bool]], int]:
+    """Every entry's key, shape, slice of the draw's uniforms and whether it counts
+    cycles, in drawing order; and the number of uniforms a draw takes."""
+    plan, start = [], 0
+    for key, entry in entries():
+        size = math.prod(entry.shape)
+        plan.append((key, entry.shape, slice(start, start + size), entry.bound == "cycles"))
+        start += size
+    return plan, start
+
+
+_DRAW_PLAN, _DRAW_SIZE = _plan()
 
 
 def draw(profile: RealityProfile, seed: int) -> RealityDraw:
     """The episode of seed ``seed``: every entry uniform in its range, element by
     element, in :func:`~franka_sim_gym.reality.profile.entries`'s order (a fixed entry
     is its value exactly)."""
-    rng = streams(seed)["draw"]
+    rng = stream(seed, "draw")
+    # One call for every entry's uniforms: the same numbers, in the same order, as a
+    # call per entry (each double takes the generator's next 64 bits).
+    u = rng.random(_DRAW_SIZE)
     values = {}
-    for key, entry in entries():
+    for key, shape, at, cycles in _DRAW_PLAN:
         low, high = profile.low[key], profile.high[key]
-        u = rng.random(entry.shape)
-        value = np.where(low == high, low, low + (high - low) * u)
-        if entry.bound == "cycles":
+        value = np.where(low == high, low, low + (high - low) * u[at].reshape(shape))
+        if cycles:
             value = np.floor(value)
         value = np.asarray(value, dtype=np.float64)
         value.flags.writeable = False

@@ -38,3 +38,25 @@ def test_a_robot_starting_late_reads_what_it_would_alone():
         np.testing.assert_array_equal(batch.current()[1], alone.current()[0])
         batch.advance()
         alone.advance()
+
+
+def test_take_reads_what_as_many_advances_read():
+    # Counts that end before, at and past robots' refills (BLOCK apart, offset by the
+    # late start of robot 1), and a reseed between two takes.
+    taken, stepped = Ahead(2, 2, uniform), Ahead(2, 2, uniform)
+    for ahead in (taken, stepped):
+        ahead.reseed([0], [np.random.default_rng(5)])
+        for _ in range(30):
+            ahead.advance()
+        ahead.reseed([1], [np.random.default_rng(6)])
+    for count in (1, 40, BLOCK - 71, 30, 1, 2 * BLOCK + 3, 40):
+        out = taken.take(count)
+        expected = []
+        for _ in range(count):
+            expected.append(stepped.current().copy())
+            stepped.advance()
+        np.testing.assert_array_equal(out, np.array(expected))
+        np.testing.assert_array_equal(taken.current(), stepped.current())
+        if count == 30:
+            for ahead in (taken, stepped):
+                ahead.reseed([0], [np.random.default_rng(7)])

@@ -17,8 +17,10 @@ from franka_sim_gym.reality import (
     draw,
     episode_seed,
     load_profile,
+    stream,
     streams,
 )
+from franka_sim_gym.reality.draw import STREAMS
 from franka_sim_gym.reality.profile import entries
 
 
@@ -176,3 +178,8 @@ def test_one_seed_feeds_independent_streams():
     values = {name: g.random() for name, g in s.items()}
     assert len(set(values.values())) == len(values)
     assert streams(5)["sensors"].random() == values["sensors"]
+    # Each is the seed's SeedSequence child of its purpose, built alone or with the rest.
+    children = np.random.SeedSequence(5).spawn(len(STREAMS))
+    for name, child in zip(STREAMS, children, strict=True):
+        assert stream(5, name).random() == values[name]
+        assert np.random.Generator(np.random.PCG64(child)).random() == values[name]

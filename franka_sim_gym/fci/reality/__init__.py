@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...reality import DrawBatch, streams
+from ...reality import DrawBatch, stream
 from ...sim.arm import ArmPhysics
 from ...sim.friction import JointFriction
 from ..state import StateWriter
@@ -58,7 +58,7 @@ class RobotReality:
         sensors' streams and their friction compensation."""
         robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
         self.truth.apply(robots, draws)
-        rngs = [streams(d.seed)["sensors"] for d in draws.draws]
+        rngs = [stream(d.seed, "sensors") for d in draws.draws]
         self.sensors.set(
             robots,
             rngs,
