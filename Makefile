@@ -31,9 +31,10 @@ demo: $(VENV)/.train
 serve-demo: $(VENV)/.installed
 	$(PY) examples/demo.py
 
+# -n auto: one pytest-xdist worker per core; the suite holds its ten minutes on two cores.
 test: $(VENV)/.installed
 	$(PY) -m ruff check franka_sim_gym tests examples benchmarks
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
 bench: $(VENV)/.installed
 	$(PY) benchmarks/cycle_rate.py
