@@ -29,33 +29,24 @@
 #include <math.h>
 
 #include "_arrays.h"
+#include "_kernel.h"
 #include "_rotation.h"
-
-#ifndef M_PI /* (strict C99's math.h leaves it out) */
-#define M_PI 3.14159265358979323846
-#endif
 
 /* The constants configure() receives: fci/tables.py DELTA_T, libfranka's kNormEps and
  * kFactorCartesianRotationPoseInterface (envs/cartesian_filters.py), and
- * sim/rotations.py's NEAR_PI, TURNING_ABOVE and SERIES_BELOW. */
-static double DT, NORM_EPS, ROTATION_POSE_FACTOR, NEAR_PI, TURNING_ABOVE, SERIES_BELOW;
+ * sim/rotations.py's NEAR_PI, TURNING_ABOVE, SERIES_BELOW and SLERP_LINEAR (into
+ * _rotation.h's ROTATION). */
+static double DT, NORM_EPS, ROTATION_POSE_FACTOR;
 static int CONFIGURED = 0;
 
-static int check_configured(void)
-{
-    if (CONFIGURED) return 0;
-    PyErr_SetString(PyExc_RuntimeError,
-                    "envs._client_filters: configure(...) first (envs/client_kernel.py load)");
-    return -1;
-}
-
-/* configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, series_below) */
+/* configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, series_below,
+ * slerp_linear) */
 static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 6, "configure") < 0) return NULL;
-    double v[6];
-    for (int k = 0; k < 6; k++) {
+    if (check_nargs(nargs, 7, "configure") < 0) return NULL;
+    double v[7];
+    for (int k = 0; k < 7; k++) {
         v[k] = PyFloat_AsDouble(args[k]);
         if (v[k] == -1.0 && PyErr_Occurred()) return NULL;
         if (!(v[k] > 0.0 && isfinite(v[k]))) {
@@ -66,89 +57,14 @@ static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nar
     DT = v[0];
     NORM_EPS = v[1];
     ROTATION_POSE_FACTOR = v[2];
-    NEAR_PI = v[3];
-    TURNING_ABOVE = v[4];
-    SERIES_BELOW = v[5];
+    ROTATION.near_pi = v[3];
+    ROTATION.turning_above = v[4];
+    ROTATION.series_below = v[5];
+    ROTATION.slerp_linear = v[6];
     CONFIGURED = 1;
     Py_RETURN_NONE;
 }
 
-/* x . y over three values, summed in numpy einsum's order for "...i,...i->...". */
-static inline double dot3(const double *x, const double *y)
-{
-    return (x[0] * y[0] + x[2] * y[2]) + x[1] * y[1];
-}
-
-/* ---- one call: its arguments checked and borrowed, then the rule row by row --------------- */
-
-/* How a rule takes argument k: a float64 array (NUM_IN: float32 too, the wire state's
- * fields; OUT: the writable result, always the last argument). A value the same for every
- * robot (a limit, a gain) is a broadcast view: numpy's stride-0 arrays are read as such. */
-enum { F64_IN, NUM_IN, OUT };
-/* An array axis of length ROWS is the robot axis, COLS the columns: the first argument's
- * first and second axes (any length on the first argument itself). */
-#define ROWS (-1)
-#define COLS (-2)
-#define MAX_ARGS 9 /* the most a rule takes: limit_positions's */
-
-typedef struct {
-    int kind, ndim;
-    Py_ssize_t shape[3];
-    const char *name; /* as errors name it */
-} Arg;
-
-typedef struct {
-    const char *name;
-    int configured; /* reads configure()'s constants */
-    void (*rows)(const F64 *a, Py_ssize_t n); /* a[k]: argument k */
-    const Arg *args;
-    int nargs;
-} Kernel;
-
-static PyObject *call_kernel(const Kernel *kernel, PyObject *const *args, Py_ssize_t nargs)
-{
-    if (check_nargs(nargs, kernel->nargs, kernel->name) < 0 ||
-        (kernel->configured && check_configured() < 0))
-        return NULL;
-    F64 a[MAX_ARGS];
-    memset(a, 0, sizeof(a));
-    PyObject *result = NULL;
-    Py_ssize_t n = -1, cols = -1; /* "any" until the first argument is read */
-    for (int k = 0; k < kernel->nargs; k++) {
-        const Arg *arg = &kernel->args[k];
-        Py_ssize_t shape[3];
-        for (int d = 0; d < arg->ndim; d++)
-            shape[d] = arg->shape[d] == ROWS ? n : arg->shape[d] == COLS ? cols : arg->shape[d];
-        if ((arg->kind == NUM_IN ? num_get(args[k], &a[k], arg->ndim, shape, 0, arg->name)
-                                 : f64_get(args[k], &a[k], arg->ndim, shape, arg->kind == OUT,
-                                           arg->name)) < 0)
-            goto done;
-        if (k == 0) {
-            n = a[0].shape[0];
-            cols = a[0].ndim > 1 ? a[0].shape[1] : -1;
-        }
-    }
-    kernel->rows(a, n);
-    result = Py_NewRef(a[kernel->nargs - 1].view.obj);
-done:
-    f64_release_all(a, kernel->nargs);
-    return result;
-}
-
-/* The arguments of a rule (ARRAY(kind, name, ndim, axes...), in order)
- * and the module function NAME that calls it: NAME_rows on every robot. */
-#define ARRAY(kind, name, ndim, ...) {kind, ndim, {__VA_ARGS__}, name}
-#define KERNEL(name, configured, ...)                                                     \
-    static const Arg name##_args[] = {__VA_ARGS__};                                        \
-    /* (a rule of more than MAX_ARGS arguments does not compile) */                        \
-    typedef char name##_fits[sizeof(name##_args) / sizeof(Arg) <= MAX_ARGS ? 1 : -1];      \
-    static const Kernel name##_kernel = {#name, configured, name##_rows, name##_args,      \
-                                         (int)(sizeof(name##_args) / sizeof(Arg))};       \
-    static PyObject *name(PyObject *self, PyObject *const *args, Py_ssize_t nargs)         \
-    {                                                                                      \
-        (void)self;                                                                        \
-        return call_kernel(&name##_kernel, args, nargs);                                   \
-    }
 
 /* ---- the low-pass filter -------------------------------------------------------------- */
 
@@ -291,145 +207,6 @@ static void limit_twist_rows(const F64 *a, Py_ssize_t n)
 KERNEL(limit_twist, 1, ARRAY(F64_IN, "twist_c", 2, ROWS, 6), TWIST_HISTORY_AND_LIMITS,
        ARRAY(OUT, "out", 2, ROWS, 6))
 
-/* ---- rotations (sim/rotations.py, one rotation at a time) ------------------------------ */
-
-/* rotation_to_quaternion: Shepperd's method as Eigen's Quaternion(const Matrix3&),
- * (w, x, y, z), row-major m. */
-static void rotation_to_quaternion(const double *m, double *q)
-{
-    double trace = (m[0] + m[4]) + m[8];
-    int b = 0;
-    if (!(trace > 0.0)) { /* the largest diagonal entry, the first on ties */
-        b = 1;
-        if (m[4] > m[0]) b = 2;
-        if (m[8] > m[4 * (b - 1)]) b = 3;
-    }
-    double k_bb;
-    if (b == 0) {
-        k_bb = trace + 1.0;
-    } else {
-        double d0 = m[4 * (b - 1)], d1 = m[4 * (b % 3)], d2 = m[4 * ((b + 1) % 3)];
-        k_bb = d0 - d1 - d2 + 1.0;
-    }
-    double t = sqrt(k_bb), inv = 0.5 / t;
-    q[b] = 0.5 * t;
-    switch (b) {
-    case 0:
-        q[1] = (m[7] - m[5]) * inv;
-        q[2] = (m[2] - m[6]) * inv;
-        q[3] = (m[3] - m[1]) * inv;
-        break;
-    case 1:
-        q[0] = (m[7] - m[5]) * inv;
-        q[2] = (m[1] + m[3]) * inv;
-        q[3] = (m[2] + m[6]) * inv;
-        break;
-    case 2:
-        q[0] = (m[2] - m[6]) * inv;
-        q[1] = (m[1] + m[3]) * inv;
-        q[3] = (m[5] + m[7]) * inv;
-        break;
-    default:
-        q[0] = (m[3] - m[1]) * inv;
-        q[1] = (m[2] + m[6]) * inv;
-        q[2] = (m[5] + m[7]) * inv;
-    }
-}
-
-/* quaternion_to_rotation: R[i, j] = [1 -] (P[a] +- P[b]) over P[k, l] = (2 q_k) q_l. */
-static void quaternion_to_rotation(const double *q, double *R)
-{
-    double P[16];
-    for (int k = 0; k < 4; k++)
-        for (int l = 0; l < 4; l++) P[4 * k + l] = (2.0 * q[k]) * q[l];
-    static const int A[9] = {10, 6, 7, 6, 5, 11, 7, 11, 5};
-    static const int B[9] = {15, 12, 8, 12, 15, 4, 8, 4, 10};
-    static const double SIGN[9] = {1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0};
-    for (int e = 0; e < 9; e++) {
-        double v = P[A[e]] + SIGN[e] * P[B[e]];
-        R[e] = e % 4 == 0 ? 1.0 - v : v;
-    }
-}
-
-/* x . y over four values, in numpy einsum's order for "...i,...i->...". */
-static inline double dot4(const double *x, const double *y)
-{
-    return (x[0] * y[0] + x[2] * y[2]) + (x[1] * y[1] + x[3] * y[3]);
-}
-
-/* quaternion_slerp: Eigen's q0.slerp(t, q1); linear once |q0 . q1| >= 1 - eps. */
-static void quaternion_slerp(const double *q0, const double *q1, double t, double *out)
-{
-    double d = dot4(q0, q1), abs_d = fabs(d), s0, s1;
-    if (abs_d >= 1.0 - NORM_EPS) {
-        s0 = 1.0 - t;
-        s1 = t;
-    } else {
-        double theta = acos(np_minimum(abs_d, 1.0)), sin_theta = sin(theta);
-        s0 = sin((1.0 - t) * theta) / sin_theta;
-        s1 = sin(t * theta) / sin_theta;
-    }
-    if (d < 0.0) s1 = -s1;
-    for (int k = 0; k < 4; k++) out[k] = s0 * q0[k] + s1 * q1[k];
-}
-
-/* rotation_log: axis * angle, angle = atan2(|vee|, trace - 1) of the skew part vee; the
- * axis from the quaternion within NEAR_PI of a half turn. */
-static void rotation_log(const double *m, double *out)
-{
-    double vee[3] = {m[7] - m[5], m[2] - m[6], m[3] - m[1]};
-    double two_sin = sqrt(dot3(vee, vee));
-    double angle = atan2(two_sin, ((m[0] + m[4]) + m[8]) - 1.0);
-    double scale = two_sin > TURNING_ABOVE ? angle / two_sin : 0.5;
-    for (int k = 0; k < 3; k++) out[k] = vee[k] * scale;
-    if (!(M_PI - angle < NEAR_PI)) return;
-    double q[4];
-    rotation_to_quaternion(m, q);
-    double n = sqrt(dot3(q + 1, q + 1));
-    if (!(n > 0.0)) {
-        out[0] = out[1] = out[2] = 0.0;
-        return;
-    }
-    double half = 2.0 * atan2(n, fabs(q[0]));
-    double div = q[0] < 0.0 ? -n : n;
-    for (int k = 0; k < 3; k++) out[k] = q[k + 1] / div * half;
-}
-
-/* out = rotation_exp(rv) @ R (Rodrigues with sin t / t and (1 - cos t) / t^2, their
- * series below SERIES_BELOW). */
-static void exp_left(const double rv[3], const double *R, double *out)
-{
-    double angle = sqrt((rv[0] * rv[0] + rv[1] * rv[1]) + rv[2] * rv[2]);
-    double a2 = angle * angle;
-    if (angle < SERIES_BELOW)
-        rotate_left(rv, 1.0 - a2 / 6.0, 0.5 - a2 / 24.0, R, out);
-    else
-        rotate_left(rv, sin(angle) / angle, (1.0 - cos(angle)) / a2, R, out);
-}
-
-/* out = R^T R of a row-major 3x3 matrix. */
-static void gram3(const double *R, double *out)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            double s = 0.0;
-            for (int k = 0; k < 3; k++) s += R[3 * k + r] * R[3 * k + c];
-            out[3 * r + c] = s;
-        }
-}
-
-/* nearest_rotation, in place: three Newton-Schulz steps R <- (R (3 I - R^T R)) / 2. */
-static void nearest_rotation(double *R)
-{
-    double G[9], next[9];
-    for (int it = 0; it < 3; it++) {
-        gram3(R, G);
-        for (int k = 0; k < 9; k++) G[k] = (k % 4 == 0 ? 3.0 : 0.0) - G[k];
-        mat3_mul(R, G, 0, next);
-        for (int k = 0; k < 9; k++) R[k] = 0.5 * next[k];
-    }
-}
-
 /* ---- poses ----------------------------------------------------------------------------- */
 
 /* The (n, 4, 4) pose argument i as 16 row-major values. */
@@ -549,7 +326,7 @@ KERNEL(reference_pose, 0, ARRAY(NUM_IN, "O_T_EE_c", 2, ROWS, 16),
 
 static PyMethodDef METHODS[] = {
     METHOD(configure, "configure(dt, norm_eps, rotation_pose_factor, near_pi, turning_above, "
-                      "series_below): the rules' constants."),
+                      "series_below, slerp_linear): the rules' constants."),
     METHOD(lowpass, "lowpass(x, x_ref, gain, out): franka::lowpassFilter."),
     METHOD(limit_velocities, "limit_velocities(v_c, v_last, a_last, upper, lower, a_max, "
                              "j_max, out): franka::limitRate for joint velocities."),

@@ -54,4 +54,5 @@ RULES.configure(
     rotations.NEAR_PI,
     rotations.TURNING_ABOVE,
     rotations.SERIES_BELOW,
+    rotations.SLERP_LINEAR,
 )

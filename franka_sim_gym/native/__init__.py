@@ -1,11 +1,13 @@
 """The loader of the C extensions of the 1 kHz hot path (no rule lives here).
 
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
-twin, no switch): ``fci/limits/_joint.c`` (the joint generators' precedence tables, the
+twin, no switch): ``fci/_frames.c`` (libfranka's isHomogeneousTransformation),
+``fci/limits/_joint.c`` (the joint generators' precedence tables, the
 velocity envelope's law, the safety controller's errors 3 and 4, the torque interface's
 34 and 32), ``fci/contact/_contact.c`` (the contact estimate, the wrench at K, the collision
 levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the Jacobian at a point),
 ``sim/_truth.c`` (a reality draw's drive friction and link weights),
+``sim/_rotations.c`` (the rotation library, sim/rotations.py's one text),
 ``envs/_client_filters.c`` (libfranka's client filters), and ``sim/_rows.c`` (no rule:
 the copies of every robot's MjData rows). docs/architecture.md, "One implementation per
 rule", says which rules are where and why.
@@ -13,8 +15,9 @@ rule", says which rules are where and why.
 They are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler is available the
 install fails. The package holds what they share: :func:`require` and the C headers
-``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_rotation.h``,
-``_solve6.h`` and ``_ik_core.h``. Every constant a rule needs (the cycle
+``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_kernel.h`` (a
+rule's call from Python), ``_rotation.h`` (one rotation at a time), ``_solve6.h`` and
+``_ik_core.h``. Every constant a rule needs (the cycle
 ``fci/tables.py`` DELTA_T among them) is passed in by its caller, never compiled in.
 """
 
@@ -26,12 +29,14 @@ from types import ModuleType
 
 #: The C extensions setup.py builds (one per ``<layer>/_<name>.c``), all required.
 REQUIRED = (
+    "fci._frames",
     "fci.limits._joint",
     "fci.contact._contact",
     "sim._ik",
     "sim._dynamics",
     "sim._rows",
     "sim._truth",
+    "sim._rotations",
     "envs._client_filters",
 )
 

@@ -53,3 +53,16 @@ def test_a_bad_entry_fails_only_its_own_pose(slot: int, value: float) -> None:
     # (a bottom-row slot, a rotation entry) or non-finite, it is not.
     bad = not np.isfinite(value) or slot not in (12, 14)
     assert verdict.tolist() == [True, True, not bad, True]
+
+
+@pytest.mark.parametrize(
+    "block",
+    [
+        [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]],  # unit rows, columns not
+        [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],  # unit columns, rows not
+    ],
+)
+def test_rows_and_columns_are_both_checked(block) -> None:
+    T = _poses(np.random.default_rng(3), 3)
+    T[1, :3, :3] = block
+    assert _verdict(to_wire(T)).tolist() == [True, False, True]

@@ -9,8 +9,11 @@ import pytest
 
 from franka_sim_gym.sim.rotations import (
     NEAR_PI,
+    SERIES_BELOW,
     nearest_rotation,
+    quaternion_slerp,
     quaternion_to_rotation,
+    relative_rotation_log,
     rotation_exp,
     rotation_log,
     rotation_to_quaternion,
@@ -70,3 +73,61 @@ def test_skew_is_the_cross_product():
     rng = np.random.default_rng(4)
     u, v = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
     np.testing.assert_allclose((skew(u) @ v[..., None])[..., 0], np.cross(u, v), atol=1e-15)
+
+
+def test_rotation_exp_is_rodrigues_and_its_series_below_the_threshold():
+    rng = np.random.default_rng(5)
+    rotvec = np.concatenate([_axes(rng, 20) * rng.uniform(0.1, 3.0, (20, 1)),
+                             _axes(rng, 5) * SERIES_BELOW / 2])  # fmt: skip
+    R = rotation_exp(rotvec)
+    angle = np.linalg.norm(rotvec, axis=1)
+    K = skew(rotvec / angle[:, None])
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    np.testing.assert_allclose(R, np.eye(3) + s * K + (1 - c) * (K @ K), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rotation_log(R), rotvec, rtol=0, atol=1e-15)
+
+
+def test_relative_rotation_log_is_the_log_of_the_relative_rotation():
+    rng = np.random.default_rng(6)
+    R_a = rotation_exp(rng.normal(size=(30, 3)))
+    w = _axes(rng, 30) * rng.uniform(0.0, np.pi - 2 * NEAR_PI, (30, 1))
+    R_b = R_a @ rotation_exp(w)
+    out = np.full((30, 3), np.nan)
+    got = relative_rotation_log(R_a, R_b, out=out)
+    assert got is out
+    np.testing.assert_allclose(got, w, rtol=0, atol=1e-14)
+
+
+def test_slerp_takes_the_shorter_arc_and_is_linear_for_one_rotation():
+    z = np.array([0.0, 0.0, 1.0])
+    q0 = rotation_to_quaternion(rotation_exp(z * 0.2))
+    q1 = -rotation_to_quaternion(rotation_exp(z * 1.0))  # the same rotation, other sign
+    q = quaternion_slerp(q0, q1, 0.25)
+    np.testing.assert_allclose(rotation_log(quaternion_to_rotation(q)), z * 0.4, atol=1e-15)
+    # |q0 . q0| = 1: Eigen's linear branch, (1 - t) q0 + t q0
+    np.testing.assert_array_equal(quaternion_slerp(q0, q0, 0.3), 0.7 * q0 + 0.3 * q0)
+
+
+def test_a_rows_result_is_the_same_in_any_batch_and_under_leading_axes():
+    """One text, one rotation at a time: a row's bits do not depend on the rows beside it
+    (numpy's vectorised logarithm gave 192 of these 2,000 rows other last bits alone than
+    in the batch), and (..., 3) leading axes are rows."""
+    rng = np.random.default_rng(7)
+    rotvec = rng.normal(size=(2000, 3))
+    R = rotation_exp(rotvec)
+    R_b = rotation_exp(rng.normal(size=(2000, 3)))
+    q = rotation_to_quaternion(R)
+    rounded = R.astype(np.float32).astype(np.float64)
+    log, relative = rotation_log(R), relative_rotation_log(R, R_b)
+    for i in range(2000):
+        np.testing.assert_array_equal(rotation_log(R[i]), log[i])
+        np.testing.assert_array_equal(
+            relative_rotation_log(R[i : i + 1], R_b[i : i + 1])[0], relative[i]
+        )
+    for i in (0, 17, 1999):
+        np.testing.assert_array_equal(rotation_exp(rotvec[i]), R[i])
+        np.testing.assert_array_equal(rotation_to_quaternion(R[i]), q[i])
+        np.testing.assert_array_equal(quaternion_to_rotation(q[i]), quaternion_to_rotation(q)[i])
+        np.testing.assert_array_equal(nearest_rotation(rounded[i]), nearest_rotation(rounded)[i])
+    np.testing.assert_array_equal(rotation_exp(rotvec.reshape(40, 50, 3)), R.reshape(40, 50, 3, 3))
+    np.testing.assert_array_equal(rotation_log(R.reshape(40, 50, 3, 3)), log.reshape(40, 50, 3))

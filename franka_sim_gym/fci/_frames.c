@@ -1,0 +1,72 @@
+/* libfranka's isHomogeneousTransformation (docs/libfranka-client.md §9): the robot's check
+ * of every pose command, and the client's before it sends one. Its only text;
+ * fci/frames.py loads it (native.require) and puts the wire layout in front:
+ *
+ *   homogeneous(T (n, 4, 4) row-major, any strides, tol, out (n,) uint8) -> passed
+ *
+ * A pose passes when its bottom row is exactly [0, 0, 0, 1], every row and every column
+ * of its rotation block has a norm within tol of 1 (no determinant check, as libfranka),
+ * and all 16 entries are finite. ``out[i]`` is 1 where pose i passes; the return value
+ * counts them (the caller's "every pose passed" without a reduce). */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+
+#include "_arrays.h"
+
+/* |sqrt(a^2 + b^2 + c^2) - 1| <= tol, the squares summed as numpy's einsum did. */
+static inline int unit_norm(double a, double b, double c, double tol)
+{
+    return fabs(sqrt((a * a + c * c) + b * b) - 1.0) <= tol;
+}
+
+static int pose_passes(const F64 *T, Py_ssize_t i, double tol)
+{
+    double m[16];
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++) m[4 * r + c] = AT3(*T, i, r, c);
+    for (int k = 0; k < 16; k++)
+        if (!isfinite(m[k])) return 0;
+    if (!(m[12] == 0.0 && m[13] == 0.0 && m[14] == 0.0 && m[15] == 1.0)) return 0;
+    for (int k = 0; k < 3; k++) {
+        if (!unit_norm(m[4 * k], m[4 * k + 1], m[4 * k + 2], tol)) return 0; /* row k */
+        if (!unit_norm(m[k], m[4 + k], m[8 + k], tol)) return 0;             /* column k */
+    }
+    return 1;
+}
+
+static PyObject *homogeneous(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 3, "homogeneous") < 0) return NULL;
+    static const Py_ssize_t shape[3] = {-1, 4, 4};
+    F64 T;
+    if (f64_get(args[0], &T, 3, shape, 0, "T") < 0) return NULL;
+    double tol = PyFloat_AsDouble(args[1]);
+    if (tol == -1.0 && PyErr_Occurred()) {
+        f64_release(&T);
+        return NULL;
+    }
+    Py_ssize_t n = T.shape[0], passed = 0;
+    Bytes out;
+    if (bytes_get(args[2], &out, n, 1, "out") < 0) {
+        f64_release(&T);
+        return NULL;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int ok = pose_passes(&T, i, tol);
+        BYTE1(out, i) = (unsigned char)ok;
+        passed += ok;
+    }
+    bytes_release(&out);
+    f64_release(&T);
+    return PyLong_FromSsize_t(passed);
+}
+
+static PyMethodDef METHODS[] = {
+    METHOD(homogeneous, "homogeneous(T, tol, out) -> passed: libfranka's "
+                        "isHomogeneousTransformation on (n, 4, 4) row-major poses."),
+    {NULL, NULL, 0, NULL},
+};
+
+KERNEL_MODULE(_frames, "libfranka's isHomogeneousTransformation (fci/frames.py).")
