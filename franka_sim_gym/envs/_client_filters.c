@@ -44,23 +44,12 @@ static int CONFIGURED = 0;
 static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 7, "configure") < 0) return NULL;
     double v[7];
-    for (int k = 0; k < 7; k++) {
-        v[k] = PyFloat_AsDouble(args[k]);
-        if (v[k] == -1.0 && PyErr_Occurred()) return NULL;
-        if (!(v[k] > 0.0 && isfinite(v[k]))) {
-            PyErr_SetString(PyExc_ValueError, "configure: expected positive finite constants");
-            return NULL;
-        }
-    }
+    if (positive_constants(args, nargs, 7, v) < 0) return NULL;
     DT = v[0];
     NORM_EPS = v[1];
     ROTATION_POSE_FACTOR = v[2];
-    ROTATION.near_pi = v[3];
-    ROTATION.turning_above = v[4];
-    ROTATION.series_below = v[5];
-    ROTATION.slerp_linear = v[6];
+    rotation_configure(v + 3);
     CONFIGURED = 1;
     Py_RETURN_NONE;
 }

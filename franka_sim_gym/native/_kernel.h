@@ -7,6 +7,8 @@
 #ifndef FRANKA_SIM_GYM_NATIVE_KERNEL_H
 #define FRANKA_SIM_GYM_NATIVE_KERNEL_H
 
+#include <math.h>
+
 #include "_arrays.h"
 
 /* How a rule takes argument k: a float64 array (NUM_IN: float32 too, the wire state's
@@ -80,5 +82,23 @@ done:
         (void)self;                                                                        \
         return call_kernel(&name##_kernel, args, nargs);                                   \
     }
+
+/* configure()'s arguments: ``count`` positive finite floats into ``out``. Returns 0, or
+ * -1 with the error set (and ``out`` unchanged in part or whole: the caller keeps its
+ * constants until every value checked). */
+static inline int positive_constants(PyObject *const *args, Py_ssize_t nargs, int count,
+                                     double *out)
+{
+    if (check_nargs(nargs, count, "configure") < 0) return -1;
+    for (int k = 0; k < count; k++) {
+        out[k] = PyFloat_AsDouble(args[k]);
+        if (out[k] == -1.0 && PyErr_Occurred()) return -1;
+        if (!(out[k] > 0.0 && isfinite(out[k]))) {
+            PyErr_SetString(PyExc_ValueError, "configure: expected positive finite constants");
+            return -1;
+        }
+    }
+    return 0;
+}
 
 #endif

@@ -1,9 +1,10 @@
 /* The rotation library's one text (sim/rotations.py calls it through sim/_rotations.c;
  * envs/_client_filters.c's pose rules call it directly): one rotation at a time, row-major
  * arrays of nine doubles, quaternions (w, x, y, z) as Eigen stores them. Each matrix
- * product sums over k = 0, 1, 2 in that order; 3- and 4-vector dot products sum in numpy
- * einsum's order (the numpy text these replaced), so the published states kept their
- * bits. No rule of the robot lives here.
+ * product sums over k = 0, 1, 2 in that order, without fused multiply-adds (setup.py);
+ * 3- and 4-vector dot products sum in numpy einsum's order. (The numpy text these
+ * replaced took its 3x3 products from the CPU's BLAS kernel: docs/architecture.md says
+ * what changed.) No rule of the robot lives here.
  *
  * The thresholds are sim/rotations.py's (NEAR_PI, TURNING_ABOVE, SERIES_BELOW,
  * SLERP_LINEAR), handed to each including module's configure() and kept in its ROTATION. */
@@ -22,6 +23,16 @@
 static struct {
     double near_pi, turning_above, series_below, slerp_linear;
 } ROTATION;
+
+/* ROTATION from (near_pi, turning_above, series_below, slerp_linear), as configure()
+ * received them. */
+static inline void rotation_configure(const double *v)
+{
+    ROTATION.near_pi = v[0];
+    ROTATION.turning_above = v[1];
+    ROTATION.series_below = v[2];
+    ROTATION.slerp_linear = v[3];
+}
 
 /* x . y over three values, summed in numpy einsum's order for "...i,...i->...". */
 static inline double dot3(const double *x, const double *y)

@@ -26,41 +26,31 @@ static int CONFIGURED = 0;
 static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 4, "configure") < 0) return NULL;
     double v[4];
-    for (int k = 0; k < 4; k++) {
-        v[k] = PyFloat_AsDouble(args[k]);
-        if (v[k] == -1.0 && PyErr_Occurred()) return NULL;
-        if (!(v[k] > 0.0 && isfinite(v[k]))) {
-            PyErr_SetString(PyExc_ValueError, "configure: expected positive finite constants");
-            return NULL;
-        }
-    }
-    ROTATION.near_pi = v[0];
-    ROTATION.turning_above = v[1];
-    ROTATION.series_below = v[2];
-    ROTATION.slerp_linear = v[3];
+    if (positive_constants(args, nargs, 4, v) < 0) return NULL;
+    rotation_configure(v);
     CONFIGURED = 1;
     Py_RETURN_NONE;
 }
 
-/* Row i of an (n, k) argument, or of an (n, 3, 3) one flattened row-major. */
+/* The address of value j of row i of an (n, k) argument, or of an (n, 3, 3) one taken
+ * row-major. Read and written by copy: views of the wire's packed records (a pose
+ * command's rotation) may be unaligned. */
+static char *row_value(const F64 *a, Py_ssize_t i, int j)
+{
+    char *row = a->data + i * a->strides[0];
+    if (a->ndim == 2) return row + j * a->strides[1];
+    return row + (j / 3) * a->strides[1] + (j % 3) * a->strides[2];
+}
+
 static void row_at(const F64 *a, Py_ssize_t i, int k, double *out)
 {
-    if (a->ndim == 2)
-        for (int j = 0; j < k; j++) out[j] = AT2(*a, i, j);
-    else
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) out[3 * r + c] = AT3(*a, i, r, c);
+    for (int j = 0; j < k; j++) memcpy(&out[j], row_value(a, i, j), sizeof(double));
 }
 
 static void row_put(const F64 *a, Py_ssize_t i, int k, const double *v)
 {
-    if (a->ndim == 2)
-        for (int j = 0; j < k; j++) AT2(*a, i, j) = v[j];
-    else
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) AT3(*a, i, r, c) = v[3 * r + c];
+    for (int j = 0; j < k; j++) memcpy(row_value(a, i, j), &v[j], sizeof(double));
 }
 
 static void exponential_rows(const F64 *a, Py_ssize_t n)
@@ -129,7 +119,9 @@ static void slerp_rows(const F64 *a, Py_ssize_t n)
         double q0[4], q1[4], q[4];
         row_at(&a[0], i, 4, q0);
         row_at(&a[1], i, 4, q1);
-        quaternion_slerp(q0, q1, AT1(a[2], i), q);
+        double t;
+        memcpy(&t, a[2].data + i * a[2].strides[0], sizeof(double));
+        quaternion_slerp(q0, q1, t, q);
         row_put(&a[3], i, 4, q);
     }
 }

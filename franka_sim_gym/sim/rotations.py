@@ -72,8 +72,17 @@ _C.configure(NEAR_PI, TURNING_ABOVE, SERIES_BELOW, SLERP_LINEAR)
 
 
 def _rows(x, width: tuple[int, ...]) -> np.ndarray:
-    """``x`` as float64 rows of shape ``width`` (a view where it can be)."""
-    return np.asarray(x, dtype=np.float64).reshape((-1, *width))
+    """``x`` (..., *width) as float64 rows of shape ``width`` (a view where it can be).
+
+    Raises:
+        ValueError: ``x`` does not end in ``width``.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[x.ndim - len(width) :] != width:
+        raise ValueError(
+            f"expected an array of shape (..., {', '.join(map(str, width))}), got {x.shape}"
+        )
+    return x.reshape((-1, *width))
 
 
 def skew(u: np.ndarray) -> np.ndarray:
@@ -112,8 +121,8 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
 def relative_rotation_log(
     R_a: np.ndarray, R_b: np.ndarray, out: np.ndarray | None = None
 ) -> np.ndarray:
-    """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs. ``out``: an (n, 3) array to
-    write the result into (and return)."""
+    """(n, 3) ``rotation_log(R_a^T R_b)`` of (n, 3, 3) pairs (the same n: no broadcasting).
+    ``out``: an (n, 3) array to write the result into (and return)."""
     R_a, R_b = _rows(R_a, (3, 3)), _rows(R_b, (3, 3))
     if out is None:
         out = np.empty((len(R_a), 3))

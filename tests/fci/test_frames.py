@@ -1,5 +1,6 @@
-"""The wire-level homogeneity test (error 31's gate on the 1 kHz path) agrees with the
-exact one on every pose, including those at the edge of libfranka's 1e-5 band."""
+"""libfranka's isHomogeneousTransformation (error 31's gate on the 1 kHz path): its
+verdict at the edge of the 1e-5 band, on bad entries, on rows and on columns; the wire
+form (None when every pose passes) gives the (n, 4, 4) form's verdict."""
 
 from __future__ import annotations
 

@@ -41,15 +41,16 @@ def test_a_robot_starting_late_reads_what_it_would_alone():
 
 
 def test_take_reads_what_as_many_advances_read():
-    # Counts that end before, at and past robots' refills (BLOCK apart, offset by the
-    # late start of robot 1), and a reseed between two takes.
+    # Counts that end before a refill, at one (cycle 256: robot 0's; 286: robot 1's), one
+    # cycle past one (the BLOCK from cycle 287 ends at 543, past both refills at 542) and
+    # over several, and a reseed between two takes.
     taken, stepped = Ahead(2, 2, uniform), Ahead(2, 2, uniform)
     for ahead in (taken, stepped):
         ahead.reseed([0], [np.random.default_rng(5)])
         for _ in range(30):
             ahead.advance()
         ahead.reseed([1], [np.random.default_rng(6)])
-    for count in (1, 40, BLOCK - 71, 30, 1, 2 * BLOCK + 3, 40):
+    for count in (1, 40, BLOCK - 71, 30, 1, BLOCK, 2 * BLOCK + 3, 40):
         out = taken.take(count)
         expected = []
         for _ in range(count):

@@ -183,3 +183,20 @@ def test_one_seed_feeds_independent_streams():
     for name, child in zip(STREAMS, children, strict=True):
         assert stream(5, name).random() == values[name]
         assert np.random.Generator(np.random.PCG64(child)).random() == values[name]
+
+
+def test_a_draw_takes_each_entry_uniform_from_the_draw_stream_in_entry_order():
+    """Entry by entry, ``low + (high - low) u`` with u the draw stream's next uniforms of
+    the entry's shape (cycles floored, fixed entries exact): what one call for every
+    entry's uniforms must give."""
+    randomized = load_profile("randomized")
+    for seed in (0, 5, 2**70 + 1):
+        rng = stream(seed, "draw")
+        d = draw(randomized, seed)
+        for key, entry in entries():
+            u = rng.random(entry.shape)
+            low, high = randomized.low[key], randomized.high[key]
+            expected = np.where(low == high, low, low + (high - low) * u)
+            if entry.bound == "cycles":
+                expected = np.floor(expected)
+            np.testing.assert_array_equal(d[key], expected, err_msg=key)

@@ -77,14 +77,21 @@ def test_skew_is_the_cross_product():
 
 def test_rotation_exp_is_rodrigues_and_its_series_below_the_threshold():
     rng = np.random.default_rng(5)
-    rotvec = np.concatenate([_axes(rng, 20) * rng.uniform(0.1, 3.0, (20, 1)),
-                             _axes(rng, 5) * SERIES_BELOW / 2])  # fmt: skip
+    rotvec = _axes(rng, 20) * rng.uniform(0.1, 3.0, (20, 1))
     R = rotation_exp(rotvec)
     angle = np.linalg.norm(rotvec, axis=1)
     K = skew(rotvec / angle[:, None])
     s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
     np.testing.assert_allclose(R, np.eye(3) + s * K + (1 - c) * (K @ K), rtol=0, atol=1e-15)
     np.testing.assert_allclose(rotation_log(R), rotvec, rtol=0, atol=1e-15)
+    # Below SERIES_BELOW: I + K + K^2 / 2 (K = skew(rotvec)). Off the diagonal K^2's term
+    # (~1e-17) sits far above the rounding of K's (~1e-8 * 1e-16), so a relative
+    # tolerance sees both coefficients.
+    tiny = _axes(rng, 5) * SERIES_BELOW / 2
+    Kt = skew(tiny)
+    series = np.eye(3) + Kt + 0.5 * (Kt @ Kt)
+    off = ~np.eye(3, dtype=bool)
+    np.testing.assert_allclose(rotation_exp(tiny)[:, off], series[:, off], rtol=1e-12, atol=0)
 
 
 def test_relative_rotation_log_is_the_log_of_the_relative_rotation():
@@ -131,3 +138,17 @@ def test_a_rows_result_is_the_same_in_any_batch_and_under_leading_axes():
         np.testing.assert_array_equal(nearest_rotation(rounded[i]), nearest_rotation(rounded)[i])
     np.testing.assert_array_equal(rotation_exp(rotvec.reshape(40, 50, 3)), R.reshape(40, 50, 3, 3))
     np.testing.assert_array_equal(rotation_log(R.reshape(40, 50, 3, 3)), log.reshape(40, 50, 3))
+
+
+@pytest.mark.parametrize(
+    ("call", "bad"),
+    [
+        (rotation_log, np.zeros((2, 3, 4))),
+        (rotation_exp, np.zeros((2, 4))),
+        (quaternion_to_rotation, np.zeros(3)),
+        (nearest_rotation, np.zeros(9)),
+    ],
+)
+def test_an_array_of_the_wrong_shape_is_a_clear_error(call, bad):
+    with pytest.raises(ValueError, match=r"expected an array of shape \(\.\.\., "):
+        call(bad)
