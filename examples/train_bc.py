@@ -28,6 +28,20 @@ and reflex rates and the reflexes by error name (examples/plot_curves.py draws i
 last row is the final policy; with or without the curve it is the same, bit for bit
 (its rates; the wall time, each member's from its construction to its last step, also
 counts the curve's copies of the actors).
+
+``--dagger ROUNDS`` goes on after the fit with DAgger (Ross, Gordon and Bagnell, 2011,
+"A Reduction of Imitation Learning and Structured Prediction to No-Regret Online
+Learning"): each round runs ``--dagger-episodes`` episodes in which the policy as fitted
+so far acts and the dataset's scripted solver (examples/scripted.py, following the same
+episode) labels every state the policy visits; the round is recorded as a Minari dataset
+of its own (``--dagger-id``'s name with ``-r<round>``; the labels are its
+``demonstrator_action``) and the members are fitted again, from their seeds, on the
+demonstrations and every round so far. Round r's episodes are seeded on from the
+demonstrations' last seed. Each round's policy is evaluated (the same 100 episodes) and
+the rows written to dagger.csv in --out (round, solver-labelled episodes, the wall time
+of every fit so far (not the rounds' recording and evaluations), success and reflex
+rates, reflexes by error); the final policy is the last round's (its printed ``wall_s``
+the same sum). The features' normalisation is the demonstrations' throughout.
 """
 
 from __future__ import annotations
@@ -38,6 +52,9 @@ import csv
 import json
 import time
 from pathlib import Path
+
+#: the evaluation's first episode seed (examples/train_sb3.py's evaluations too)
+EVALUATION_SEED = 10_000
 
 
 def main() -> None:
@@ -67,12 +84,37 @@ def main() -> None:
         metavar="EVERY",
         help="also evaluate every EVERY fitting steps and write curve.csv",
     )
+    parser.add_argument(
+        "--dagger",
+        type=int,
+        default=0,
+        metavar="ROUNDS",
+        help="after the fit, this many DAgger rounds: the policy acts, the solver labels",
+    )
+    parser.add_argument(
+        "--dagger-episodes", type=int, default=10, metavar="N", help="episodes per round"
+    )
+    parser.add_argument(
+        "--dagger-id",
+        metavar="DATASET_ID",
+        help="the rounds' datasets: this id's name with -r<round> "
+        "(default: the demonstrations' name with -dagger-seed<seed>)",
+    )
     parser.add_argument("--out", type=Path, default=Path("runs/bc"))
     args = parser.parse_args()
     if args.ensemble < 1:
         parser.error(f"--ensemble {args.ensemble}: an ensemble has at least one member")
     if args.curve < 0 or args.curve > args.steps:
         parser.error(f"--curve {args.curve}: evaluate every 1 to --steps ({args.steps}) steps")
+    if args.dagger < 0 or (args.dagger and args.dagger_episodes < 1):
+        parser.error(
+            f"--dagger {args.dagger} --dagger-episodes {args.dagger_episodes}: rounds >= 0, "
+            "episodes >= 1"
+        )
+    if args.dagger_id and not args.dagger:
+        parser.error("--dagger-id names the DAgger rounds' datasets: give --dagger too")
+    if args.dagger and args.curve:
+        parser.error("--dagger and --curve: give one (dagger.csv is the rounds' curve)")
 
     import gymnasium as gym
     import torch
@@ -89,6 +131,40 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
     spec = dataset.env_spec
+    # DAgger's labeller, its rounds' datasets and their episode seeds, all checked now
+    # (before minutes of fitting): the task's solver, ids that do not exist yet, seeds
+    # short of the evaluation's
+    round_ids, next_seed = [], 0
+    if args.dagger:
+        from minari.dataset.minari_dataset import parse_dataset_id
+        from scripted import SOLVERS, ScriptedPolicy  # examples/scripted.py, a sibling
+
+        from franka_sim_gym.envs.tasks import TASKS
+        from franka_sim_gym.training.datasets import check_new_id, episode_seed
+
+        task = TASKS.get(spec.kwargs.get("task"))
+        if task is None or task.id_name not in SOLVERS:
+            parser.error(
+                f"--dagger: no scripted solver labels {spec.id} (tasks: {sorted(SOLVERS)})"
+            )
+        naive = "--naive" in str(dataset.storage.metadata.get("algorithm_name") or "")
+        seeds = [episode_seed(dataset, k) for k in range(dataset.total_episodes)]
+        next_seed = max(seeds) + 1
+        if next_seed + args.dagger * args.dagger_episodes > EVALUATION_SEED:
+            parser.error(
+                f"--dagger: the rounds' episode seeds ({next_seed} on) would reach the "
+                f"evaluation's ({EVALUATION_SEED} on)"
+            )
+        try:
+            namespace, name, version = parse_dataset_id(args.dagger_id or args.demos)
+            if not args.dagger_id:
+                name = f"{name}-dagger-seed{args.seed}"
+            prefix = f"{namespace}/{name}" if namespace else name
+            round_ids = [f"{prefix}-r{r}-v{version}" for r in range(1, args.dagger + 1)]
+            for round_id in round_ids:
+                check_new_id(round_id)
+        except ValueError as error:
+            parser.error(f"--dagger: {error} (or name the rounds with --dagger-id)")
     venv = DummyVecEnv([lambda: gym.make(spec)])
     net = [int(x) for x in args.net.split(",")]
     policy_kwargs: dict = dict(net_arch=net)
@@ -110,55 +186,117 @@ def main() -> None:
     points = [args.steps]
     if args.curve:
         points = sorted({*range(args.curve, args.steps + 1, args.curve), args.steps})
-    actors: dict[int, list] = {step: [] for step in points}
-    fitted = dict.fromkeys(points, 0.0)
-    models, losses = [], []
-    for k in range(args.ensemble):
-        seed = member_seed(args.seed, k)
-        model = SAC("MultiInputPolicy", venv, buffer_size=1, seed=seed, policy_kwargs=policy_kwargs)
-        start = time.perf_counter()
-
-        def keep(step: int, model=model, start=start) -> None:
-            if step in fitted:
-                fitted[step] += time.perf_counter() - start
-                if args.curve:
-                    actors[step].append(copy.deepcopy(model.policy.actor.state_dict()))
-
-        losses = behaviour_cloning(
-            model.policy,
-            dataset,
-            args.steps,
-            args.batch_size,
-            args.lr,
-            seed=seed,
-            log_every=max(1, args.steps // 5),
-            normalize=normalize,
-            on_step=keep,
-        )
-        models.append(model)
-    wall = fitted[args.steps]
     registered = gym.spec(spec.id).kwargs
     env_kwargs = {k: v for k, v in spec.kwargs.items() if k not in registered or registered[k] != v}
-    policy = models[0] if len(models) == 1 else Ensemble(models)
-    policy = policy if normalize is None else NormalizedPolicy(policy, venv)
+
+    def fit(demos: list) -> tuple[list, list, dict, dict]:
+        """The members fitted from their seeds on ``demos``: the models, the last
+        member's losses, each point's wall time (all members) and actors there."""
+        actors: dict[int, list] = {step: [] for step in points}
+        fitted = dict.fromkeys(points, 0.0)
+        models, losses = [], []
+        for k in range(args.ensemble):
+            seed = member_seed(args.seed, k)
+            model = SAC(
+                "MultiInputPolicy", venv, buffer_size=1, seed=seed, policy_kwargs=policy_kwargs
+            )
+            start = time.perf_counter()
+
+            def keep(step: int, model=model, start=start) -> None:
+                if step in fitted:
+                    fitted[step] += time.perf_counter() - start
+                    if args.curve:
+                        actors[step].append(copy.deepcopy(model.policy.actor.state_dict()))
+
+            losses = behaviour_cloning(
+                model.policy,
+                demos,
+                args.steps,
+                args.batch_size,
+                args.lr,
+                seed=seed,
+                log_every=max(1, args.steps // 5),
+                normalize=normalize,
+                on_step=keep,
+            )
+            models.append(model)
+        return models, losses, fitted, actors
+
+    def acting(models: list):
+        policy = models[0] if len(models) == 1 else Ensemble(models)
+        return policy if normalize is None else NormalizedPolicy(policy, venv)
+
+    def evaluated(policy) -> dict:
+        return evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=EVALUATION_SEED)
+
+    demos = [dataset]
+    models, losses, fitted, actors = fit(demos)
+    wall = fitted[args.steps]
+    policy = acting(models)
     curve = []
     for step in points:
         if args.curve:  # (at the last point these are the final actors)
             for model, actor in zip(models, actors[step], strict=True):
                 model.policy.actor.load_state_dict(actor)
-        result = evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=10_000)
-        curve.append(
-            {
-                "steps": step,
-                "wall_s": round(fitted[step], 1),
-                "success_rate": result["success_rate"],
-                "reflex_rate": result["reflex_rate"],
-                "reflexes_by_error": json.dumps(result["reflexes_by_error"]),
-            }
-        )
+        result = evaluated(policy)
+        curve.append({"steps": step, "wall_s": round(fitted[step], 1), **rates(result)})
         if args.curve:
             print(
                 f"bc curve: steps={step} success_rate={result['success_rate']:.3f} "
+                f"reflex_rate={result['reflex_rate']:.3f}",
+                flush=True,
+            )
+    rounds = []
+    if args.dagger:
+        from franka_sim_gym.training.datasets import record
+
+        solver = ScriptedPolicy(spec.id, naive, env_kwargs)
+        rounds.append(
+            {
+                "round": 0,
+                "labelled_episodes": dataset.total_episodes,
+                "wall_s": round(wall, 1),
+                **rates(result),
+            }
+        )
+        for r in range(1, args.dagger + 1):
+            learner = policy
+
+            def act(obs: dict, learner=learner):
+                return learner.predict(obs, deterministic=True)[0]
+
+            demos.append(
+                record(
+                    round_ids[r - 1],
+                    spec.id,
+                    solver,
+                    args.dagger_episodes,
+                    seed=next_seed,
+                    env_kwargs=env_kwargs,
+                    num_envs=args.dagger_episodes,
+                    algorithm_name=f"examples/train_bc.py --dagger (round {r})",
+                    description=f"round {r} of DAgger on {args.demos}: the policy of round "
+                    f"{r - 1} acts, the scripted solver of {spec.id} labels",
+                    executor=act,
+                )
+            )
+            next_seed += args.dagger_episodes
+            models, losses, fitted, _ = fit(demos)
+            wall += fitted[args.steps]
+            policy = acting(models)
+            result = evaluated(policy)
+            labelled = sum(d.total_episodes for d in demos)
+            rounds.append(
+                {
+                    "round": r,
+                    "labelled_episodes": labelled,
+                    "wall_s": round(wall, 1),
+                    **rates(result),
+                }
+            )
+            print(
+                f"dagger round {r}: {labelled} labelled episodes, "
+                f"success_rate={result['success_rate']:.3f} "
                 f"reflex_rate={result['reflex_rate']:.3f}",
                 flush=True,
             )
@@ -173,14 +311,16 @@ def main() -> None:
     if len(models) > 1:
         config["members"] = [member_file(k) for k in range(len(models))]
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
-    if args.curve:
-        with open(args.out / "curve.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(curve[0]))
-            writer.writeheader()
-            writer.writerows(curve)
+    for table, rows in (("curve.csv", curve if args.curve else []), ("dagger.csv", rounds)):
+        if rows:
+            with open(args.out / table, "w", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+                writer.writeheader()
+                writer.writerows(rows)
     print(
-        f"{spec.id} {env_kwargs}: {dataset.total_episodes} demonstrations, "
-        f"{dataset.total_steps} steps; final loss {losses[-1]:.5f}"
+        f"{spec.id} {env_kwargs}: {dataset.total_episodes} demonstrations"
+        + (f" and {len(demos) - 1} DAgger rounds" if len(demos) > 1 else "")
+        + f", {sum(d.total_steps for d in demos)} steps; final loss {losses[-1]:.5f}"
         + (f" (the last of {len(models)} members)" if len(models) > 1 else "")
     )
     print(f"reflexes by error: {result['reflexes_by_error'] or 'none'}")
@@ -188,6 +328,15 @@ def main() -> None:
         f"bc: success_rate={result['success_rate']:.3f} "
         f"reflex_rate={result['reflex_rate']:.3f} wall_s={wall:.1f}"
     )
+
+
+def rates(result: dict) -> dict:
+    """The figures of an evaluation a curve's row holds."""
+    return {
+        "success_rate": result["success_rate"],
+        "reflex_rate": result["reflex_rate"],
+        "reflexes_by_error": json.dumps(result["reflexes_by_error"]),
+    }
 
 
 if __name__ == "__main__":

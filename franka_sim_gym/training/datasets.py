@@ -113,22 +113,24 @@ def check_new_id(dataset_id: str) -> None:
         )
 
 
-def checked_actions(actions: Any, space: gym.spaces.Box, rows: np.ndarray) -> np.ndarray:
-    """The policy's (n, dim) actions in the action space's dtype, or a ``ValueError``
+def checked_actions(
+    actions: Any, space: gym.spaces.Box, rows: np.ndarray, who: str = "policy"
+) -> np.ndarray:
+    """``who``'s (n, dim) actions in the action space's dtype, or a ``ValueError``
     naming the first arm whose action is outside the space (rows: its episode numbers)."""
     n = len(rows)
     # a copy: a policy that reuses one output array must not rewrite the stored steps
     cast = np.array(actions, dtype=space.dtype, copy=True)
     if cast.shape != (n, *space.shape):
         raise ValueError(
-            f"the policy returned actions of shape {np.shape(actions)}, expected "
+            f"the {who} returned actions of shape {np.shape(actions)}, expected "
             f"{(n, *space.shape)} (one row per arm)"
         )
     bad = ~(np.isfinite(cast) & (cast >= space.low) & (cast <= space.high)).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
-            f"the policy's action {cast[i].tolist()} (episode {int(rows[i])}) is outside "
+            f"the {who}'s action {cast[i].tolist()} (episode {int(rows[i])}) is outside "
             f"the action space [{space.low.tolist()}, {space.high.tolist()}]"
         )
     return cast
@@ -203,11 +205,13 @@ def run_episodes(
     seed: int,
     num_envs: int,
     noise: float | Sequence[float] | None = None,
+    executor: Callable[[dict], np.ndarray] | None = None,
 ) -> list[_Episode]:
     """``episodes`` episodes of ``policy`` in batches of ``num_envs`` arms, in memory;
-    with ``noise``, the executed actions are the policy's plus Gaussian noise (each
-    episode's from its own generator, seeded ``[episode seed, NOISE_STREAM]``: the same
-    episode seed, the same noise, whatever the batch), clipped to the space."""
+    with ``executor``, its actions are executed and the policy's are the labels; with
+    ``noise``, the executed actions get Gaussian noise added (each episode's from its
+    own generator, seeded ``[episode seed, NOISE_STREAM]``: the same episode seed, the
+    same noise, whatever the batch), clipped to the space."""
     out: list[_Episode] = []
     for start in range(0, episodes, num_envs):
         n = min(num_envs, episodes - start)
@@ -221,10 +225,12 @@ def run_episodes(
             # nor depend on which batch the episode ran in.
             rngs = [np.random.default_rng([seed + start + i, NOISE_STREAM]) for i in range(n)]
             obs, info = envs.reset(seed=seed + start)
-            if hasattr(policy, "reset"):
-                policy.reset(np.arange(n))
+            for actor in (policy, executor):
+                if hasattr(actor, "reset"):
+                    actor.reset(np.arange(n))
+            labelled = scale is not None or executor is not None
             labels = {}
-            if scale is not None:  # no action before the reset
+            if labelled:  # no action before the reset
                 labels = {DEMONSTRATOR_ACTION: np.full(space.shape, np.nan, space.dtype)}
             batch = [
                 _Episode(
@@ -238,13 +244,15 @@ def run_episodes(
             while running.any():
                 chosen = checked_actions(policy(obs), space, rows)
                 actions = chosen
+                if executor is not None:
+                    actions = checked_actions(executor(obs), space, rows, "executor")
                 if scale is not None:
                     noise_now = np.stack([r.standard_normal(space.shape) for r in rngs])
-                    drawn = chosen + scale * noise_now
+                    drawn = actions + scale * noise_now
                     actions = np.clip(drawn, space.low, space.high).astype(space.dtype)
                 obs, reward, terminated, truncated, info = envs.step(actions)
                 for i in np.flatnonzero(running).tolist():
-                    if scale is not None:
+                    if labelled:
                         labels = {DEMONSTRATOR_ACTION: chosen[i]}
                     batch[i].add(
                         {k: v[i] for k, v in obs.items()},
@@ -272,6 +280,7 @@ def record(
     algorithm_name: str | None = None,
     description: str | None = None,
     noise: float | Sequence[float] | None = None,
+    executor: Callable[[dict], np.ndarray] | None = None,
 ):
     """Record ``episodes`` episodes of ``policy`` on ``env_id`` as the Minari dataset
     ``dataset_id``; returns the ``minari.MinariDataset``.
@@ -290,6 +299,10 @@ def record(
             space's units) of the Gaussian noise added to each action before it is
             executed; the policy's own action is stored as the info
             ``demonstrator_action`` (DART). None or 0: the policy's actions as they are.
+        executor: another policy (called and reset as ``policy``) whose actions are
+            executed (plus ``noise``) while ``policy`` labels each state it visits
+            (``demonstrator_action``): DAgger's relabelled rollouts of a learner (Ross
+            et al., 2011), the policy the demonstrator. None: ``policy`` acts.
 
     Raises ``ValueError`` (before anything is written) for a malformed or existing
     dataset id, an unknown env id, arguments that cannot be stored, a negative or
@@ -307,7 +320,7 @@ def record(
         raise ValueError(f"num_envs must be >= 1, got {num_envs}")
     check_new_id(dataset_id)
     spec = dataset_spec(env_id, env_kwargs)
-    recorded = run_episodes(spec, policy, episodes, seed, num_envs, noise)
+    recorded = run_episodes(spec, policy, episodes, seed, num_envs, noise, executor)
     envs = gym.make_vec(spec, num_envs=1, vectorization_mode="vector_entry_point")
     spaces = envs.single_observation_space, envs.single_action_space
     envs.close()

@@ -22,7 +22,7 @@ its deterministic action), the plain baseline of what demonstrations alone give.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -40,6 +40,16 @@ def load(demos: Any):
 
         return minari.load_dataset(demos)
     return demos
+
+
+def load_all(demos: Any) -> list:
+    """``MinariDataset``s from an id, a dataset, or a sequence of either (DAgger's
+    rounds aggregated with the demonstrations they started from)."""
+    if isinstance(demos, Sequence) and not isinstance(demos, str):
+        if not demos:
+            raise ValueError("no dataset given: demos is an empty sequence")
+        return [load(d) for d in demos]
+    return [load(demos)]
 
 
 def check_spaces(dataset, observation_space, action_space) -> None:
@@ -156,14 +166,16 @@ class DemoMixedHerReplayBuffer(ReflexChargedHerReplayBuffer):
         )
 
 
-def demo_arrays(dataset: Any) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Every (observation, action) pair of ``dataset``: the observations a policy acted
-    on (an episode's last observation has no action) and the actions: the recorded ones,
-    or a noise-injected dataset's ``demonstrator_action`` (what the demonstrator chose
-    there; the noisy one was executed)."""
+def demo_arrays(demos: Any) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Every (observation, action) pair of ``demos`` (a dataset, or a sequence of them:
+    ``load_all``): the observations a policy acted on (an episode's last observation has
+    no action) and the actions: the recorded ones, or a labelled dataset's
+    ``demonstrator_action`` (what the demonstrator chose there; a noisy action or a
+    learner's was executed)."""
     obs: dict[str, list] = {}
     actions = []
-    for episode in dataset.iterate_episodes():
+    episodes = (e for dataset in load_all(demos) for e in dataset.iterate_episodes())
+    for episode in episodes:
         for key, value in episode.observations.items():
             obs.setdefault(key, []).append(value[:-1])
         # a noise-injected demonstration: the demonstrator's action, not the executed one
@@ -188,6 +200,8 @@ def behaviour_cloning(
     steps on the mean squared error between its deterministic action and the recorded
     one, on batches drawn uniformly from every recorded step. Returns the losses.
 
+    ``demos``: a dataset or its id, or a sequence of them, fitted as one (``load_all``).
+
     ``on_step(k)``, when given, is called after the k-th step (k = 1 ... steps), in the
     policy's training mode (e.g. to keep a copy of the actor: examples/train_bc.py's
     learning curve).
@@ -202,9 +216,10 @@ def behaviour_cloning(
     episodes a cloned policy collects then are not the policy's, and the first critic
     learns from noise. Cloning it to the demonstrations' own noise keeps the first
     episodes near what was cloned (docs/demonstrations.md, "SAC after the clone")."""
-    dataset = load(demos)
-    check_spaces(dataset, policy.observation_space, policy.action_space)
-    obs, actions = demo_arrays(dataset)
+    datasets = load_all(demos)
+    for dataset in datasets:
+        check_spaces(dataset, policy.observation_space, policy.action_space)
+    obs, actions = demo_arrays(datasets)
     if normalize is not None:
         obs = normalize(obs)
     target = th.as_tensor(policy.scale_action(actions), dtype=th.float32)
@@ -305,8 +320,10 @@ def add_behaviour_cloning(
     """Give ``model`` (an SB3 SAC) an actor optimizer with a behaviour-cloning term
     (``BehaviourCloningAdam``; the first ``warmup`` actor steps clone only),
     keeping its learning rate and Adam settings."""
-    dataset = load(demos)
-    obs, actions = demo_arrays(dataset)
+    datasets = load_all(demos)
+    for dataset in datasets:
+        check_spaces(dataset, model.observation_space, model.action_space)
+    obs, actions = demo_arrays(datasets)
     old = model.actor.optimizer
     group = old.param_groups[0]
     model.actor.optimizer = BehaviourCloningAdam(
@@ -330,6 +347,6 @@ def add_behaviour_cloning(
 def seed_normalization(venv, demos: Any) -> None:
     """Update a ``VecNormalize``'s observation statistics with every recorded
     observation of ``demos``, so that the first batches are normalised sensibly."""
-    obs, _ = demo_arrays(load(demos))
+    obs, _ = demo_arrays(demos)
     for key, values in obs.items():
         venv.obs_rms[key].update(values)

@@ -32,6 +32,36 @@ def test_the_scripted_solver_solves_its_task_without_a_reflex(env_id):
     assert float(found[2]) == 0.0, proc.stdout
 
 
+def test_the_push_solver_s_action_is_a_function_of_the_observation():
+    # DAgger's labels (examples/train_bc.py --dagger) need it: a fresh solver given each
+    # observation of an episode alone acts as the solver did in the episode
+    import gymnasium as gym
+    import numpy as np
+
+    from tests.conftest import load_example
+
+    scripted = load_example("scripted")
+    policy = scripted.ScriptedPolicy("FrankaFCIPush-v0")
+    envs = gym.make_vec("FrankaFCIPush-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    obs, _ = envs.reset(seed=3)
+    policy.reset(np.arange(2))
+    seen, acted = [], []
+    for _ in range(40):  # over the block, down behind it and into the push
+        action = policy(obs)
+        seen.append({k: v.copy() for k, v in obs.items()})
+        acted.append(action)
+        obs, *_ = envs.step(action)
+    envs.close()
+    moved = np.linalg.norm(obs["achieved_goal"] - seen[0]["achieved_goal"], axis=1)
+    assert (moved > 0.02).all(), moved  # both blocks pushed by the last steps
+    fresh = scripted.ScriptedPolicy("FrankaFCIPush-v0")
+    for obs, action in zip(seen, acted, strict=True):
+        for arm in range(2):
+            fresh.reset(np.arange(1))
+            alone = fresh({k: v[arm : arm + 1] for k, v in obs.items()})
+            np.testing.assert_array_equal(alone[0], action[arm])
+
+
 @pytest.mark.socket
 def test_make_serve_demo_moves_the_arm_through_pylibfranka():
     make = shutil.which("make")

@@ -184,6 +184,44 @@ def test_noise_injected_episodes_execute_the_noisy_action_and_keep_the_label(dat
         assert np.array_equal(first.actions, second.actions)
 
 
+def test_a_learner_s_episodes_execute_its_actions_and_keep_the_demonstrator_s_labels(
+    datasets_dir,
+):
+    # DAgger's rollouts: the executor acts, the policy labels every state it visits
+    scripted = load_example("scripted")
+    solver = scripted.ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=PUSH)
+    dataset = record(
+        "tests/dagger-v0", "FrankaFCIPush-v0", solver, 3, 5, PUSH, 2, executor=Constant(DRIFT)
+    )
+    labelled = []
+    for episode in dataset.iterate_episodes():
+        assert (episode.actions == np.asarray(DRIFT, dtype=np.float32)).all()
+        labels = episode.infos[DEMONSTRATOR_ACTION]
+        assert np.isnan(labels[0]).all()
+        # the solver's action at each state the drift reached: the solver run on
+        # the stored observations gives the same labels
+        solver.reset(np.arange(1))
+        for t in range(len(episode)):
+            obs = {k: v[t][None] for k, v in episode.observations.items()}
+            np.testing.assert_array_equal(labels[t + 1], solver(obs)[0])
+        labelled.append(labels[1:])
+    assert not np.allclose(np.concatenate(labelled), np.asarray(DRIFT, dtype=np.float32))
+    assert_replays(dataset)  # the executed actions replay the episode, bit for bit
+    with pytest.raises(
+        ValueError, match=r"the executor's action \[2.0, 0.0, 0.0\] \(episode 0\) is outside"
+    ):
+        record(
+            "tests/dagger-bad-v0",
+            "FrankaFCIPush-v0",
+            solver,
+            1,
+            0,
+            PUSH,
+            executor=Constant([2.0, 0.0, 0.0]),
+        )
+    assert nothing_written("tests/dagger-bad-v0")
+
+
 def test_without_noise_no_label_is_stored(push_dataset):
     assert DEMONSTRATOR_ACTION not in push_dataset[0].infos
 

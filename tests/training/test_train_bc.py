@@ -118,3 +118,97 @@ def test_train_bc_curve_evaluates_the_actors_of_each_step_and_keeps_the_final_po
     assert f"reflex_rate={float(last['reflex_rate']):.3f}" in final
     assert isinstance(json.loads(last["reflexes_by_error"]), dict)
     assert not (tmp_path / "at20" / "curve.csv").exists()
+
+
+def test_train_bc_dagger_rounds_act_with_the_last_policy_and_refit_on_every_round(
+    datasets_dir, tmp_path, monkeypatch, capsys
+):
+    import csv
+
+    import minari
+
+    from franka_sim_gym.training import evaluation, sb3_demos
+    from franka_sim_gym.training.datasets import DEMONSTRATOR_ACTION, episode_seed
+
+    scripted = load_example("scripted")
+    push = {"max_episode_steps": 6}
+    solver = scripted.ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=push)
+    record("tests/pushd-v0", "FrankaFCIPush-v0", solver, 2, 0, push, noise=0.1)
+    argv = ["train_bc.py", "--demos", "tests/pushd-v0", "--steps", "20", "--net", "16"]
+    argv += ["--eval-episodes", "2", "--out", str(tmp_path / "dagger")]
+    record("tests/reachd-v0", "FrankaFCI-v0", Smooth(), 1, env_kwargs=REFLEXES, num_envs=1)
+    reach = [*argv[:2], "tests/reachd-v0", *argv[3:]]
+    for bad, message in (
+        ([*argv, "--dagger", "-1"], "--dagger -1 --dagger-episodes 10: rounds >= 0, episodes >= 1"),
+        ([*argv, "--dagger", "1", "--curve", "10"], "--dagger and --curve: give one"),
+        ([*argv, "--dagger-id", "tests/mine-v0"], "--dagger-id names the DAgger rounds'"),
+        ([*reach, "--dagger", "1"], "--dagger: no scripted solver labels FrankaFCI-v0"),
+        (
+            [*argv, "--dagger", "1", "--dagger-episodes", "9999"],
+            "--dagger: the rounds' episode seeds (2 on) would reach the evaluation's (10000 on)",
+        ),
+    ):
+        monkeypatch.setattr("sys.argv", bad)
+        with pytest.raises(SystemExit):
+            load_example("train_bc").main()
+        assert message in capsys.readouterr().err
+    fitted_on, evaluated = [], []  # what each fit saw; each round's evaluated policy
+    real_cloning, real_evaluate = sb3_demos.behaviour_cloning, evaluation.evaluate
+
+    def cloning(policy, demos, *args, **kwargs):
+        fitted_on.append([d.id for d in demos])
+        return real_cloning(policy, demos, *args, **kwargs)
+
+    def evaluate(policy, *args, **kwargs):
+        evaluated.append(policy)
+        return real_evaluate(policy, *args, **kwargs)
+
+    monkeypatch.setattr(sb3_demos, "behaviour_cloning", cloning)
+    monkeypatch.setattr(evaluation, "evaluate", evaluate)
+    monkeypatch.setattr("sys.argv", [*argv, "--dagger", "2", "--dagger-episodes", "2"])
+    load_example("train_bc").main()
+    out = capsys.readouterr().out.strip().splitlines()
+    rounds = ["tests/pushd-dagger-seed0-r1-v0", "tests/pushd-dagger-seed0-r2-v0"]
+    # each fit from scratch on the demonstrations and every round so far
+    assert fitted_on == [
+        ["tests/pushd-v0"],
+        ["tests/pushd-v0", rounds[0]],
+        ["tests/pushd-v0", *rounds],
+    ]
+    for r, dataset_id in enumerate(rounds):
+        dataset = minari.load_dataset(dataset_id)
+        # the episode seeds go on from the demonstrations' (0, 1)
+        assert [episode_seed(dataset, k) for k in range(2)] == [2 + 2 * r, 3 + 2 * r]
+        for episode in dataset.iterate_episodes():
+            steps = len(episode)
+            obs = {k: v[:steps] for k, v in episode.observations.items()}
+            # the policy of the round before acted (up to the rounding of a batch's products)
+            acted = np.stack(
+                [
+                    evaluated[r].predict(
+                        {k: v[t : t + 1] for k, v in obs.items()}, deterministic=True
+                    )[0][0]
+                    for t in range(steps)
+                ]
+            )
+            np.testing.assert_allclose(episode.actions, acted, rtol=0, atol=1e-6)
+            # ... and the solver, following the episode, labelled each state
+            solver.reset(np.arange(1))
+            labels = [solver({k: v[t : t + 1] for k, v in obs.items()})[0] for t in range(steps)]
+            np.testing.assert_array_equal(episode.infos[DEMONSTRATOR_ACTION][1:], labels)
+    with open(tmp_path / "dagger" / "dagger.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [(int(r["round"]), int(r["labelled_episodes"])) for r in rows] == [
+        (0, 2),
+        (1, 4),
+        (2, 6),
+    ]
+    assert f"success_rate={float(rows[-1]['success_rate']):.3f}" in out[-1]
+    assert "2 demonstrations and 2 DAgger rounds" in out[-3]
+    # an existing round's dataset is refused by name, before anything is fitted again
+    fitted_on.clear()
+    monkeypatch.setattr("sys.argv", [*argv, "--dagger", "1", "--dagger-episodes", "2"])
+    with pytest.raises(SystemExit):
+        load_example("train_bc").main()
+    assert "--dagger: dataset 'tests/pushd-dagger-seed0-r1-v0' exists" in capsys.readouterr().err
+    assert fitted_on == []
