@@ -79,7 +79,12 @@ def load_model(
     env = gym.make(env_id, **env_kwargs)
     algorithm = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo]
     members = config.get("members", [])  # train_bc.py --ensemble's
-    model = load_members(path, members, lambda p: algorithm.load(p, env=env, device="cpu"))
+    model = load_members(
+        path,
+        members,
+        lambda p: algorithm.load(p, env=env, device="cpu"),
+        config.get("combine", "mean"),  # train_bc.py --combine's
+    )
     # a run trained behind VecNormalize: its saved statistics, if any (an ensemble's,
     # train_bc.py's, are saved once, beside its first member, for every member)
     model = with_normalization(model, Path(path).parent / members[0] if members else path, env)

@@ -21,6 +21,10 @@ single actor of ``--seed``), and evaluates the mean of their actions
 (franka_sim_gym.training.ensemble); the members are saved as model.zip and
 model_member<k>.zip, listed in train_config.json, and load back as one policy.
 
+``--combine upward`` (Cartesian-velocity ids, with ``--ensemble``) acts on the members'
+mean with the vertical velocity of the most upward member (franka_sim_gym.training.ensemble;
+saved in train_config.json as ``combine``).
+
 ``--curve EVERY`` also evaluates the policy after every EVERY fitting steps (each member
 at that step; the same 100 episodes) and writes the learning curve to curve.csv in
 --out: fitting steps, the fitting's wall time to that step (all members), the success
@@ -53,6 +57,8 @@ import json
 import time
 from pathlib import Path
 
+from franka_sim_gym.training.ensemble import COMBINE
+
 #: the evaluation's first episode seed (examples/train_sb3.py's evaluations too)
 EVALUATION_SEED = 10_000
 
@@ -75,6 +81,13 @@ def main() -> None:
     )
     parser.add_argument(
         "--ensemble", type=int, default=1, metavar="K", help="fit K actors, act on their mean"
+    )
+    parser.add_argument(
+        "--combine",
+        choices=COMBINE,
+        default="mean",
+        help="how the members' actions make the ensemble's: their mean, or (upward; "
+        "Cartesian velocity) the mean with the most upward member's vertical velocity",
     )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument(
@@ -113,6 +126,8 @@ def main() -> None:
         )
     if args.dagger_id and not args.dagger:
         parser.error("--dagger-id names the DAgger rounds' datasets: give --dagger too")
+    if args.combine != "mean" and args.ensemble < 2:
+        parser.error(f"--combine {args.combine} combines members: give --ensemble 2 or more")
     if args.dagger and args.curve:
         parser.error("--dagger and --curve: give one (dagger.csv is the rounds' curve)")
 
@@ -131,6 +146,11 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
     spec = dataset.env_spec
+    if args.combine == "upward" and spec.kwargs.get("action_interface") != "cartesian_velocity":
+        parser.error(
+            f"--combine upward takes a Cartesian velocity's vertical entry: {spec.id} has "
+            f"action_interface {spec.kwargs.get('action_interface')!r}"
+        )
     # DAgger's labeller, its rounds' datasets and their episode seeds, all checked now
     # (before minutes of fitting): the task's solver, ids that do not exist yet, seeds
     # short of the evaluation's
@@ -223,7 +243,7 @@ def main() -> None:
         return models, losses, fitted, actors
 
     def acting(models: list):
-        policy = models[0] if len(models) == 1 else Ensemble(models)
+        policy = models[0] if len(models) == 1 else Ensemble(models, args.combine)
         return policy if normalize is None else NormalizedPolicy(policy, venv)
 
     def evaluated(policy) -> dict:
@@ -310,6 +330,7 @@ def main() -> None:
     config = {"algo": "sac", "env_id": spec.id, "env_kwargs": env_kwargs}
     if len(models) > 1:
         config["members"] = [member_file(k) for k in range(len(models))]
+        config["combine"] = args.combine
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
     for table, rows in (("curve.csv", curve if args.curve else []), ("dagger.csv", rounds)):
         if rows:

@@ -120,8 +120,22 @@ def test_train_bc_curve_evaluates_the_actors_of_each_step_and_keeps_the_final_po
     assert not (tmp_path / "at20" / "curve.csv").exists()
 
 
+#: Push, short: two noise-injected episodes of the solver (examples/scripted.py)
+PUSH = {"max_episode_steps": 6}
+
+
+@pytest.fixture(scope="module")
+def small_demos(datasets_dir):
+    """Two Push demonstrations ("tests/pushd-v0") and one Reach episode on a joint
+    interface ("tests/reachd-v0"), for the flags that take one and refuse the other."""
+    solver = load_example("scripted").ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=PUSH)
+    record("tests/pushd-v0", "FrankaFCIPush-v0", solver, 2, 0, PUSH, noise=0.1)
+    record("tests/reachd-v0", "FrankaFCI-v0", Smooth(), 1, env_kwargs=REFLEXES, num_envs=1)
+    return solver
+
+
 def test_train_bc_dagger_rounds_act_with_the_last_policy_and_refit_on_every_round(
-    datasets_dir, tmp_path, monkeypatch, capsys
+    small_demos, tmp_path, monkeypatch, capsys
 ):
     import csv
 
@@ -130,13 +144,9 @@ def test_train_bc_dagger_rounds_act_with_the_last_policy_and_refit_on_every_roun
     from franka_sim_gym.training import evaluation, sb3_demos
     from franka_sim_gym.training.datasets import DEMONSTRATOR_ACTION, episode_seed
 
-    scripted = load_example("scripted")
-    push = {"max_episode_steps": 6}
-    solver = scripted.ScriptedPolicy("FrankaFCIPush-v0", env_kwargs=push)
-    record("tests/pushd-v0", "FrankaFCIPush-v0", solver, 2, 0, push, noise=0.1)
+    solver = small_demos
     argv = ["train_bc.py", "--demos", "tests/pushd-v0", "--steps", "20", "--net", "16"]
     argv += ["--eval-episodes", "2", "--out", str(tmp_path / "dagger")]
-    record("tests/reachd-v0", "FrankaFCI-v0", Smooth(), 1, env_kwargs=REFLEXES, num_envs=1)
     reach = [*argv[:2], "tests/reachd-v0", *argv[3:]]
     for bad, message in (
         ([*argv, "--dagger", "-1"], "--dagger -1 --dagger-episodes 10: rounds >= 0, episodes >= 1"),
@@ -212,3 +222,38 @@ def test_train_bc_dagger_rounds_act_with_the_last_policy_and_refit_on_every_roun
         load_example("train_bc").main()
     assert "--dagger: dataset 'tests/pushd-dagger-seed0-r1-v0' exists" in capsys.readouterr().err
     assert fitted_on == []
+
+
+def test_train_bc_combine_upward_is_saved_and_loaded_back(
+    small_demos, tmp_path, monkeypatch, capsys
+):
+    from franka_sim_gym.training.ensemble import Ensemble
+
+    out = tmp_path / "upward"
+    argv = ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2"]
+    argv += ["--combine", "upward", "--out", str(out)]
+    for bad, message in (
+        (["--demos", "tests/pushd-v0"], "--combine upward combines members: give --ensemble 2"),
+        (
+            ["--demos", "tests/reachd-v0", "--ensemble", "2"],
+            "--combine upward takes a Cartesian velocity's vertical entry: FrankaFCI-v0 has "
+            "action_interface 'joint_position'",
+        ),
+    ):
+        monkeypatch.setattr("sys.argv", [*argv, *bad])
+        with pytest.raises(SystemExit):
+            load_example("train_bc").main()
+        assert message in capsys.readouterr().err
+    monkeypatch.setattr("sys.argv", [*argv, "--demos", "tests/pushd-v0", "--ensemble", "2"])
+    load_example("train_bc").main()
+    assert json.loads((out / "train_config.json").read_text())["combine"] == "upward"
+    model, _ = load_example("evaluate").load_model(out / "model.zip")
+    assert isinstance(model, Ensemble) and model.combine == "upward"
+    env = gym.make("FrankaFCIPush-v0", **PUSH)
+    obs, _ = env.reset(seed=3)
+    env.close()
+    batch = {k: v[None] for k, v in obs.items()}
+    members = np.stack([m.predict(batch, deterministic=True)[0][0] for m in model.members])
+    expected = members.mean(axis=0)
+    expected[2] = members[:, 2].max()
+    np.testing.assert_allclose(model.predict(batch)[0][0], expected, atol=1e-7)
