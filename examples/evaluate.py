@@ -88,6 +88,10 @@ def load_model(
     # a run trained behind VecNormalize: its saved statistics, if any (an ensemble's,
     # train_bc.py's, are saved once, beside its first member, for every member)
     model = with_normalization(model, Path(path).parent / members[0] if members else path, env)
+    if config.get("governor") == "elbow":  # train_bc.py --elbow-governor's
+        from franka_sim_gym.training.governor import ElbowGovernor
+
+        model = ElbowGovernor(model)
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 
 

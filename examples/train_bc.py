@@ -25,6 +25,9 @@ model_member<k>.zip, listed in train_config.json, and load back as one policy.
 mean with the vertical velocity of the most upward member (franka_sim_gym.training.ensemble;
 saved in train_config.json as ``combine``).
 
+``--elbow-governor`` (Cartesian-velocity ids) caps the policy's velocity toward the base
+as joint 4 nears its stop (franka_sim_gym.training.governor; saved as ``governor``).
+
 ``--curve EVERY`` also evaluates the policy after every EVERY fitting steps (each member
 at that step; the same 100 episodes) and writes the learning curve to curve.csv in
 --out: fitting steps, the fitting's wall time to that step (all members), the success
@@ -89,6 +92,12 @@ def main() -> None:
         help="how the members' actions make the ensemble's: their mean, or (upward; "
         "Cartesian velocity) the mean with the most upward member's vertical velocity",
     )
+    parser.add_argument(
+        "--elbow-governor",
+        action="store_true",
+        help="(Cartesian velocity) cap the policy's velocity toward the base as joint 4 "
+        "nears its stop (franka_sim_gym.training.governor)",
+    )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument(
         "--curve",
@@ -139,6 +148,7 @@ def main() -> None:
     import franka_sim_gym  # noqa: F401  (registers the ids)
     from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
+    from franka_sim_gym.training.governor import ElbowGovernor
     from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
     from franka_sim_gym.training.task_frame import frame_kwargs, frame_rotation
@@ -146,11 +156,16 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     dataset = load(args.demos)
     spec = dataset.env_spec
-    if args.combine == "upward" and spec.kwargs.get("action_interface") != "cartesian_velocity":
-        parser.error(
-            f"--combine upward takes a Cartesian velocity's vertical entry: {spec.id} has "
-            f"action_interface {spec.kwargs.get('action_interface')!r}"
-        )
+    interface = spec.kwargs.get("action_interface")
+    for flag, used in (
+        ("--combine upward", args.combine == "upward"),
+        ("--elbow-governor", args.elbow_governor),
+    ):
+        if used and interface != "cartesian_velocity":
+            parser.error(
+                f"{flag} acts on a Cartesian velocity's entries: {spec.id} has "
+                f"action_interface {interface!r}"
+            )
     # DAgger's labeller, its rounds' datasets and their episode seeds, all checked now
     # (before minutes of fitting): the task's solver, ids that do not exist yet, seeds
     # short of the evaluation's
@@ -244,7 +259,8 @@ def main() -> None:
 
     def acting(models: list):
         policy = models[0] if len(models) == 1 else Ensemble(models, args.combine)
-        return policy if normalize is None else NormalizedPolicy(policy, venv)
+        policy = policy if normalize is None else NormalizedPolicy(policy, venv)
+        return ElbowGovernor(policy) if args.elbow_governor else policy
 
     def evaluated(policy) -> dict:
         return evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=EVALUATION_SEED)
@@ -331,6 +347,8 @@ def main() -> None:
     if len(models) > 1:
         config["members"] = [member_file(k) for k in range(len(models))]
         config["combine"] = args.combine
+    if args.elbow_governor:
+        config["governor"] = "elbow"
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
     for table, rows in (("curve.csv", curve if args.curve else []), ("dagger.csv", rounds)):
         if rows:

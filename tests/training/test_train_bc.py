@@ -228,6 +228,7 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     small_demos, tmp_path, monkeypatch, capsys
 ):
     from franka_sim_gym.training.ensemble import Ensemble
+    from franka_sim_gym.training.governor import ElbowGovernor
 
     out = tmp_path / "upward"
     argv = ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2"]
@@ -236,8 +237,20 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
         (["--demos", "tests/pushd-v0"], "--combine upward combines members: give --ensemble 2"),
         (
             ["--demos", "tests/reachd-v0", "--ensemble", "2"],
-            "--combine upward takes a Cartesian velocity's vertical entry: FrankaFCI-v0 has "
+            "--combine upward acts on a Cartesian velocity's entries: FrankaFCI-v0 has "
             "action_interface 'joint_position'",
+        ),
+        (
+            [
+                "--demos",
+                "tests/reachd-v0",
+                "--ensemble",
+                "2",
+                "--combine",
+                "mean",
+                "--elbow-governor",
+            ],
+            "--elbow-governor acts on a Cartesian velocity's entries: FrankaFCI-v0 has",
         ),
     ):
         monkeypatch.setattr("sys.argv", [*argv, *bad])
@@ -249,6 +262,24 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     assert json.loads((out / "train_config.json").read_text())["combine"] == "upward"
     model, _ = load_example("evaluate").load_model(out / "model.zip")
     assert isinstance(model, Ensemble) and model.combine == "upward"
+    # with the elbow governor: saved, and loaded back around the ensemble
+    governed = tmp_path / "governed"
+    monkeypatch.setattr(
+        "sys.argv",
+        [
+            *argv[:-1],
+            str(governed),
+            "--demos",
+            "tests/pushd-v0",
+            "--ensemble",
+            "2",
+            "--elbow-governor",
+        ],
+    )
+    load_example("train_bc").main()
+    assert json.loads((governed / "train_config.json").read_text())["governor"] == "elbow"
+    loaded, _ = load_example("evaluate").load_model(governed / "model.zip")
+    assert isinstance(loaded, ElbowGovernor) and loaded.policy.combine == "upward"
     env = gym.make("FrankaFCIPush-v0", **PUSH)
     obs, _ = env.reset(seed=3)
     env.close()
