@@ -11,7 +11,8 @@ by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g.
 rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``; its observation
 normalisation, when rl-zoo3 saved one beside the model, is applied; an ensemble of
 ``train_bc.py --ensemble K``, listed in train_config.json, loads as one policy acting on
-its members' mean action). Reports the success rate,
+its members' combined action (their mean, or ``--combine upward``'s rule), behind the
+elbow governor when train_bc.py was given ``--elbow-governor``). Reports the success rate,
 the reflex terminations by the robot's error name, and the link's
 control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.

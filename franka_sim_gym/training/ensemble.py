@@ -5,7 +5,7 @@ that agree where the demonstrations are and err differently away from them; the 
 their actions averages that disagreement out, not what the demonstrations do not show
 (measured in docs/demonstrations.md "PickAndPlace: a solver a clone can follow, and five
 clones": PickAndPlace at issue 35's bar on every seed with five, 0.93-0.97 with one;
-Push 0.83-0.89 with five, 0.71-0.79 with one). ``examples/train_bc.py --ensemble K``
+Push 0.85-0.96 with five, 0.77-0.88 with one). ``examples/train_bc.py --ensemble K``
 fits K actors and saves them side by side; ``examples/evaluate.py`` and
 ``examples/where_it_fails.py`` load them back as one :class:`Ensemble`.
 

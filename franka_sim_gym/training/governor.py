@@ -27,6 +27,10 @@ JOINT_4 = 3
 #: IK reflexes came, moving toward the base at 0.11-0.25 m/s; fci/tables.py's FR3 q_lower
 #: -3.0481 rad is the stop)
 SLOW_FROM, STOP_AT = -2.6, -2.85
+#: the cap beyond STOP_AT, in action units (0.06 m/s): on Push's six five-clone fits,
+#: 0.2 gave success 0.86-0.95 against 0.83-0.92 with 0 and the same median reflex rate
+#: (docs/demonstrations.md, "The elbow governor")
+FLOOR = 0.2
 
 
 class ElbowGovernor:
@@ -38,7 +42,8 @@ class ElbowGovernor:
         slow_from, stop_at: joint 4's angles [rad] between which the cap falls from 1
             (the action space's bound) to ``floor``; ``stop_at < slow_from``.
         floor: the cap at and beyond ``stop_at``, in action units (0: no motion toward
-            the base there).
+            the base there). The FR3's joint 4 (the defaults are its angles; the FER's
+            stop, -3.0718 rad, is 0.024 rad further: fci/tables.py).
     """
 
     def __init__(
@@ -46,7 +51,7 @@ class ElbowGovernor:
         policy: Any,
         slow_from: float = SLOW_FROM,
         stop_at: float = STOP_AT,
-        floor: float = 0.0,
+        floor: float = FLOOR,
     ) -> None:
         if not stop_at < slow_from:
             raise ValueError(f"stop_at ({stop_at}) must be below slow_from ({slow_from})")
@@ -69,6 +74,6 @@ class ElbowGovernor:
         """The policy's actions, their velocity toward the base capped."""
         actions, state = self.policy.predict(observation, deterministic=deterministic)
         q4 = np.asarray(observation["observation"])[..., JOINT_4]
-        governed = np.array(actions, copy=True)
+        governed = np.array(actions, copy=True)  # (the policy's dtype kept)
         governed[..., 0] = np.maximum(governed[..., 0], -self.cap(q4))
-        return governed.astype(actions.dtype, copy=False), state
+        return governed, state

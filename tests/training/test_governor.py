@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.tables import FR3
-from franka_sim_gym.training.governor import JOINT_4, SLOW_FROM, STOP_AT, ElbowGovernor
+from franka_sim_gym.training.governor import FLOOR, JOINT_4, SLOW_FROM, STOP_AT, ElbowGovernor
 
 
 class Fixed:
@@ -29,7 +29,8 @@ def observations(q4) -> dict:
 def test_motion_toward_the_base_is_capped_as_joint_4_nears_its_stop():
     assert STOP_AT < SLOW_FROM and FR3.q_lower[JOINT_4] < STOP_AT  # the stop is beyond
     q4 = [-2.0, SLOW_FROM, (SLOW_FROM + STOP_AT) / 2, STOP_AT, -3.0]
-    governed, _ = ElbowGovernor(Fixed([-0.8, 0.3, -0.5])).predict(observations(q4))
+    governor = ElbowGovernor(Fixed([-0.8, 0.3, -0.5]), floor=0.0)
+    governed, _ = governor.predict(observations(q4))
     # the whole range until SLOW_FROM, half way half the range, none from STOP_AT on
     np.testing.assert_allclose(governed[:, 0], [-0.8, -0.8, -0.5, 0.0, 0.0], atol=1e-6)
     np.testing.assert_array_equal(governed[:, 1:], np.float32([[0.3, -0.5]] * 5))  # the rest
@@ -37,9 +38,11 @@ def test_motion_toward_the_base_is_capped_as_joint_4_nears_its_stop():
     # away from the base: untouched however folded the elbow
     away, _ = ElbowGovernor(Fixed([0.6, 0.0, 0.0])).predict(observations([-3.0]))
     np.testing.assert_array_equal(away, np.float32([[0.6, 0.0, 0.0]]))
-    # a floor keeps some motion toward the base
-    slow, _ = ElbowGovernor(Fixed([-0.8, 0, 0]), floor=0.2).predict(observations([-3.0]))
-    np.testing.assert_allclose(slow[:, 0], [-0.2], atol=1e-7)
+    # the default floor keeps some motion toward the base (0.2: 0.06 m/s), half way
+    # between it and the whole range half way between the angles
+    assert FLOOR == 0.2
+    slow, _ = ElbowGovernor(Fixed([-0.8, 0, 0])).predict(observations(q4))
+    np.testing.assert_allclose(slow[:, 0], [-0.8, -0.8, -0.6, -0.2, -0.2], atol=1e-6)
 
 
 def test_bad_governors_are_refused_by_name():
