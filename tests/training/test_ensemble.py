@@ -16,7 +16,10 @@ class Fixed:
         self.action = np.asarray(action, dtype=np.float32)
 
     def predict(self, observation, deterministic=True):
-        return np.tile(self.action, (len(observation["observation"]), 1)), None
+        obs = observation["observation"]
+        if obs.ndim == 1:  # one observation: one action, as SB3 gives it
+            return self.action.copy(), None
+        return np.tile(self.action, (len(obs), 1)), None
 
 
 MEMBERS = [Fixed([0.3, -0.2, -0.6]), Fixed([0.1, 0.0, -0.1]), Fixed([0.2, 0.5, 0.1])]
@@ -33,6 +36,13 @@ def test_upward_takes_the_most_upward_member_s_vertical_velocity_and_the_mean_el
     assert VERTICAL == 2  # a Cartesian velocity's z (docs/env.md, "Actions")
     action, _ = Ensemble(MEMBERS, combine="upward").predict(OBS)
     np.testing.assert_allclose(action, [[0.2, 0.1, 0.1]] * 2, atol=1e-7)
+
+
+def test_one_observation_gets_one_combined_action():
+    one = {"observation": np.zeros(4, dtype=np.float32)}
+    action, _ = Ensemble(MEMBERS, combine="upward").predict(one)
+    assert action.shape == (3,)
+    np.testing.assert_allclose(action, [0.2, 0.1, 0.1], atol=1e-7)
 
 
 def test_bad_ensembles_are_refused_by_name():

@@ -17,7 +17,10 @@ class Fixed:
         self.action = np.asarray(action, dtype=np.float32)
 
     def predict(self, observation, deterministic=True):
-        return np.tile(self.action, (len(observation["observation"]), 1)), None
+        obs = observation["observation"]
+        if obs.ndim == 1:  # one observation: one action, as SB3 gives it
+            return self.action.copy(), None
+        return np.tile(self.action, (len(obs), 1)), None
 
 
 def observations(q4) -> dict:
@@ -43,6 +46,13 @@ def test_motion_toward_the_base_is_capped_as_joint_4_nears_its_stop():
     assert FLOOR == 0.2
     slow, _ = ElbowGovernor(Fixed([-0.8, 0, 0])).predict(observations(q4))
     np.testing.assert_allclose(slow[:, 0], [-0.8, -0.8, -0.6, -0.2, -0.2], atol=1e-6)
+
+
+def test_one_observation_gets_one_governed_action():
+    one = observations([-3.0])["observation"][0]
+    action, _ = ElbowGovernor(Fixed([-0.8, 0.3, -0.5])).predict({"observation": one})
+    assert action.shape == (3,)
+    np.testing.assert_allclose(action, [-FLOOR, 0.3, -0.5], atol=1e-6)
 
 
 def test_bad_governors_are_refused_by_name():

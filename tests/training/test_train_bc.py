@@ -228,7 +228,8 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     small_demos, tmp_path, monkeypatch, capsys
 ):
     from franka_sim_gym.training.ensemble import Ensemble
-    from franka_sim_gym.training.governor import ElbowGovernor
+    from franka_sim_gym.training.governor import FLOOR, JOINT_4, ElbowGovernor
+    from franka_sim_gym.training.sb3_zoo import NormalizedPolicy
 
     out = tmp_path / "upward"
     argv = ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2"]
@@ -289,3 +290,20 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     expected = members.mean(axis=0)
     expected[2] = members[:, 2].max()
     np.testing.assert_allclose(model.predict(batch)[0][0], expected, atol=1e-7)
+    # behind the raw features' normalisation, the governor reads the raw joint angles
+    raw = tmp_path / "raw"
+    monkeypatch.setattr(
+        "sys.argv",
+        ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2", "--out", str(raw)]
+        + ["--demos", "tests/pushd-v0", "--features", "raw", "--elbow-governor"],
+    )
+    load_example("train_bc").main()
+    loaded, _ = load_example("evaluate").load_model(raw / "model.zip")
+    assert isinstance(loaded, ElbowGovernor) and isinstance(loaded.policy, NormalizedPolicy)
+    folded = {k: v[None].copy() for k, v in obs.items()}
+    folded["observation"][0, JOINT_4] = -3.0  # past the governor's stop
+    seen, cap = [], loaded.cap
+    loaded.cap = lambda q4: seen.append(np.array(q4)) or cap(q4)
+    toward = loaded.policy.predict(folded, deterministic=True)[0][0, 0]
+    assert loaded.predict(folded)[0][0, 0] == max(toward, -FLOOR)
+    np.testing.assert_array_equal(seen[0], [-3.0])  # the raw angle, not a normalised one
