@@ -61,9 +61,7 @@ import time
 from pathlib import Path
 
 from franka_sim_gym.training.ensemble import COMBINE
-
-#: the evaluation's first episode seed (examples/train_sb3.py's evaluations too)
-EVALUATION_SEED = 10_000
+from franka_sim_gym.training.evaluation import EVALUATION_SEED
 
 
 def main() -> None:
@@ -287,14 +285,14 @@ def main() -> None:
         from franka_sim_gym.training.datasets import record
 
         solver = ScriptedPolicy(spec.id, naive, env_kwargs)
-        rounds.append(
-            {
-                "round": 0,
-                "labelled_episodes": dataset.total_episodes,
-                "wall_s": round(wall, 1),
-                **rates(result),
-            }
-        )
+
+        def round_row(r: int) -> dict:
+            """Round r's row of dagger.csv, from the fits and evaluation so far."""
+            labelled = sum(d.total_episodes for d in demos)
+            row = {"round": r, "labelled_episodes": labelled, "wall_s": round(wall, 1)}
+            return row | rates(result)
+
+        rounds.append(round_row(0))
         for r in range(1, args.dagger + 1):
             learner = policy
 
@@ -321,17 +319,9 @@ def main() -> None:
             wall += fitted[args.steps]
             policy = acting(models)
             result = evaluated(policy)
-            labelled = sum(d.total_episodes for d in demos)
-            rounds.append(
-                {
-                    "round": r,
-                    "labelled_episodes": labelled,
-                    "wall_s": round(wall, 1),
-                    **rates(result),
-                }
-            )
+            rounds.append(round_row(r))
             print(
-                f"dagger round {r}: {labelled} labelled episodes, "
+                f"dagger round {r}: {rounds[-1]['labelled_episodes']} labelled episodes, "
                 f"success_rate={result['success_rate']:.3f} "
                 f"reflex_rate={result['reflex_rate']:.3f}",
                 flush=True,

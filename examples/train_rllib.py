@@ -317,7 +317,7 @@ def main() -> None:
     args.env_id = args.env_id or trained.get("env_id", DEFAULT_ENV_ID)
     env_kwargs = {**DEFAULT_ENV_KWARGS, **trained.get("env_kwargs", {})}
     env_kwargs.update(json.loads(args.env_kwargs or "{}"))
-    from franka_sim_gym.training.evaluation import evaluate
+    from franka_sim_gym.training.evaluation import EVALUATION_SEED, evaluate
 
     if args.evaluate is None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -329,7 +329,9 @@ def main() -> None:
         checkpoint, rate, episode_return = train(args, env_kwargs)
     else:
         checkpoint, rate, episode_return = args.evaluate, float("nan"), float("nan")
-    result = evaluate(load_policy(checkpoint), args.env_id, env_kwargs, args.episodes, seed=10_000)
+    result = evaluate(
+        load_policy(checkpoint), args.env_id, env_kwargs, args.episodes, seed=EVALUATION_SEED
+    )
     print(f"checkpoint: {checkpoint}")
     print(
         f"evaluate: success_rate={result['success_rate']:.3f} "

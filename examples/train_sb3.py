@@ -49,7 +49,7 @@ import gymnasium as gym
 import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
-from franka_sim_gym.training.evaluation import evaluate
+from franka_sim_gym.training.evaluation import EVALUATION_SEED, evaluate
 from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
 
 #: The default reach: a 3-D twist (orientation held) at 10 Hz, 2 s episodes.
@@ -394,7 +394,7 @@ def main() -> None:
         done += n
         # the model behind the statistics as they stand (frozen for the evaluation only)
         policy = NormalizedPolicy(model, env, freeze=False) if args.normalize else model
-        result = evaluate(policy, args.env_id, kwargs, args.eval_episodes, seed=10_000)
+        result = evaluate(policy, args.env_id, kwargs, args.eval_episodes, seed=EVALUATION_SEED)
         rows.append(
             {
                 "steps": done,

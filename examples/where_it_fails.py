@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import franka_sim_gym  # noqa: F401  (registers the ids)
+from franka_sim_gym.training.evaluation import EVALUATION_SEED
 
 #: the TCP position in the observation (docs/env.md, "Observations")
 EE = slice(14, 17)
@@ -71,7 +72,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model", type=Path, required=True)
     parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, default=10_000)
+    parser.add_argument("--seed", type=int, default=EVALUATION_SEED)
     args = parser.parse_args()
     from evaluate import load_model
 

@@ -35,3 +35,17 @@ class Still:
 
     def predict(self, obs: dict, deterministic: bool = True):
         return np.zeros(np.shape(obs["desired_goal"]), np.float32), None
+
+
+class Fixed:
+    """The same action for every observation: one row per row of a batch, or one action
+    for one observation (SB3's ``predict``), in ``dtype``."""
+
+    def __init__(self, action, dtype=np.float32) -> None:
+        self.action = np.asarray(action, dtype=dtype)
+
+    def predict(self, observation: dict, deterministic: bool = True):
+        obs = observation["observation"]
+        if obs.ndim == 1:
+            return self.action.copy(), None
+        return np.tile(self.action, (len(obs), 1)), None

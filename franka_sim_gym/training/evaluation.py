@@ -16,6 +16,11 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
+#: The first episode seed of the training scripts' evaluations (examples/train_sb3.py,
+#: train_bc.py, train_rllib.py, where_it_fails.py): above every recorded
+#: demonstration's and DAgger round's seeds, so no evaluation episode was trained on.
+EVALUATION_SEED = 10_000
+
 
 class Policy(Protocol):
     """What ``evaluate`` calls: SB3's ``predict`` signature, on a batch of observations."""

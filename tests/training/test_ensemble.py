@@ -7,27 +7,15 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.training.ensemble import VERTICAL, Ensemble, member_seed
+from tests.scripted_policies import Fixed
 
-
-class Fixed:
-    """A member whose action is fixed (one row per observation row)."""
-
-    def __init__(self, action) -> None:
-        self.action = np.asarray(action, dtype=np.float32)
-
-    def predict(self, observation, deterministic=True):
-        obs = observation["observation"]
-        if obs.ndim == 1:  # one observation: one action, as SB3 gives it
-            return self.action.copy(), None
-        return np.tile(self.action, (len(obs), 1)), None
-
-
-MEMBERS = [Fixed([0.3, -0.2, -0.6]), Fixed([0.1, 0.0, -0.1]), Fixed([0.2, 0.5, 0.1])]
+MEMBERS = [Fixed([0.3, -0.2, -0.6]), Fixed([0.1, 0.0, -0.1]), Fixed([0.2, 0.5, 0.1], np.float64)]
 OBS = {"observation": np.zeros((2, 4), dtype=np.float32)}
 
 
 def test_the_mean_of_the_members_actions():
     action, state = Ensemble(MEMBERS).predict(OBS)
+    # in the first member's dtype, though the third acts in float64
     assert state is None and action.dtype == np.float32 and action.shape == (2, 3)
     np.testing.assert_allclose(action, [[0.2, 0.1, -0.2]] * 2, atol=1e-7)
 

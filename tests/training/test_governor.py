@@ -8,19 +8,7 @@ import pytest
 
 from franka_sim_gym.fci.tables import FR3
 from franka_sim_gym.training.governor import FLOOR, JOINT_4, SLOW_FROM, STOP_AT, ElbowGovernor
-
-
-class Fixed:
-    """A policy whose action is fixed (one row per observation row)."""
-
-    def __init__(self, action) -> None:
-        self.action = np.asarray(action, dtype=np.float32)
-
-    def predict(self, observation, deterministic=True):
-        obs = observation["observation"]
-        if obs.ndim == 1:  # one observation: one action, as SB3 gives it
-            return self.action.copy(), None
-        return np.tile(self.action, (len(obs), 1)), None
+from tests.scripted_policies import Fixed
 
 
 def observations(q4) -> dict:
