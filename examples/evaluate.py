@@ -12,7 +12,9 @@ rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``; its observation
 normalisation, when rl-zoo3 saved one beside the model, is applied; an ensemble of
 ``train_bc.py --ensemble K``, listed in train_config.json, loads as one policy acting on
 its members' combined action (their mean, or ``--combine upward``'s rule), behind the
-elbow governor when train_bc.py was given ``--elbow-governor``). Reports the success rate,
+elbow governor when train_bc.py was given ``--elbow-governor``; a run of
+``train_sb3.py --imitation`` with the imitation policy it names). ``--model`` takes a
+model.zip or its run folder. Reports the success rate,
 the reflex terminations by the robot's error name, and the link's
 control_command_success_rate;
 ends with one line ``evaluate: success_rate=<x> reflex_rate=<y> link_success_rate=<z>``.
@@ -63,6 +65,9 @@ def load_model(
     """The model and the settings it runs with: the arguments given, else those of its
     train_config.json (written by train_sb3.py next to it), else SAC on FrankaFCI-v0.
 
+    ``path`` is the model's file or the run's folder (its model.zip). A run of
+    ``train_sb3.py --imitation`` loads with the policy it named beside its actor.
+
     Returns (model, {"algo", "env_id", "env_kwargs"}).
     """
     import torch
@@ -72,6 +77,11 @@ def load_model(
     from franka_sim_gym.training.sb3_zoo import with_normalization
 
     torch.set_num_threads(1)  # small networks: a thread pool costs more than it gives
+    path = Path(path)
+    if path.is_dir():  # a run's folder (train_sb3.py's and train_bc.py's --out)
+        if not (path / "model.zip").is_file():
+            raise FileNotFoundError(f"{path} is a folder without a model.zip")
+        path = path / "model.zip"
     config = train_config(path)
     algo = algo or config.get("algo", DEFAULT_ALGO)
     env_id = env_id or config.get("env_id", DEFAULT_ENV_ID)
@@ -79,6 +89,11 @@ def load_model(
     # HER's replay buffer needs an env (for its spaces) to load the model.
     env = gym.make(env_id, **env_kwargs)
     algorithm = {"sac": SAC, "td3": TD3, "ppo": PPO}[algo]
+    imitation = config.get("imitation")  # train_sb3.py --imitation's run
+    if imitation is not None:
+        from franka_sim_gym.training.ibrl import ImitationBootstrappedSAC
+
+        algorithm = ImitationBootstrappedSAC
     members = config.get("members", [])  # train_bc.py --ensemble's
     model = load_members(
         path,
@@ -93,6 +108,8 @@ def load_model(
         from franka_sim_gym.training.governor import ElbowGovernor
 
         model = ElbowGovernor(model)
+    if imitation is not None:
+        model.imitation, _ = load_model(Path(imitation))
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
 
 
@@ -104,7 +121,12 @@ def train_config(model_path: str | Path) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", type=Path, required=True, help="model.zip of train_sb3.py")
+    parser.add_argument(
+        "--model",
+        type=Path,
+        required=True,
+        help="model.zip of train_sb3.py or train_bc.py, or their run folder",
+    )
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=20_000)
     parser.add_argument(

@@ -26,7 +26,12 @@ id and env arguments, e.g. by examples/scripted.py --record): SAC + HER whose ba
 are ``--demo-fraction`` demonstrations (franka_sim_gym.training.sb3_demos), learning from
 the first step, with ``--bc-weight W`` a behaviour-cloning term in the actor's loss and
 ``--bc-steps N`` the actor fitted to the demonstrations first; ``--gamma`` and ``--tau``
-set SAC's. docs/demonstrations.md tells the recipe and its figures.
+set SAC's. ``--imitation RUN`` (SAC on raw observations: ``--features task`` or
+``--no-normalize``) keeps a fitted policy (a train_bc.py ``--out`` folder, acting in
+the same env) beside SAC's actor: the critics choose between their actions at every
+step and bootstrap from the better (IBRL: franka_sim_gym.training.ibrl); the run's
+train_config.json names it, and evaluate.py loads the two together.
+docs/demonstrations.md tells the recipe and its figures.
 
 Writes to --out: model.zip, train_config.json (algo, env id and arguments, read by
 examples/evaluate.py and examples/deploy_pylibfranka.py), progress.csv (SB3's logger;
@@ -72,8 +77,11 @@ def make_model(
     threads: int = 1,
     demos: dict | None = None,
     features: dict | None = None,
+    imitation=None,
 ):
-    """The SB3 model of the default run (``algo`` "sac"), or TD3 / PPO on the same env."""
+    """The SB3 model of the default run (``algo`` "sac"), or TD3 / PPO on the same env;
+    with ``imitation`` (a policy with SB3's ``predict``), SAC with IBRL's acting and
+    bootstrapping (franka_sim_gym.training.ibrl)."""
     import torch
     from stable_baselines3 import PPO, SAC, TD3
     from stable_baselines3.common.logger import configure
@@ -121,7 +129,13 @@ def make_model(
         # rewards of -1 a step, an entropy weight of 1 outweighs the task: in the default
         # run it took ~5,500 samples to fall to the ~0.015 where it settles, and nothing
         # was learnt before (docs/training.md).
-        model = SAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
+        if imitation is None:
+            model = SAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
+        else:
+            from franka_sim_gym.training.ibrl import ImitationBootstrappedSAC
+
+            model = ImitationBootstrappedSAC(**common, **off_policy, use_sde=sde, ent_coef=ent_coef)
+            model.imitation = imitation
     elif algo == "td3":
         model = TD3(**common, **off_policy)
     elif algo == "ppo":
@@ -285,6 +299,12 @@ def main() -> None:
     demo.add_argument("--gamma", type=float, default=None, help="SAC's discount (0.95)")
     demo.add_argument("--tau", type=float, default=None, help="SAC's target update (0.05)")
     demo.add_argument("--learning-starts", type=int, default=None, help="samples before learning")
+    demo.add_argument(
+        "--imitation",
+        type=Path,
+        metavar="RUN",
+        help="SAC with a fitted policy beside its actor (IBRL): a train_bc.py --out folder",
+    )
     args = parser.parse_args()
     if args.features == "task":
         if not args.demos or args.algo == "ppo":
@@ -300,6 +320,23 @@ def main() -> None:
     if args.algo != "sac" and (args.bc_std is not None or args.actor_warmup):
         # TD3's actor has no exploration distribution to fit, nor a deterministic switch
         parser.error(f"--bc-std and --actor-warmup act on SAC's actor, not --algo {args.algo}")
+    imitation = None
+    if args.imitation is not None:
+        if args.algo != "sac":
+            parser.error(
+                f"--imitation chooses between SAC's actor and a policy: not --algo {args.algo}"
+            )
+        if args.normalize:  # the critics and the imitation policy see one observation
+            parser.error(
+                "--imitation hands the imitation policy the observations SAC sees: give "
+                "--features task or --no-normalize (not SB3's VecNormalize)"
+            )
+        from evaluate import load_model  # examples/evaluate.py, a sibling
+
+        try:
+            imitation, imitated = load_model(args.imitation)
+        except FileNotFoundError as error:
+            parser.error(f"--imitation {args.imitation}: {error}")
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     merged = {**gym.spec(args.env_id).kwargs, **kwargs}  # the env's whole arguments
@@ -318,9 +355,21 @@ def main() -> None:
         # Every key, goals too, as rl-zoo3's FetchReach and the shipped sac.yml: HER
         # stores the raw observations and normalises the relabelled ones at sampling.
         env = VecNormalize(env, norm_obs=True, norm_reward=False, gamma=0.95)
-    (args.out / "train_config.json").write_text(
-        json.dumps({"algo": args.algo, "env_id": args.env_id, "env_kwargs": kwargs}, indent=2)
-    )
+    config = {"algo": args.algo, "env_id": args.env_id, "env_kwargs": kwargs}
+    if imitation is not None:
+        theirs = gym.make(imitated["env_id"], **imitated["env_kwargs"])
+        spaces = (theirs.observation_space, theirs.action_space)
+        theirs.close()
+        if imitated["env_id"] != args.env_id or spaces != (
+            env.observation_space,
+            env.action_space,
+        ):
+            parser.error(
+                f"--imitation {args.imitation} acts in {imitated['env_id']} "
+                f"{imitated['env_kwargs']}, whose spaces are not this run's ({args.env_id})"
+            )
+        config["imitation"] = str(args.imitation.resolve())
+    (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
     episode_steps = int(
         kwargs.get("max_episode_steps", gym.spec(args.env_id).kwargs.get("max_episode_steps", 50))
     )
@@ -363,6 +412,7 @@ def main() -> None:
         threads=args.threads,
         demos=demos,
         features=features,
+        imitation=imitation,
     )
     if args.gamma is not None:
         model.gamma = args.gamma

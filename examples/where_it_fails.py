@@ -70,7 +70,7 @@ def run(policy, env_id: str, env_kwargs: dict, episodes: int, seed: int) -> list
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", type=Path, required=True)
+    parser.add_argument("--model", type=Path, required=True, help="a model.zip or its run folder")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=EVALUATION_SEED)
     args = parser.parse_args()
