@@ -331,8 +331,18 @@ def main() -> None:
                 "--imitation hands the imitation policy the observations SAC sees: give "
                 "--features task or --no-normalize (not SB3's VecNormalize)"
             )
-        from evaluate import load_model  # examples/evaluate.py, a sibling
+        if args.sde:  # its update resamples no gSDE noise (training/ibrl.py)
+            parser.error("--imitation trains SAC without --sde")
+        from evaluate import load_model, train_config  # examples/evaluate.py, a sibling
 
+        run = args.imitation / "model.zip" if args.imitation.is_dir() else args.imitation
+        if run.is_file() and not train_config(run):
+            parser.error(
+                f"--imitation {args.imitation}: no train_config.json beside {run.name} (a "
+                "train_bc.py or train_sb3.py run names its env there)"
+            )
+        if not args.imitation.exists():
+            parser.error(f"--imitation {args.imitation}: no such run folder or model.zip")
         try:
             imitation, imitated = load_model(args.imitation)
         except FileNotFoundError as error:

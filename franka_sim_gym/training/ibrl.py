@@ -24,7 +24,10 @@ from it: at every state both propose an action and the critics choose.
 The imitation policy is fixed (never trained here) and not saved with the model:
 ``examples/train_sb3.py --imitation RUN`` records its run folder in
 ``train_config.json``, and ``examples/evaluate.py`` attaches it again on loading. Without
-one (``imitation`` None) this is SAC. The learning rate is constant.
+one (``imitation`` None) this is SAC. Its update is SAC's (tests/training/test_ibrl.py
+checks one step bit for bit) for what train_sb3.py runs: a constant learning rate,
+one-step returns, no gSDE (``--sde`` is refused with ``--imitation``); it logs the
+actor and critic losses and the entropy weight, not SAC's update count.
 """
 
 from __future__ import annotations

@@ -85,6 +85,45 @@ def test_the_bootstrap_takes_the_better_of_the_actors_and_the_imitations_proposa
     np.testing.assert_allclose(value, np.maximum(own, imitated), rtol=1e-6)
 
 
+def test_training_is_sacs_with_the_bootstrap_from_next_value():
+    """One gradient step from the same state and batch: with the actor's own value as
+    ``next_value`` it is SAC's step, bit for bit; with ``next_value`` raised, the critics
+    move elsewhere (the target is taken from it)."""
+    from franka_sim_gym.training.ibrl import lowest
+
+    def stepped(shift: float | None) -> list[th.Tensor]:
+        sac = model()
+        sac.learning_starts = 40
+        sac.learn(total_timesteps=30)  # fills the buffer; no gradient step yet
+        sac.imitation = TowardTheGoal()
+
+        def own(obs, ent_coef):  # SAC's next value: the actor's proposal only
+            actions, log_prob = sac.actor.action_log_prob(obs)
+            value = lowest(sac.critic_target, obs, actions) - ent_coef.reshape(()) * log_prob
+            return value + shift
+
+        if shift is not None:
+            sac.next_value = own
+        sac.replay_buffer.sample = _seeded(sac.replay_buffer.sample)
+        th.manual_seed(3)
+        (sac.train if shift is not None else lambda n, b: sb3.SAC.train(sac, n, b))(1, 16)
+        return [p.detach().clone() for p in sac.critic.parameters()]
+
+    plain = stepped(None)
+    assert all(th.equal(a, b) for a, b in zip(plain, stepped(0.0), strict=True))
+    assert not all(th.equal(a, b) for a, b in zip(plain, stepped(10.0), strict=True))
+
+
+def _seeded(sample):
+    """The buffer's sample with numpy's global generator seeded (SB3 draws from it)."""
+
+    def draw(*args, **kwargs):
+        np.random.seed(5)
+        return sample(*args, **kwargs)
+
+    return draw
+
+
 def test_train_sb3_with_an_imitation_run_saves_without_it_and_loads_with_it(
     datasets_dir, tmp_path, monkeypatch, capsys
 ):
@@ -103,6 +142,8 @@ def test_train_sb3_with_an_imitation_run_saves_without_it_and_loads_with_it(
     for extra, message in (
         (["--algo", "td3", "--imitation", str(bc)], "not --algo td3"),
         (["--imitation", str(tmp_path / "none")], "without a model.zip"),
+        (["--imitation", str(tmp_path / "typo")], "no such run folder or model.zip"),
+        (["--imitation", str(bc), "--sde"], "--imitation trains SAC without --sde"),
         (["--imitation", str(bc), "--normalize"], "give --features task or --no-normalize"),
     ):
         (tmp_path / "none").mkdir(exist_ok=True)
