@@ -77,11 +77,7 @@ def load_model(
     from franka_sim_gym.training.sb3_zoo import with_normalization
 
     torch.set_num_threads(1)  # small networks: a thread pool costs more than it gives
-    path = Path(path)
-    if path.is_dir():  # a run's folder (train_sb3.py's and train_bc.py's --out)
-        if not (path / "model.zip").is_file():
-            raise FileNotFoundError(f"{path} is a folder without a model.zip")
-        path = path / "model.zip"
+    path = model_file(path)
     config = train_config(path)
     algo = algo or config.get("algo", DEFAULT_ALGO)
     env_id = env_id or config.get("env_id", DEFAULT_ENV_ID)
@@ -111,6 +107,19 @@ def load_model(
     if imitation is not None:
         model.imitation, _ = load_model(Path(imitation))
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}
+
+
+def model_file(path: str | Path) -> Path:
+    """The model a path names: itself, or a run's folder's model.zip (train_sb3.py's and
+    train_bc.py's --out); a FileNotFoundError naming what is missing."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "model.zip").is_file():
+            raise FileNotFoundError(f"{path} is a folder without a model.zip")
+        return path / "model.zip"
+    if not path.exists() and not path.with_suffix(".zip").is_file():  # SB3 adds .zip
+        raise FileNotFoundError(f"{path}: no such run folder or model.zip")
+    return path
 
 
 def train_config(model_path: str | Path) -> dict:

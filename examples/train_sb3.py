@@ -213,6 +213,34 @@ def plot(out: Path, rows: list[dict], title: str = "FrankaFCI reach") -> None:
     fig.savefig(out / "success_reflex.png", dpi=100)
 
 
+def load_imitation(parser: argparse.ArgumentParser, args: argparse.Namespace):
+    """--imitation's policy and its settings (evaluate.py's load_model), or the parser's
+    error naming why it cannot serve this run (before any step)."""
+    if args.algo != "sac":
+        parser.error(
+            f"--imitation chooses between SAC's actor and a policy: not --algo {args.algo}"
+        )
+    if args.normalize:  # the critics and the imitation policy see one observation
+        parser.error(
+            "--imitation hands the imitation policy the observations SAC sees: give "
+            "--features task or --no-normalize (not SB3's VecNormalize)"
+        )
+    if args.sde:  # its update resamples no gSDE noise (training/ibrl.py)
+        parser.error("--imitation trains SAC without --sde")
+    from evaluate import load_model, model_file, train_config  # examples/evaluate.py
+
+    try:
+        run = model_file(args.imitation)
+    except FileNotFoundError as error:
+        parser.error(f"--imitation {args.imitation}: {error}")
+    if not train_config(run):
+        parser.error(
+            f"--imitation {args.imitation}: no train_config.json beside {run.name} (a "
+            "train_bc.py or train_sb3.py run names its env there)"
+        )
+    return load_model(run)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--algo", default="sac", choices=("sac", "td3", "ppo"))
@@ -320,33 +348,7 @@ def main() -> None:
     if args.algo != "sac" and (args.bc_std is not None or args.actor_warmup):
         # TD3's actor has no exploration distribution to fit, nor a deterministic switch
         parser.error(f"--bc-std and --actor-warmup act on SAC's actor, not --algo {args.algo}")
-    imitation = None
-    if args.imitation is not None:
-        if args.algo != "sac":
-            parser.error(
-                f"--imitation chooses between SAC's actor and a policy: not --algo {args.algo}"
-            )
-        if args.normalize:  # the critics and the imitation policy see one observation
-            parser.error(
-                "--imitation hands the imitation policy the observations SAC sees: give "
-                "--features task or --no-normalize (not SB3's VecNormalize)"
-            )
-        if args.sde:  # its update resamples no gSDE noise (training/ibrl.py)
-            parser.error("--imitation trains SAC without --sde")
-        from evaluate import load_model, train_config  # examples/evaluate.py, a sibling
-
-        run = args.imitation / "model.zip" if args.imitation.is_dir() else args.imitation
-        if run.is_file() and not train_config(run):
-            parser.error(
-                f"--imitation {args.imitation}: no train_config.json beside {run.name} (a "
-                "train_bc.py or train_sb3.py run names its env there)"
-            )
-        if not args.imitation.exists():
-            parser.error(f"--imitation {args.imitation}: no such run folder or model.zip")
-        try:
-            imitation, imitated = load_model(args.imitation)
-        except FileNotFoundError as error:
-            parser.error(f"--imitation {args.imitation}: {error}")
+    imitation, imitated = load_imitation(parser, args) if args.imitation else (None, None)
     args.out.mkdir(parents=True, exist_ok=True)
     kwargs = {**DEFAULT_ENV_KWARGS, **json.loads(args.env_kwargs)}
     merged = {**gym.spec(args.env_id).kwargs, **kwargs}  # the env's whole arguments
