@@ -11,7 +11,8 @@ by examples/train_sb3.py; flags override it, and a model trained elsewhere, e.g.
 rl-zoo3, needs ``--algo``, ``--env-id`` and ``--env-kwargs``; its observation
 normalisation, when rl-zoo3 saved one beside the model, is applied; an ensemble of
 ``train_bc.py --ensemble K``, listed in train_config.json, loads as one policy acting on
-its members' combined action (their mean, or ``--combine upward``'s rule), behind the
+its members' combined action (their mean, or ``--combine upward``'s rule), acting in
+the object's line frame when train_bc.py was given ``--features line``, behind the
 elbow governor when train_bc.py was given ``--elbow-governor``; a run of
 ``train_sb3.py --imitation`` with the imitation policy it names). ``--model`` takes a
 model.zip or its run folder. Reports the success rate,
@@ -100,6 +101,10 @@ def load_model(
     # a run trained behind VecNormalize: its saved statistics, if any (an ensemble's,
     # train_bc.py's, are saved once, beside its first member, for every member)
     model = with_normalization(model, Path(path).parent / members[0] if members else path, env)
+    if config.get("frame") == "line":  # train_bc.py --features line's
+        from franka_sim_gym.training.line_frame import LineFrame
+
+        model = LineFrame(model)
     if config.get("governor") == "elbow":  # train_bc.py --elbow-governor's
         from franka_sim_gym.training.governor import ElbowGovernor
 

@@ -9,7 +9,12 @@ demonstrator actions), on the task-frame features of the observation
 (``--features task``: franka_sim_gym.training.task_frame, normalised with the dataset's
 statistics) or on the whole base-frame observation behind SB3's VecNormalize with the
 dataset's statistics (``--features raw``); the default, ``auto``, is ``task`` for the
-tasks with an object under a Cartesian interface and ``raw`` for the rest. Then
+tasks with an object under a Cartesian interface and ``raw`` for the rest.
+``--features line`` (Cartesian velocity) is the task frame turned about the vertical
+into the line from the object to its goal, the actions with it
+(franka_sim_gym.training.line_frame: fitted in that frame, acting through ``LineFrame``;
+saved in train_config.json as ``frame``), with joint 4's angle among the features (the
+elbow's fold: where the solvers slow near the base). Then
 evaluated as train_sb3.py evaluates (100 episodes side by side, seeds 10,000 on). The
 env id and its arguments are the dataset's (``recover_environment``'s spec). Writes
 model.zip (with ``raw``: the normalisation, model/vecnormalize.pkl, where
@@ -75,10 +80,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--features",
-        choices=("auto", "task", "raw"),
+        choices=("auto", "task", "line", "raw"),
         default="auto",
-        help="task: the task-frame features (object tasks, Cartesian interfaces); raw: the "
-        "base-frame observation; auto: task where it applies",
+        help="task: the task-frame features (object tasks, Cartesian interfaces); line: "
+        "the task frame turned into the line from the object to its goal (Cartesian "
+        "velocity); raw: the base-frame observation; auto: task where it applies",
     )
     parser.add_argument(
         "--ensemble", type=int, default=1, metavar="K", help="fit K actors, act on their mean"
@@ -147,6 +153,7 @@ def main() -> None:
     from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.governor import ElbowGovernor
+    from franka_sim_gym.training.line_frame import LineFrame, line_fitting, line_observations
     from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
     from franka_sim_gym.training.task_frame import frame_kwargs, frame_rotation
@@ -158,6 +165,7 @@ def main() -> None:
     for flag, used in (
         ("--combine upward", args.combine == "upward"),
         ("--elbow-governor", args.elbow_governor),
+        ("--features line", args.features == "line"),
     ):
         if used and interface != "cartesian_velocity":
             parser.error(
@@ -201,15 +209,22 @@ def main() -> None:
     venv = DummyVecEnv([lambda: gym.make(spec)])
     net = [int(x) for x in args.net.split(",")]
     policy_kwargs: dict = dict(net_arch=net)
-    normalize = None
+    normalize = prepare = None
     features = args.features
     if features == "auto":
         features = "raw" if frame_rotation(venv.observation_space, spec.kwargs) is None else "task"
-    if features == "task":
+    if features in ("task", "line"):
+        observations = None
+        if features == "line":  # the fitting's observations and actions turned
+            prepare, observations = line_fitting, line_observations
         try:
-            policy_kwargs.update(frame_kwargs(dataset, spec.kwargs, venv.observation_space))
+            # (line: joint 4's angle too, the base's one trace: training/line_frame.py)
+            kwargs = frame_kwargs(
+                dataset, spec.kwargs, venv.observation_space, observations, features == "line"
+            )
+            policy_kwargs.update(kwargs)
         except ValueError as error:
-            parser.error(str(error))
+            parser.error(f"--features {features}: {error}")
     else:  # the base-frame observation behind VecNormalize (task: normalised in the network)
         venv = VecNormalize(venv, norm_obs=True, norm_reward=False, gamma=0.95)
         seed_normalization(venv, dataset)
@@ -251,6 +266,7 @@ def main() -> None:
                 log_every=max(1, args.steps // 5),
                 normalize=normalize,
                 on_step=keep,
+                prepare=prepare,
             )
             models.append(model)
         return models, losses, fitted, actors
@@ -258,6 +274,7 @@ def main() -> None:
     def acting(models: list):
         policy = models[0] if len(models) == 1 else Ensemble(models, args.combine)
         policy = policy if normalize is None else NormalizedPolicy(policy, venv)
+        policy = LineFrame(policy) if features == "line" else policy
         return ElbowGovernor(policy) if args.elbow_governor else policy
 
     def evaluated(policy) -> dict:
@@ -337,6 +354,8 @@ def main() -> None:
     if len(models) > 1:
         config["members"] = [member_file(k) for k in range(len(models))]
         config["combine"] = args.combine
+    if features == "line":
+        config["frame"] = "line"
     if args.elbow_governor:
         config["governor"] = "elbow"
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))

@@ -195,6 +195,7 @@ def behaviour_cloning(
     normalize=None,
     exploration_std: float | None = None,
     on_step: Callable[[int], None] | None = None,
+    prepare: Callable[[dict, np.ndarray], tuple[dict, np.ndarray]] | None = None,
 ) -> list[float]:
     """Fit an SB3 actor-critic policy's actor to a dataset's actions: ``steps`` Adam
     steps on the mean squared error between its deterministic action and the recorded
@@ -210,6 +211,10 @@ def behaviour_cloning(
     ``obs_to_tensor``); its observation preprocessing is the model's own, after
     ``normalize`` (e.g. a ``VecNormalize``'s ``normalize_obs``) when given.
 
+    ``prepare(obs, actions)``, when given, turns the recorded observations and actions
+    into the ones the policy is fitted on, before anything else (the line's frame:
+    ``line_frame.line_fitting``).
+
     ``exploration_std`` (SAC): also fit the actor's log standard deviation (before the
     tanh squashing) to the log of this. An untrained SAC actor explores with a standard
     deviation of about 1 before the squashing, i.e. nearly uniform actions: the
@@ -220,6 +225,8 @@ def behaviour_cloning(
     for dataset in datasets:
         check_spaces(dataset, policy.observation_space, policy.action_space)
     obs, actions = demo_arrays(datasets)
+    if prepare is not None:
+        obs, actions = prepare(obs, actions)
     if normalize is not None:
         obs = normalize(obs)
     target = th.as_tensor(policy.scale_action(actions), dtype=th.float32)

@@ -15,7 +15,9 @@ goal from the object), the TCP's height above the table, the commanded velocity,
 hand's width (PickAndPlace), and the object's velocity; with ``rotation`` (a 6-D twist:
 PegInsertion) also the object's orientation and angular velocity and the commanded
 angular velocity. Nothing of the joint state: the joint-space reflexes are left to the
-robot's own limits and to the demonstrations. Measured on Push, behaviour cloning from
+robot's own limits and to the demonstrations; with ``elbow``, joint 4's angle (how far the
+elbow has folded toward its stop, where the solvers slow near the base:
+``line_frame``). Measured on Push, behaviour cloning from
 the same 50 noise-injected demonstrations, seeds 0-2: 0.07-0.17 success from the
 base-frame observation, 0.71-0.75 from the task frame (docs/demonstrations.md).
 
@@ -30,6 +32,7 @@ An SB3 ``BaseFeaturesExtractor``: ``policy_kwargs`` of SAC / TD3 / PPO's
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -39,6 +42,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
 from franka_sim_gym.envs.commands import CARTESIAN
 from franka_sim_gym.envs.tasks.objects import OBJECT_ENTRIES
+from franka_sim_gym.training.governor import JOINT_4
 
 #: the observation's layout (docs/env.md): q 0:7, dq 7:14, TCP position 14:17, the
 #: commanded twist 17:23 (linear, angular), [the hand's width], then the object's 13:
@@ -56,7 +60,7 @@ WITH_OBJECT = AFTER_TWIST + OBJECT_ENTRIES
 MIN_STD = 1e-3
 
 
-def frame_size(observation_dim: int, rotation: bool) -> int:
+def frame_size(observation_dim: int, rotation: bool, elbow: bool = False) -> int:
     """How many features ``TaskFrame`` makes of an observation of ``observation_dim``."""
     if observation_dim < WITH_OBJECT:
         raise ValueError(
@@ -65,11 +69,14 @@ def frame_size(observation_dim: int, rotation: bool) -> int:
             f"{observation_dim}: use the base-frame observation (no features extractor)"
         )
     zeros = th.zeros(1, observation_dim)
-    return frame_features(zeros, th.zeros(1, 3), rotation).shape[1]
+    return frame_features(zeros, th.zeros(1, 3), rotation, elbow).shape[1]
 
 
-def frame_features(observation: th.Tensor, goal: th.Tensor, rotation: bool) -> th.Tensor:
-    """(n, frame_size) the task-frame features of a batch of observations and goals."""
+def frame_features(
+    observation: th.Tensor, goal: th.Tensor, rotation: bool, elbow: bool = False
+) -> th.Tensor:
+    """(n, frame_size) the task-frame features of a batch of observations and goals;
+    with ``elbow``, joint 4's angle last."""
     object_at = observation.shape[1] - OBJECT_ENTRIES
     tcp = observation[:, TCP]
     obj = observation[:, object_at : object_at + 3]
@@ -80,12 +87,15 @@ def frame_features(observation: th.Tensor, goal: th.Tensor, rotation: bool) -> t
         parts.append(observation[:, object_at + 3 : object_at + OBJECT_ENTRIES])
     else:  # the linear velocity only
         parts.append(observation[:, object_at + 7 : object_at + 10])
+    if elbow:  # how far the elbow has folded toward its stop (training/governor.py)
+        parts.append(observation[:, JOINT_4 : JOINT_4 + 1])
     return th.cat(parts, dim=1)
 
 
 class TaskFrame(BaseFeaturesExtractor):
     """The task-frame features of a goal-conditioned Dict observation, normalised with
-    fixed statistics (``mean``, ``std``: lists of ``frame_size`` numbers; none: raw)."""
+    fixed statistics (``mean``, ``std``: lists of ``frame_size`` numbers; none: raw);
+    ``elbow``: joint 4's angle too."""
 
     def __init__(
         self,
@@ -93,10 +103,11 @@ class TaskFrame(BaseFeaturesExtractor):
         rotation: bool = False,
         mean: Any = None,
         std: Any = None,
+        elbow: bool = False,
     ) -> None:
-        size = frame_size(observation_space["observation"].shape[0], rotation)
+        size = frame_size(observation_space["observation"].shape[0], rotation, elbow)
         super().__init__(observation_space, features_dim=size)
-        self.rotation = rotation
+        self.rotation, self.elbow = rotation, elbow
         for name, value, default in (("mean", mean, 0.0), ("std", std, 1.0)):
             tensor = th.full((size,), default) if value is None else th.as_tensor(value)
             if tensor.shape != (size,):
@@ -107,24 +118,32 @@ class TaskFrame(BaseFeaturesExtractor):
 
     def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
         features = frame_features(
-            observations["observation"], observations["desired_goal"], self.rotation
+            observations["observation"], observations["desired_goal"], self.rotation, self.elbow
         )
         return (features - self.mean) / self.std
 
 
-def frame_statistics(dataset: Any, rotation: bool) -> tuple[list[float], list[float]]:
+def frame_statistics(
+    dataset: Any,
+    rotation: bool,
+    prepare: Callable[[dict], dict] | None = None,
+    elbow: bool = False,
+) -> tuple[list[float], list[float]]:
     """The mean and standard deviation of the task-frame features over every recorded
-    observation of a Minari dataset (or its id): ``TaskFrame``'s ``mean`` and ``std``."""
+    observation of a Minari dataset (or its id): ``TaskFrame``'s ``mean`` and ``std``.
+    ``prepare`` turns each episode's observations first (the line's frame:
+    ``line_frame.line_observations``)."""
     from franka_sim_gym.training.sb3_demos import load
 
     rows = []
     for episode in load(dataset).iterate_episodes():
-        obs = episode.observations
+        obs = episode.observations if prepare is None else prepare(episode.observations)
         rows.append(
             frame_features(
                 th.as_tensor(obs["observation"], dtype=th.float64),
                 th.as_tensor(obs["desired_goal"], dtype=th.float64),
                 rotation,
+                elbow,
             )
         )
     features = th.cat(rows).numpy()
@@ -149,10 +168,17 @@ def frame_rotation(observation_space: gym.spaces.Dict, env_kwargs: dict) -> bool
     return int(env_kwargs.get("cartesian_dof", 6)) == 6
 
 
-def frame_kwargs(dataset: Any, env_kwargs: dict, observation_space: gym.spaces.Dict) -> dict:
+def frame_kwargs(
+    dataset: Any,
+    env_kwargs: dict,
+    observation_space: gym.spaces.Dict,
+    prepare: Callable[[dict], dict] | None = None,
+    elbow: bool = False,
+) -> dict:
     """SB3 ``policy_kwargs`` entries that put ``TaskFrame`` in front of a policy's
-    networks, with the dataset's statistics; a ``ValueError`` naming why where the task
-    frame does not apply."""
+    networks, with the dataset's statistics (of its observations after ``prepare``, if
+    given: ``frame_statistics``), joint 4's angle among the features with ``elbow``; a
+    ``ValueError`` naming why where the task frame does not apply."""
     rotation = frame_rotation(observation_space, env_kwargs)
     if rotation is None:
         raise ValueError(
@@ -162,8 +188,8 @@ def frame_kwargs(dataset: Any, env_kwargs: dict, observation_space: gym.spaces.D
             f"{observation_space['observation'].shape[0]} entries: use the base-frame "
             "observation (--features raw)"
         )
-    mean, std = frame_statistics(dataset, rotation)
-    return dict(
-        features_extractor_class=TaskFrame,
-        features_extractor_kwargs=dict(rotation=rotation, mean=mean, std=std),
-    )
+    mean, std = frame_statistics(dataset, rotation, prepare, elbow)
+    extractor = dict(rotation=rotation, mean=mean, std=std)
+    if elbow:  # (only then: the models saved before the flag load as they were)
+        extractor["elbow"] = True
+    return dict(features_extractor_class=TaskFrame, features_extractor_kwargs=extractor)

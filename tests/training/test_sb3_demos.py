@@ -173,6 +173,15 @@ def test_behaviour_cloning_fits_the_actor_to_the_recorded_actions(demos):
     before = error(model)
     losses = behaviour_cloning(model.policy, clean, 200, batch_size=64)
     assert len(losses) == 200 and error(model) < 0.5 * before
+    # ``prepare`` gives the pairs it is fitted on (here: the actions halved)
+    halved = sb3.SAC(
+        "MultiInputPolicy", env, buffer_size=10, seed=0, policy_kwargs=dict(net_arch=[32, 32])
+    )
+    behaviour_cloning(halved.policy, clean, 200, batch_size=64, prepare=lambda o, a: (o, a / 2))
+    with th.no_grad():
+        batch, _ = halved.policy.obs_to_tensor(obs)
+        fitted = halved.actor(batch, deterministic=True).numpy()
+    assert ((fitted - actions / 2) ** 2).mean() < 0.5 * ((fitted - actions) ** 2).mean()
     # The term SAC's actor steps carry: with no other gradient, its steps clone.
     for weight, moves in ((0.0, False), (1.0, True)):
         fresh = sb3.SAC(

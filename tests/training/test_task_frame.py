@@ -67,6 +67,11 @@ def test_the_features_are_the_object_from_the_tcp_and_the_goal_from_the_object(e
         np.testing.assert_array_equal(features[13:], o[at + 3 :])
     else:
         np.testing.assert_array_equal(features[-3:], o[at + 7 : at + 10])  # linear velocity
+    # with the elbow: the same, then joint 4's angle
+    assert frame_size(len(o), rotation, elbow=True) == size + 1
+    elbow = frame_features(obs["observation"], obs["desired_goal"], rotation, elbow=True)
+    np.testing.assert_array_equal(elbow[0, :size].numpy(), features)
+    assert elbow[0, size] == o[3] < -1.5  # (folded: the FR3's q4 is in [-3.07, -0.07])
     env.close()
 
 

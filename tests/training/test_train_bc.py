@@ -307,3 +307,72 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     toward = loaded.policy.predict(folded, deterministic=True)[0][0, 0]
     assert loaded.predict(folded)[0][0, 0] == max(toward, -FLOOR)
     np.testing.assert_array_equal(seen[0], [-3.0])  # the raw angle, not a normalised one
+
+
+def test_train_bc_features_line_fits_in_the_line_frame_and_acts_through_it(
+    small_demos, tmp_path, monkeypatch, capsys
+):
+    from franka_sim_gym.training import evaluation, sb3_demos
+    from franka_sim_gym.training.ensemble import Ensemble
+    from franka_sim_gym.training.governor import ElbowGovernor
+    from franka_sim_gym.training.line_frame import LineFrame, to_line_frame, turn_actions
+
+    out = tmp_path / "line"
+    argv = ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2"]
+    argv += ["--out", str(out)]
+    monkeypatch.setattr("sys.argv", [*argv, "--demos", "tests/reachd-v0", "--features", "line"])
+    with pytest.raises(SystemExit):
+        load_example("train_bc").main()
+    message = "--features line acts on a Cartesian velocity's entries: FrankaFCI-v0 has"
+    assert message in capsys.readouterr().err
+    fitted = []  # what the members are fitted on: the demonstrations, turned
+    real_cloning = sb3_demos.behaviour_cloning
+
+    def spy(policy, demos, *args, prepare=None, **kwargs):
+        obs, actions = sb3_demos.demo_arrays(demos)
+        fitted.append((obs, actions, prepare(obs, actions)))
+        return real_cloning(policy, demos, *args, prepare=prepare, **kwargs)
+
+    monkeypatch.setattr(sb3_demos, "behaviour_cloning", spy)
+    evaluated = []  # what train_bc.py evaluates: the ensemble in the line frame, governed
+    real_evaluate = evaluation.evaluate
+    monkeypatch.setattr(
+        evaluation,
+        "evaluate",
+        lambda policy, *a, **k: evaluated.append(policy) or real_evaluate(policy, *a, **k),
+    )
+    argv += ["--demos", "tests/pushd-v0", "--features", "line"]
+    monkeypatch.setattr("sys.argv", [*argv, "--ensemble", "2", "--elbow-governor"])
+    load_example("train_bc").main()
+    assert len(fitted) == 2
+    assert isinstance(evaluated[0], ElbowGovernor) and isinstance(evaluated[0].policy, LineFrame)
+    obs, actions, (seen, labels) = fitted[0]
+    turned, turned_actions = to_line_frame(obs, actions)
+    np.testing.assert_array_equal(seen["observation"], turned["observation"])
+    np.testing.assert_array_equal(labels, turned_actions)
+    assert not np.array_equal(labels, actions)
+    assert json.loads((out / "train_config.json").read_text())["frame"] == "line"
+    loaded, _ = load_example("evaluate").load_model(out)
+    assert isinstance(loaded, ElbowGovernor) and isinstance(loaded.policy, LineFrame)
+    assert isinstance(loaded.policy.policy, Ensemble)
+    # the task frame's statistics are the line frame's: the goal straight ahead of the
+    # block, never across (entries 3:6 are the goal from the object)
+    member = loaded.policy.policy.members[0]
+    extractor = member.policy.actor.features_extractor
+    mean = extractor.mean.numpy()
+    assert abs(mean[4]) < 1e-6 and mean[3] > 0.01
+    # and joint 4's angle last (the elbow's fold), with the demonstrations' statistics
+    assert extractor.elbow and extractor.features_dim == 14
+    np.testing.assert_allclose(mean[-1], np.mean(obs["observation"][:, 3]), rtol=0.05)
+    # acting: the members' mean on the turned observation, turned back
+    env = gym.make("FrankaFCIPush-v0", **PUSH)
+    obs, _ = env.reset(seed=3)
+    env.close()
+    batch = {k: v[None] for k, v in obs.items()}
+    inside, _ = to_line_frame(batch)
+    inside = {k: v.astype(np.float32) for k, v in inside.items()}
+    members = [m.predict(inside, deterministic=True)[0] for m in loaded.policy.policy.members]
+    turn = np.array(batch["desired_goal"][:, :2], np.float64) - batch["observation"][:, -13:-11]
+    turn /= np.linalg.norm(turn)
+    expected = turn_actions(np.mean(members, axis=0), turn, +1.0)
+    np.testing.assert_allclose(loaded.policy.predict(batch)[0], expected, atol=1e-6)
