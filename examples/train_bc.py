@@ -153,8 +153,13 @@ def main() -> None:
     from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.governor import ElbowGovernor
-    from franka_sim_gym.training.line_frame import LineFrame, line_fitting, line_observations
-    from franka_sim_gym.training.sb3_demos import behaviour_cloning, load, seed_normalization
+    from franka_sim_gym.training.line_frame import LineFrame, line_observations, to_line_frame
+    from franka_sim_gym.training.sb3_demos import (
+        behaviour_cloning,
+        demo_arrays,
+        load,
+        seed_normalization,
+    )
     from franka_sim_gym.training.sb3_zoo import NormalizedPolicy, normalization_file
     from franka_sim_gym.training.task_frame import frame_kwargs, frame_rotation
 
@@ -216,13 +221,15 @@ def main() -> None:
     if features in ("task", "line"):
         observations = None
         if features == "line":  # the fitting's observations and actions turned
-            prepare, observations = line_fitting, line_observations
+            prepare, observations = to_line_frame, line_observations
         try:
             # (line: joint 4's angle too, the base's one trace: training/line_frame.py)
             kwargs = frame_kwargs(
                 dataset, spec.kwargs, venv.observation_space, observations, features == "line"
             )
             policy_kwargs.update(kwargs)
+            if prepare is not None:  # labels the actor can reach there, before any fit
+                prepare(*demo_arrays(dataset))
         except ValueError as error:
             parser.error(f"--features {features}: {error}")
     else:  # the base-frame observation behind VecNormalize (task: normalised in the network)

@@ -12,13 +12,16 @@ in the line's frame every demonstration is the same push, lined up the same way
 The frame turns the positions, velocities and orientation of the observation (the TCP,
 the commanded twist, the object, the goals: the layout of docs/env.md) and the
 Cartesian-velocity action's linear and angular velocity, by the angle of the line at
-that step; the joint state is left as it is. Heights are unchanged. The turned frame
+that step; the joint state is left as it is, and so is the object's angular velocity,
+which is in the object's own axes (envs/tasks/objects.py). Heights are unchanged.
+Measured on Push only (docs/demonstrations.md); on PegInsertion, whose hole is fixed in
+the base frame, the line's frame is not a symmetry of the task and is unmeasured. The turned frame
 no longer says where on the table the hand is, which the solvers act on near the base
 (they slow down there, where the elbow folds toward its stop): ``train_bc.py --features
 line`` gives the network joint 4's angle as well (``task_frame.TaskFrame``'s ``elbow``),
 the fold itself, which is the same in any frame. ``LineFrame`` wraps
 a policy fitted in the frame so that it acts on the env's observations;
-``line_fitting`` turns a dataset's observations and actions for the fitting. Where the
+``to_line_frame`` turns a dataset's observations and actions for the fitting. Where the
 object is on its goal (closer than ``DEGENERATE`` across) the line has no direction and
 the base frame's x is taken.
 """
@@ -32,13 +35,16 @@ import numpy as np
 from franka_sim_gym.envs.tasks.objects import OBJECT_ENTRIES
 
 #: horizontal distance [m] from the object to its goal under which the line has no
-#: direction (the base frame's is used; Push succeeds at 5 cm: envs/tasks/push.py)
+#: direction: a guard against dividing by zero (the base frame's x is used there), far
+#: below any distance a task tells apart (Push succeeds at 5 cm: envs/tasks/push.py)
 DEGENERATE = 1e-6
-#: the observation's horizontal (x, y) pairs of vectors, as offsets: the TCP position
-#: (14), the commanded twist's linear (17) and angular (20) velocity (docs/env.md); and
-#: of the object (its last 13 entries): position (0), linear (7) and angular (10) velocity
+#: the observation's horizontal (x, y) pairs of base-frame vectors, as offsets: the TCP
+#: position (14), the commanded twist's linear (17) and angular (20) velocity
+#: (docs/env.md); and of the object (its last 13 entries): position (0) and linear
+#: velocity (7). Its angular velocity (10) is in its own axes: a turn of the base frame
+#: leaves it as it is.
 OBSERVATION_PAIRS = (14, 17, 20)
-OBJECT_PAIRS = (0, 7, 10)
+OBJECT_PAIRS = (0, 7)
 #: the object's quaternion (w, x, y, z) offset in its 13 entries
 QUATERNION = 3
 #: the goals' keys (positions, x and y first)
@@ -81,6 +87,9 @@ def _turn_observation(obs: dict, turn: np.ndarray, sign: float) -> dict:
     o[..., at + QUATERNION + 1] = zw * x - zz * y
     o[..., at + QUATERNION + 2] = zw * y + zz * x
     o[..., at + QUATERNION + 3] = zw * z + zz * w
+    # w >= 0, as the env reports it (envs/tasks/objects.py): q and -q are one orientation
+    q = o[..., at + QUATERNION : at + QUATERNION + 4]
+    q *= np.where(q[..., :1] < 0, -1.0, 1.0)
     turned = dict(obs)
     turned["observation"] = o
     for key in GOALS:
@@ -98,31 +107,35 @@ def _action_pairs(actions: np.ndarray) -> tuple[int, ...]:
 
 
 def turn_actions(actions: np.ndarray, turn: np.ndarray, sign: float) -> np.ndarray:
-    """Cartesian-velocity actions turned by ``sign`` times the angle of ``turn``, clipped
-    to the action space's [-1, 1] (a turned corner of the box is outside it)."""
+    """Cartesian-velocity actions turned by ``sign`` times the angle of ``turn``, in
+    float64 (a turned corner of the action box is outside it)."""
     turned = np.array(actions, dtype=np.float64)
     _turn_pairs(turned, _action_pairs(turned), turn, sign)
-    return np.clip(turned, -1.0, 1.0)
+    return turned
 
 
 def to_line_frame(obs: dict, actions: np.ndarray | None = None) -> tuple[dict, Any]:
     """The observations (and actions, if given) of a batch in each row's line frame, in
-    float64; the actions are None if not given."""
+    float64; the actions are None if not given: ``sb3_demos.behaviour_cloning``'s
+    ``prepare``. A ``ValueError`` if a turned action leaves the action space's [-1, 1]
+    (a label the actor cannot reach; clipping it would change its direction)."""
     turn = line_turn(obs["observation"], obs["desired_goal"])
     turned = _turn_observation(obs, turn, -1.0)
-    return turned, None if actions is None else turn_actions(actions, turn, -1.0)
-
-
-def line_fitting(obs: dict, actions: np.ndarray | None = None) -> tuple[dict, Any]:
-    """A dataset's observations and actions (or the observations alone: the task
-    frame's statistics) as a policy is fitted on them in the line's frame:
-    ``sb3_demos.behaviour_cloning``'s ``prepare``."""
-    return to_line_frame(obs, actions)
+    if actions is None:
+        return turned, None
+    turned_actions = turn_actions(actions, turn, -1.0)
+    outside = np.count_nonzero(np.abs(turned_actions).max(axis=-1) > 1.0)
+    if outside:
+        raise ValueError(
+            f"{outside} of {len(turned_actions)} actions leave [-1, 1] in the line's frame "
+            "(a horizontal speed above 1 on the diagonal): they cannot be fitted there"
+        )
+    return turned, turned_actions
 
 
 def line_observations(obs: dict) -> dict:
-    """The observations alone, as ``line_fitting`` gives them (for the task frame's
-    statistics: ``task_frame.frame_statistics``'s ``prepare``)."""
+    """The observations alone in the line's frame (the task frame's statistics:
+    ``task_frame.frame_statistics``'s ``prepare``)."""
     return to_line_frame(obs)[0]
 
 
@@ -140,10 +153,11 @@ class LineFrame:
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, Any]:
-        """The policy's action for the turned observation, turned back, in its dtype."""
+        """The policy's action for the turned observation, turned back and clipped to
+        the action space's [-1, 1], in its dtype."""
         turn = line_turn(observation["observation"], observation["desired_goal"])
         turned = _turn_observation(observation, turn, -1.0)
         typed = {k: v.astype(np.asarray(observation[k]).dtype) for k, v in turned.items()}
         actions, state = self.policy.predict(typed, deterministic=deterministic)
-        back = turn_actions(actions, turn, +1.0)
+        back = np.clip(turn_actions(actions, turn, +1.0), -1.0, 1.0)
         return back.astype(np.asarray(actions).dtype, copy=False), state

@@ -213,7 +213,7 @@ def behaviour_cloning(
 
     ``prepare(obs, actions)``, when given, turns the recorded observations and actions
     into the ones the policy is fitted on, before anything else (the line's frame:
-    ``line_frame.line_fitting``).
+    ``line_frame.to_line_frame``).
 
     ``exploration_std`` (SAC): also fit the actor's log standard deviation (before the
     tanh squashing) to the log of this. An untrained SAC actor explores with a standard

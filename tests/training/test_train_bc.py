@@ -325,6 +325,15 @@ def test_train_bc_features_line_fits_in_the_line_frame_and_acts_through_it(
         load_example("train_bc").main()
     message = "--features line acts on a Cartesian velocity's entries: FrankaFCI-v0 has"
     assert message in capsys.readouterr().err
+    # labels the actor cannot reach in the frame (the box's corner turned): refused
+    # before any fit, with nothing written
+    corner = lambda obs: np.tile(np.float32([1, 1, 0]), (len(obs["observation"]), 1))  # noqa: E731
+    record("tests/pushcorner-v0", "FrankaFCIPush-v0", corner, 1, 0, PUSH, num_envs=1)
+    monkeypatch.setattr("sys.argv", [*argv, "--demos", "tests/pushcorner-v0", "--features", "line"])
+    with pytest.raises(SystemExit):
+        load_example("train_bc").main()
+    assert "--features line: " in (err := capsys.readouterr().err) and "actions leave" in err
+    assert not out.exists()
     fitted = []  # what the members are fitted on: the demonstrations, turned
     real_cloning = sb3_demos.behaviour_cloning
 
