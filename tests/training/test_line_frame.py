@@ -154,6 +154,14 @@ def test_a_label_outside_the_box_in_the_frame_is_refused_and_acting_is_clipped()
     np.testing.assert_allclose(actions, [[0.1 / np.sqrt(2), 1.0, 0.0]], atol=1e-6)
 
 
+class Ahead3:
+    """Push's 3-entry action: straight ahead at 0.5 in the line's frame, one row or many."""
+
+    def predict(self, observation, deterministic=True):
+        shape = observation["observation"].shape[:-1] + (3,)
+        return np.broadcast_to(np.float32([0.5, 0.0, 0.0]), shape).copy(), None
+
+
 def test_line_frame_acts_on_one_observation_as_on_a_batch():
     env = gym.make("FrankaFCIPush-v0")
     obs, _ = env.reset(seed=4)
@@ -165,14 +173,6 @@ def test_line_frame_acts_on_one_observation_as_on_a_batch():
     at = len(obs["observation"]) - OBJECT_ENTRIES
     d = obs["desired_goal"][:2].astype(np.float64) - obs["observation"][at : at + 2]
     np.testing.assert_allclose(alone[:2], 0.5 * d / np.linalg.norm(d), atol=1e-6)
-
-
-class Ahead3:
-    """Push's 3-entry action: straight ahead at 0.5 in the line's frame, one row or many."""
-
-    def predict(self, observation, deterministic=True):
-        shape = observation["observation"].shape[:-1] + (3,)
-        return np.broadcast_to(np.float32([0.5, 0.0, 0.0]), shape).copy(), None
 
 
 def test_the_turned_orientation_keeps_w_at_or_above_zero():

@@ -356,10 +356,16 @@ def test_train_bc_features_line_fits_in_the_line_frame_and_acts_through_it(
     assert len(fitted) == 2
     assert isinstance(evaluated[0], ElbowGovernor) and isinstance(evaluated[0].policy, LineFrame)
     obs, actions, (seen, labels) = fitted[0]
-    turned, turned_actions = to_line_frame(obs, actions)
-    np.testing.assert_array_equal(seen["observation"], turned["observation"])
-    np.testing.assert_array_equal(labels, turned_actions)
-    assert not np.array_equal(labels, actions)
+    # fitted in the line's frame: every goal straight ahead of its block, and the labels
+    # the demonstrated velocities at their lengths, turned by the same angles
+    o = seen["observation"]
+    np.testing.assert_allclose(seen["desired_goal"][:, 1] - o[:, -13 + 1], 0.0, atol=1e-9)
+    assert (seen["desired_goal"][:, 0] - o[:, -13] > 0).all()
+    np.testing.assert_allclose(
+        np.linalg.norm(labels[:, :2], axis=1), np.linalg.norm(actions[:, :2], axis=1), atol=1e-6
+    )
+    np.testing.assert_array_equal(labels[:, 2], actions[:, 2])  # the height's: not turned
+    assert not np.allclose(labels, actions)
     assert json.loads((out / "train_config.json").read_text())["frame"] == "line"
     loaded, _ = load_example("evaluate").load_model(out)
     assert isinstance(loaded, ElbowGovernor) and isinstance(loaded.policy, LineFrame)
