@@ -2,7 +2,7 @@
 
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
 twin, no switch): ``fci/_frames.c`` (libfranka's isHomogeneousTransformation),
-``fci/limits/_joint.c`` (the joint generators' precedence tables, the
+``fci/limits/_joint.c`` (the joint and Cartesian generators' precedence tables, the
 velocity envelope's law, the safety controller's errors 3 and 4, the torque interface's
 34 and 32), ``fci/contact/_contact.c`` (the contact estimate, the wrench at K, the collision
 levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the Jacobian at a point),

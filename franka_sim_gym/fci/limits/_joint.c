@@ -1,6 +1,6 @@
-/* The joint generators', the safety controller's and the torque interface's rules: their only
- * text (issue 38: one text per rule, compiled; fci/limits/joint.py, safety.py, torque.py hand
- * them the table's constants and name what they find):
+/* The joint and Cartesian generators', the safety controller's and the torque interface's rules:
+ * their only text (issue 38: one text per rule, compiled; fci/limits/joint.py, cartesian.py,
+ * safety.py, torque.py hand them the table's constants and name what they find):
  *
  *   envelope_halves(q, constants, positional, shift, out)
  *   position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants,
@@ -11,6 +11,7 @@
  *   safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
+ *   cartesian_rule(kind, codes, stacked, first, start_pose, start_elbow, elbow, ...) (below)
  *
  * A rule returns every robot's latched error; its detail what robot i's error was about, for
  * the log line, computed by the same helpers. No numpy path, no switch (native.require): the
@@ -860,6 +861,224 @@ done:
     return result;
 }
 
+/* ---- the Cartesian generators' tables: the rules' only text ---------------------------- */
+
+/* cartesian_rule(kind, codes, stacked, first, start_pose, start_elbow, elbow, elbow_has,
+ *                elbow_had, elbow_prev_flag, elbow_v, elbow_a, elbow_jerk, ik, checked,
+ *                solved, q, dq, q_prev, limits2, elbow_limits, ik_limits, constants,
+ *                positional, shift) -> None | (error, tripped)
+ *
+ * fci/limits/cartesian.py check_cartesian_pose (kind 0) / check_cartesian_velocity (kind 1),
+ * which name the rows and hand over the table's constants; docs/fci-behaviour.md "What is
+ * checked, and what it latches" and "The joint side of a Cartesian command". Per robot:
+ *
+ *   the Cartesian norms: ``stacked`` (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]],
+ *     each half's squared norm (x0 x0 + x1 x1 + x2 x2, the order numpy's einsum summed)
+ *     within ``limits2`` (6,) [v, omega, a, alpha, jerk, zeta]^2 ("within", so a NaN trips);
+ *     the pose's only after its opening command (``first``), the twist's always (its
+ *     opening twist is an acceleration from standstill);
+ *   the joint side of the IK solution: 27 its ``q`` (n, 7) outside constants' range where
+ *     ``solved`` (None: where ``checked``); 29 / 30 ``ik`` (n, 2, 7) [ddq, dddq] over
+ *     ``ik_limits`` (2, 7), 28 its ``dq`` outside the velocity envelope at ``q_prev`` (the
+ *     law above, ``shift`` its tolerance), where ``checked``; ``q`` / ``dq`` / ``q_prev`` None:
+ *     27 and 28 off;
+ *   the elbow, where ``elbow_has``: 21 the branch flag elbow[:, 1] not ``elbow_prev_flag``
+ *     on a later command that continues an elbow stream (``elbow_had``); 17 elbow[:, 0]
+ *     outside joint 3's range (always), or on such a command |v|, |a|, |jerk| over
+ *     ``elbow_limits`` (3,) (kMaxElbowVelocity, -Acceleration, -Jerk);
+ *   the start rows (the pose's 16, 22), judged by the caller on the opening command and
+ *     passed in (None: not tripped).
+ *
+ * Rows in ``codes``' order (the tables of cartesian.py): pose [16, 22, 21, 19, 18, 20, 27,
+ * 29, 28, 30, 17], twist [20 (acceleration), 20 (jerk), 18, 27, 30 (29's or 30's values), 28,
+ * 21, 17]; the first tripped row's code is the robot's error. None when no robot tripped
+ * any row (the common case), else error (n,) int64 (-1: none) and tripped (n, rows) bool. */
+enum { POSE_KIND = 0, TWIST_KIND = 1 };
+enum { POSE_TABLE_ROWS = 11, TWIST_TABLE_ROWS = 8 };
+enum { C_STACKED, C_ELBOW, C_PREV_FLAG, C_EV, C_EA, C_EJ, C_IK, C_Q, C_DQ, C_QPREV, C_LIMITS2,
+       C_ELBOW_LIMITS, C_IK_LIMITS, C_CONSTANTS, C_ARRAYS };
+enum { F_FIRST, F_START_POSE, F_START_ELBOW, F_HAS, F_HAD, F_CHECKED, F_SOLVED, F_FLAGS };
+
+typedef struct {
+    F64 a[C_ARRAYS];
+    Bytes f[F_FLAGS];
+    int present[F_FLAGS]; /* the optional flags given (not None) */
+    int motion;           /* q, dq, q_prev given: rows 27 and 28 judged */
+    Py_buffer codes;
+    int kind, rows, positional;
+    double shift;
+    Py_ssize_t n;
+} CartesianArgs;
+
+static void cartesian_release(CartesianArgs *c)
+{
+    f64_release_all(c->a, C_ARRAYS);
+    for (int k = 0; k < F_FLAGS; k++) bytes_release(&c->f[k]);
+    if (c->codes.obj) PyBuffer_Release(&c->codes);
+}
+
+/* A flag argument that may be None (``required`` 0). */
+static int flags_get(PyObject *obj, CartesianArgs *c, int k, int required, const char *name)
+{
+    if (!required && obj == Py_None) return 0;
+    if (bytes_get(obj, &c->f[k], c->n, 0, name) < 0) return -1;
+    c->present[k] = 1;
+    return 0;
+}
+
+static int cartesian_get(PyObject *const *args, CartesianArgs *c)
+{
+    memset(c, 0, sizeof(*c));
+    double kind, positional;
+    if (number(args[0], &kind, "kind") < 0) return -1;
+    c->kind = kind != 0.0;
+    c->rows = c->kind == TWIST_KIND ? TWIST_TABLE_ROWS : POSE_TABLE_ROWS;
+    if (PyObject_GetBuffer(args[1], &c->codes, PyBUF_C_CONTIGUOUS) < 0) return -1;
+    if (c->codes.itemsize != 8 || c->codes.len != 8 * c->rows) {
+        PyErr_Format(PyExc_ValueError, "codes: expected %d int64 error codes", c->rows);
+        return -1;
+    }
+    Py_ssize_t n = c->n = leading(args[2], "stacked");
+    if (n < 0) return -1;
+    Py_ssize_t s36[3] = {n, 3, 6}, s2[2] = {n, 2}, s1[1] = {n}, s27[3] = {n, 2, 7};
+    Py_ssize_t s7[2] = {n, 7}, six[1] = {6}, three[1] = {3}, l27[2] = {2, 7};
+    Py_ssize_t sc[2] = {N_CONSTANTS, 7};
+    if (f64_get(args[2], &c->a[C_STACKED], 3, s36, 0, "stacked") < 0 ||
+        flags_get(args[3], c, F_FIRST, 1, "first") < 0 ||
+        flags_get(args[4], c, F_START_POSE, 0, "start_pose") < 0 ||
+        flags_get(args[5], c, F_START_ELBOW, 0, "start_elbow") < 0 ||
+        num_get(args[6], &c->a[C_ELBOW], 2, s2, 0, "elbow") < 0 ||
+        flags_get(args[7], c, F_HAS, 1, "elbow_has") < 0 ||
+        flags_get(args[8], c, F_HAD, 1, "elbow_had") < 0 ||
+        f64_get(args[9], &c->a[C_PREV_FLAG], 1, s1, 0, "elbow_prev_flag") < 0 ||
+        f64_get(args[10], &c->a[C_EV], 1, s1, 0, "elbow_v") < 0 ||
+        f64_get(args[11], &c->a[C_EA], 1, s1, 0, "elbow_a") < 0 ||
+        f64_get(args[12], &c->a[C_EJ], 1, s1, 0, "elbow_jerk") < 0 ||
+        f64_get(args[13], &c->a[C_IK], 3, s27, 0, "ik") < 0 ||
+        flags_get(args[14], c, F_CHECKED, 1, "checked") < 0 ||
+        flags_get(args[15], c, F_SOLVED, 0, "solved") < 0)
+        return -1;
+    c->motion = args[16] != Py_None;
+    if (c->motion &&
+        (f64_get(args[16], &c->a[C_Q], 2, s7, 0, "q") < 0 ||
+         f64_get(args[17], &c->a[C_DQ], 2, s7, 0, "dq") < 0 ||
+         f64_get(args[18], &c->a[C_QPREV], 2, s7, 0, "q_prev") < 0))
+        return -1;
+    if (f64_get(args[19], &c->a[C_LIMITS2], 1, six, 0, "limits2") < 0 ||
+        f64_get(args[20], &c->a[C_ELBOW_LIMITS], 1, three, 0, "elbow_limits") < 0 ||
+        f64_get(args[21], &c->a[C_IK_LIMITS], 2, l27, 0, "ik_limits") < 0 ||
+        f64_get(args[22], &c->a[C_CONSTANTS], 2, sc, 0, "constants") < 0 ||
+        number(args[23], &positional, "positional") < 0 ||
+        number(args[24], &c->shift, "shift") < 0)
+        return -1;
+    c->positional = positional != 0.0;
+    return 0;
+}
+
+/* Robot i's tripped rows, bit k row k of its kind's table. */
+static ALWAYS_INLINE unsigned cartesian_rows(const CartesianArgs *c, Py_ssize_t i)
+{
+    const F64 *a = c->a;
+    const int first = BYTE1(c->f[F_FIRST], i) != 0, later = !first;
+    /* The Cartesian norms: bit h half h (v, omega, a, alpha, jerk, zeta) over its limit. */
+    unsigned over = 0;
+    for (int h = 0; h < 6; h++) {
+        const int row = h / 2, col = (h % 2) * 3;
+        const double x0 = AT3(a[C_STACKED], i, row, col), x1 = AT3(a[C_STACKED], i, row, col + 1);
+        const double x2 = AT3(a[C_STACKED], i, row, col + 2);
+        const double s = x0 * x0 + x1 * x1 + x2 * x2;
+        if (!(s <= AT1(a[C_LIMITS2], h))) over |= 1u << h;
+    }
+    if (c->kind == POSE_KIND && first) over = 0;
+    const int vel = (over & 3u) != 0, acc = (over & 12u) != 0, jerk = (over & 48u) != 0;
+    /* The joint side. */
+    const int checked = BYTE1(c->f[F_CHECKED], i) != 0;
+    const int solved = c->present[F_SOLVED] ? BYTE1(c->f[F_SOLVED], i) != 0 : checked;
+    int r27 = 0, r28 = 0, r29 = 0, r30 = 0;
+    const F64 *k = &a[C_CONSTANTS];
+    for (int j = 0; j < 7; j++) {
+        /* NaN is not over */
+        if (fabs(AT3(a[C_IK], i, 0, j)) > AT2(a[C_IK_LIMITS], 0, j)) r29 = 1;
+        if (fabs(AT3(a[C_IK], i, 1, j)) > AT2(a[C_IK_LIMITS], 1, j)) r30 = 1;
+        if (!c->motion) continue;
+        const double q = AT2(a[C_Q], i, j), dq = AT2(a[C_DQ], i, j);
+        /* "not inside", so a NaN solution trips (as q_c's 12 does) */
+        if (!((q >= AT2(*k, Q_LOWER, j)) & (q <= AT2(*k, Q_UPPER, j)))) r27 = 1;
+        double upper, lower;
+        /* docs/limits.md §4: at the previous solution, as 13 for q_c at the reference */
+        envelope(k, j, AT2(a[C_QPREV], i, j), c->positional, c->shift, &upper, &lower);
+        if (!((dq <= upper) & (-dq <= -lower))) r28 = 1;
+    }
+    r27 &= solved, r28 &= checked, r29 &= checked, r30 &= checked;
+    /* The elbow. */
+    int sign = 0, elbow = 0;
+    if (BYTE1(c->f[F_HAS], i)) {
+        const int continuing = later && BYTE1(c->f[F_HAD], i);
+        sign = continuing && num2(&a[C_ELBOW], i, 1) != AT1(a[C_PREV_FLAG], i);
+        const double e = num2(&a[C_ELBOW], i, 0);
+        const int outside = !((e >= AT2(*k, Q_LOWER, 2)) & (e <= AT2(*k, Q_UPPER, 2)));
+        const int too_fast = (fabs(AT1(a[C_EV], i)) > AT1(a[C_ELBOW_LIMITS], 0)) |
+                             (fabs(AT1(a[C_EA], i)) > AT1(a[C_ELBOW_LIMITS], 1)) |
+                             (fabs(AT1(a[C_EJ], i)) > AT1(a[C_ELBOW_LIMITS], 2));
+        elbow = outside || (continuing && too_fast);
+    }
+    if (c->kind == TWIST_KIND)
+        return (unsigned)acc | (unsigned)jerk << 1 | (unsigned)vel << 2 | (unsigned)r27 << 3 |
+               (unsigned)(r29 | r30) << 4 | (unsigned)r28 << 5 | (unsigned)sign << 6 |
+               (unsigned)elbow << 7;
+    const int start_pose = c->present[F_START_POSE] && first && BYTE1(c->f[F_START_POSE], i);
+    const int start_elbow = c->present[F_START_ELBOW] && first && BYTE1(c->f[F_START_ELBOW], i);
+    return (unsigned)start_pose | (unsigned)start_elbow << 1 | (unsigned)sign << 2 |
+           (unsigned)acc << 3 | (unsigned)vel << 4 | (unsigned)jerk << 5 | (unsigned)r27 << 6 |
+           (unsigned)r29 << 7 | (unsigned)r28 << 8 | (unsigned)r30 << 9 | (unsigned)elbow << 10;
+}
+
+static PyObject *cartesian_rule(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    CartesianArgs c;
+    PyObject *arrays[2] = {NULL, NULL}, *result = NULL;
+    Py_buffer views[2] = {{0}};
+    unsigned *bits = NULL;
+    memset(&c, 0, sizeof(c));
+    if (check_nargs(nargs, 25, "cartesian_rule") < 0 || numpy_refs() < 0) return NULL;
+    if (cartesian_get(args, &c) < 0) goto done;
+    bits = PyMem_Malloc((size_t)(c.n > 0 ? c.n : 1) * sizeof(unsigned));
+    if (!bits) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    unsigned any = 0;
+    for (Py_ssize_t i = 0; i < c.n; i++) any |= bits[i] = cartesian_rows(&c, i);
+    if (!any) { /* nothing tripped anywhere: the common case */
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    arrays[0] = empty(c.n, 0, np_int64);
+    arrays[1] = arrays[0] ? empty(c.n, c.rows, np_bool) : NULL;
+    for (int a = 0; a < 2; a++)
+        if (!arrays[a] ||
+            PyObject_GetBuffer(arrays[a], &views[a], PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+            goto done;
+    long long *error = views[0].buf;
+    unsigned char *tripped = views[1].buf;
+    const long long *codes = c.codes.buf;
+    for (Py_ssize_t i = 0; i < c.n; i++) {
+        for (int r = 0; r < c.rows; r++) tripped[i * c.rows + r] = (bits[i] >> r) & 1u;
+        const int w = winner(bits[i]);
+        error[i] = w < 0 ? NO_ERROR : codes[w];
+    }
+    result = Py_BuildValue("(OO)", arrays[0], arrays[1]);
+done:
+    for (int a = 0; a < 2; a++) {
+        if (views[a].obj) PyBuffer_Release(&views[a]);
+        Py_XDECREF(arrays[a]);
+    }
+    PyMem_Free(bits);
+    cartesian_release(&c);
+    return result;
+}
+
 static PyMethodDef METHODS[] = {
     METHOD(envelope_halves, "The velocity envelope [upper | -lower] at each row of q, into out."),
     METHOD(position_rule, "The latched error of every robot's q_c, and dq, ddq: (error, dq, ddq)."),
@@ -869,8 +1088,9 @@ static PyMethodDef METHODS[] = {
     METHOD(safety_rule, "Errors 3 and 4 of every robot, 4 over 3: (error, bad, count)."),
     METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
     METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),
+    METHOD(cartesian_rule, "The Cartesian pose (kind 0) or twist (kind 1) table of every robot: None, or (error, tripped)."),
     METHOD(safety_detail, "Robot i's error 3 or 4 for the log line: (error, joint, value, upper, lower)."),
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_joint, "The joint generators', safety controller's and torque interface's rules and the velocity envelope: their only text (fci/limits).")
+KERNEL_MODULE(_joint, "The joint and Cartesian generators', safety controller's and torque interface's rules and the velocity envelope: their only text (fci/limits).")

@@ -36,9 +36,16 @@ are taken in the body frame — the frame the lost-cycle law composes the
 rotation increment in (docs/fci-behaviour.md "What the sim does with a lost cycle") — so an
 extrapolated pose stream is differenced onto its own frozen acceleration.
 
-The IK rows (27, 29, 28, 30) are judged by ``limits/cartesian_joint.py``; the tables
-here place them. All functions are pure and batch-first; derivatives are backward Euler
-over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas").
+The IK rows (27, 29, 28, 30) judge the IK solution: its position inside the joint range
+(where it converged), the per-joint change of its velocity and of its acceleration over
+dt against the robot's per-joint kMaxJointAcceleration / kMaxJointJerk times the
+discontinuity scale, and its velocity inside the envelope at the previous solution.
+
+Every row but the start rows (16, 22: on a motion's opening command only, numpy below)
+has one text, in C: ``fci/limits/_joint.c`` ``cartesian_rule`` (issue 38: no numpy
+twin), which these functions hand the table's constants. Derivatives are backward Euler
+over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas";
+``limits/cartesian_derivatives.py``).
 """
 
 from __future__ import annotations
@@ -47,10 +54,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ... import native
 from ...sim.rotations import rotation_log
 from ..errors import Error
 from ..frames import from_wire
-from ..tables import RobotTable
+from ..tables import JOINT_VELOCITY_LIMIT_TOLERANCE, RobotTable
 from .cartesian_derivatives import (
     ElbowDerivatives,
     ElbowStream,
@@ -61,7 +69,6 @@ from .cartesian_derivatives import (
     joint_side,
     pose_derivatives,
 )
-from .cartesian_joint import ik_limits, joint_side_rows, no_joint_rows, range_and_envelope_quiet
 from .record import NO_ERROR, Violation
 
 _E = Error
@@ -144,72 +151,18 @@ def _norm(x: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", x, x))
 
 
-def select(tripped: np.ndarray, codes: np.ndarray) -> np.ndarray:
-    """(n,) error of the first tripped row of each robot, -1 where none."""
-    first = np.argmax(tripped, axis=1)
-    return np.where(tripped.any(axis=1), codes[first], NO_ERROR)
+#: The rules' C text (fci/limits/_joint.c), loaded once.
+_RULES = native.require("fci.limits._joint", "cartesian_rule")
+_POSE, _TWIST = 0, 1
 
 
-def _elbow_rows(elbow: ElbowStream, later: np.ndarray, table: RobotTable):
-    """Rows 21 and 17 (both generators): the branch flag flipping mid-motion; elbow[0]
-    outside joint 3's range (always), or its velocity, acceleration or jerk over the
-    kMaxElbow* limits (after the first command)."""
-    if not np.count_nonzero(elbow.has):  # no elbow this cycle: neither row can trip
-        return elbow.has, elbow.has
-    continuing = later & elbow.has & elbow.had
-    sign = continuing & (elbow.command[:, 1] != elbow.prev_flag)
-    e_c, d = elbow.command[:, 0], elbow.derivatives
-    out_of_range = ~((e_c >= table.q_lower[2]) & (e_c <= table.q_upper[2]))
-    too_fast = (
-        (np.abs(d.v) > table.v_elbow_max)
-        | (np.abs(d.a) > table.a_elbow_max)
-        | (np.abs(d.jerk) > table.j_elbow_max)
-    )
-    return sign, elbow.has & (out_of_range | (continuing & too_fast))
-
-
-def _inside(stacked: np.ndarray, table: RobotTable) -> np.ndarray:
-    """(n, 6) the norms of (n, 3, 6) [[v | omega], [a | alpha], [jerk | zeta]] within the
-    table's limits, in one pass (NaN is not within: it trips)."""
-    x = stacked.reshape(len(stacked), 6, 3)
-    return np.einsum("nkj,nkj->nk", x, x) <= _limits2(table)
-
-
-def _quiet(stacked: np.ndarray, joint: JointSide, table: RobotTable, scale: float) -> bool:
-    """Whether no Cartesian norm of ``stacked`` (n, 3, 6) is over its limit and no joint-side
-    value of any robot (judged or not) is over its own: then neither kind of row trips.
-
-    One comparison of the squared norms (as :func:`_inside` forms them) and the joint
-    side's magnitudes side by side; a NaN fails it (the exact rows then decide). Then the
-    solution's range and envelope (27, 28), where the joint side judges them.
-    """
-    n = len(stacked)
-    values = np.empty((n, 20))
-    x = stacked.reshape(n, 6, 3)
-    np.einsum("nkj,nkj->nk", x, x, out=values[:, :6])
-    np.abs(joint.stacked.reshape(n, 14), out=values[:, 6:])
-    if np.count_nonzero(values <= _quiet_limits(table, scale)) != 20 * n:
-        return False
-    return range_and_envelope_quiet(joint, table)
-
-
-def _quiet_limits(table: RobotTable, scale: float) -> np.ndarray:
-    """(20,) :func:`_limits2` and the joint side's acceleration and jerk limits, scaled."""
+def _constants(table: RobotTable, scale: float) -> tuple:
+    """The C rule's constants of ``table`` and the joint side's ``scale`` (cached, read-only):
+    the squared Cartesian limits [v, omega, a, alpha, jerk, zeta], the elbow's
+    kMaxElbow* (velocity, acceleration, jerk), the joint side's (2, 7) acceleration and jerk
+    limits, the joint constants and whether the envelope is positional."""
     key = (table.name, scale)
-    cached = _QUIET_LIMITS.get(key)
-    if cached is None:
-        cached = np.concatenate((_limits2(table), ik_limits(table, scale).reshape(14)))
-        cached.setflags(write=False)
-        _QUIET_LIMITS[key] = cached
-    return cached
-
-
-_QUIET_LIMITS: dict[tuple[str, float], np.ndarray] = {}
-
-
-def _limits2(table: RobotTable) -> np.ndarray:
-    """Squared Cartesian limits [v, omega, a, alpha, jerk, zeta] of ``table``."""
-    cached = _LIMITS2.get(table.name)
+    cached = _CONSTANTS.get(key)
     if cached is None:
         limits = (
             table.v_trans_max,
@@ -219,11 +172,38 @@ def _limits2(table: RobotTable) -> np.ndarray:
             table.j_trans_max,
             table.j_rot_max,
         )
-        cached = _LIMITS2[table.name] = np.square(np.array(limits))
+        elbow = (table.v_elbow_max, table.a_elbow_max, table.j_elbow_max)
+        arrays = (
+            np.square(np.array(limits, dtype=np.float64)),
+            np.array(elbow, dtype=np.float64),
+            np.stack((table.ik_ddq_max, table.ik_dddq_max)).astype(np.float64) * scale,
+        )
+        for array in arrays:
+            array.setflags(write=False)
+        constants, positional = table.joint_constants
+        cached = _CONSTANTS[key] = (*arrays, constants, positional)
     return cached
 
 
-_LIMITS2: dict[str, np.ndarray] = {}
+_CONSTANTS: dict[tuple[str, float], tuple] = {}
+
+
+def _table(kind, codes, stacked, first, start_pose, start_elbow, elbow, joint, table, scale):
+    """One Cartesian table over n robots (the C rule), as a :class:`CartesianCheck`."""
+    limits2, elbow_limits, ik_limits, constants, positional = _constants(table, scale)
+    d = elbow.derivatives
+    motion = joint.motion
+    q, dq = (None, None) if motion is None else (motion[:, 0], motion[:, 1])
+    result = _RULES.cartesian_rule(
+        kind, codes, stacked, first, start_pose, start_elbow,
+        elbow.command, elbow.has, elbow.had, elbow.prev_flag, d.v, d.a, d.jerk,
+        joint.stacked, joint.checked, joint.solved, q, dq, joint.q_prev,
+        limits2, elbow_limits, ik_limits, constants, positional,
+        JOINT_VELOCITY_LIMIT_TOLERANCE,
+    )  # fmt: skip
+    if result is None:
+        return _no_error(len(first))
+    return CartesianCheck(*result)
 
 
 def check_cartesian_pose(
@@ -254,14 +234,8 @@ def check_cartesian_pose(
         translation_tolerance, rotation_tolerance, elbow_tolerance: start checks.
     """
     first = np.asarray(first, dtype=bool)
-    n = len(first)
-    starting = np.count_nonzero(first) > 0
-    if not starting and not np.count_nonzero(elbow.has) and _quiet(d.stacked, joint, table, scale):
-        return _no_error(n)  # mid-motion, no elbow, nothing near a limit: the common case
-    inside = _inside(d.stacked, table)
-    joint_rows = joint_side_rows(joint, table, scale)
-    later = ~first
-    if starting:
+    start_pose = start_elbow = None
+    if np.count_nonzero(first):  # the start rows, on an opening command only
         T_m = from_wire(O_T_EE)
         dp = _norm(T_c[:, :3, 3] - T_m[:, :3, 3])
         dr = _norm(rotation_log(T_m[:, :3, :3].transpose(0, 2, 1) @ T_c[:, :3, :3]))
@@ -275,20 +249,9 @@ def check_cartesian_pose(
                 | (e_c[:, 1] != elbow_measured[:, 1])
             )
         )
-    else:
-        start_pose = start_elbow = first
-    over = ~inside
-    over &= later[:, None]
-    ik27, ik29, ik28, ik30 = no_joint_rows(n) if joint_rows is None else joint_rows
-    sign, elbow_limit = _elbow_rows(elbow, later, table)
-    if not (starting or _any(elbow.has, over, ik27, ik29, ik28, ik30)):
-        return _no_error(n)
-    vel = over[:, 0] | over[:, 1]
-    acc = over[:, 2] | over[:, 3]
-    jerk = over[:, 4] | over[:, 5]
-    rows = [start_pose, start_elbow, sign, acc, vel, jerk, ik27, ik29, ik28, ik30, elbow_limit]
-    tripped = np.stack(rows, axis=1)
-    return CartesianCheck(select(tripped, POSE_CODES), tripped)
+    return _table(
+        _POSE, POSE_CODES, d.stacked, first, start_pose, start_elbow, elbow, joint, table, scale
+    )
 
 
 def check_cartesian_velocity(
@@ -306,27 +269,7 @@ def check_cartesian_velocity(
     rest, so the opening twist is an acceleration from standstill, as on the robot).
     """
     first = np.asarray(first, dtype=bool)
-    n = len(first)
-    if not np.count_nonzero(elbow.has) and _quiet(stacked, joint, table, scale):
-        return _no_error(n)  # no elbow, nothing near a limit: the common case
-    inside = _inside(stacked, table)
-    joint_rows = joint_side_rows(joint, table, scale)
-    over = ~inside
-    ik_range, ik_acc, ik_envelope, ik_jerk = no_joint_rows(n) if joint_rows is None else joint_rows
-    sign, elbow_limit = _elbow_rows(elbow, ~first, table)
-    if not _any(over, ik_range, ik_acc, ik_envelope, ik_jerk, sign, elbow_limit):
-        return _no_error(n)
-    vel = over[:, 0] | over[:, 1]
-    acc = over[:, 2] | over[:, 3]
-    jerk = over[:, 4] | over[:, 5]
-    rows = [acc, jerk, vel, ik_range, ik_acc | ik_jerk, ik_envelope, sign, elbow_limit]
-    tripped = np.stack(rows, axis=1)
-    return CartesianCheck(select(tripped, TWIST_CODES), tripped)
-
-
-def _any(*tripped: np.ndarray) -> bool:
-    """Whether any of the bool arrays has an entry set."""
-    return any(np.count_nonzero(x) for x in tripped)
+    return _table(_TWIST, TWIST_CODES, stacked, first, None, None, elbow, joint, table, scale)
 
 
 def _no_error(n: int) -> CartesianCheck:
@@ -390,5 +333,4 @@ __all__ = [
     "elbow_derivatives",
     "joint_side",
     "pose_derivatives",
-    "select",
 ]
