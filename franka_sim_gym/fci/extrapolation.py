@@ -16,30 +16,40 @@ docs/system_requirements.rst):
 | elbow_c | elbow[0] by the q_c law; elbow[1] (a branch flag) held |
 | tau_J_d | held |
 
-All functions are pure and batch-first (leading robot axis). The joint laws
-are applied in ``reference.JointReference``, the Cartesian ones in
-``cartesian.CartesianGenerators``.
+All functions are pure and batch-first (leading robot axis). The q_c and dq_c laws'
+only text is C (fci/limits/_joint.c ``position_law`` / ``velocity_law``): the joint
+generators' cycle applies them itself (``joint_advance``), the Cartesian generators
+through these functions (``cartesian.step``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .. import native
 from ..sim.rotations import rotation_exp
 from .tables import DELTA_T
+
+#: the q_c and dq_c laws' C text (a required extension: there is no other)
+_LAWS = native.require("fci.limits._joint", "position_step", "velocity_step")
 
 
 def position_step(
     x: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float = DELTA_T
 ) -> tuple[np.ndarray, np.ndarray]:
-    """q_c (and translation, elbow[0]): semi-implicit Euler at frozen ``a``; (x', v')."""
-    v_next = v + a * dt
-    return x + v_next * dt, v_next
+    """q_c (and translation, elbow[0]): semi-implicit Euler at frozen ``a``; (x', v').
+
+    ``x``, ``v``, ``a``: (m,) or (m, k) arrays of one shape."""
+    return _LAWS.position_step(*_float64(x, v, a), dt)
 
 
 def velocity_step(v: np.ndarray, a: np.ndarray, dt: float = DELTA_T) -> np.ndarray:
     """dq_c and O_dP_EE_c: the velocity (twist) continued at the frozen acceleration."""
-    return v + a * dt
+    return _LAWS.velocity_step(*_float64(v, a), dt)
+
+
+def _float64(*arrays) -> tuple[np.ndarray, ...]:
+    return tuple(np.asarray(x, dtype=np.float64) for x in arrays)
 
 
 def pose_step(

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import extrapolation, limits
+from .. import native
+from . import limits
 from .accounting import CycleAccounting
 from .config import ControllerConfig
 from .cycle_input import CycleInput
@@ -21,7 +22,10 @@ from .engine import MotionLimitEngine
 from .late import LateIntents
 from .modes import Modes
 from .reference import JointReference
-from .tables import DELTA_T, MAX_LOST_CYCLES
+from .tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
+
+#: the joint generators' cycle: the lost-cycle law, the rows, the record (their only text)
+_CYCLE = native.require("fci.limits._joint", "joint_advance", "joint_record")
 
 
 class JointGenerators:
@@ -55,6 +59,12 @@ class JointGenerators:
         self.published = published
         self.engine = engine
         self.late = late
+        n = modes.n
+        #: joint_advance's outputs: error, candidate, new q / dq / ddq (read where a row tripped)
+        self._scratch = (
+            np.full(n, -1, dtype=np.int64),
+            *(np.zeros((n, 7)) for _ in range(4)),
+        )
 
     def advance(self, cycle: CycleInput, started: np.ndarray) -> None:
         """The cycle's joint and torque commands of the ``started`` motions: judged and
@@ -79,81 +89,46 @@ class JointGenerators:
 
         ``have`` marks the robots whose command (``q_c`` / ``dq_c``, echoing ``echo``,
         by default the open cycle's id) is applied and recorded as a real sample;
-        with ``extrapolate_lost`` the other started joint motions lose the cycle.
+        with ``extrapolate_lost`` the other started joint motions lose the cycle
+        (docs/fci-behaviour.md "What the sim does with a lost cycle": one substitute
+        waypoint per missed cycle at the frozen acceleration, checked, never clamped).
+        One C call (fci/limits/_joint.c ``joint_advance``: the lost-cycle law, the rows,
+        the record); a robot whose candidate trips a row goes to the engine first.
         """
-        m = self.modes
-        ref = self.reference
-        dt = DELTA_T
+        m, ref, s = self.modes, self.reference, self._scratch
         if echo is None:
             echo = self.published
-        tracking = self.engine.live(m.tracking)
-        n = m.n
-        if (
-            extrapolate_lost
-            and (m.n_joint_position == n or m.n_joint_velocity == n)
-            and np.count_nonzero(have) == n
-            and np.count_nonzero(tracking) == n
-        ):
-            # Every robot runs the same joint generator and sent a command: nothing is
-            # lost, extrapolated or held, so the masks below are all set or all clear.
-            self._advance_everyone(cycle, q_c, dq_c, echo)
-            return
-        lost = started & ~have & tracking
-        if not extrapolate_lost:
-            lost = np.zeros_like(lost)
-        extrapolate = lost & (self.accounting.lost_run < MAX_LOST_CYCLES)
-        if np.count_nonzero(lost):
-            # docs/fci-behaviour.md "What the sim does with a lost cycle": one substitute waypoint
-            # per missed cycle at the frozen acceleration, semi-implicit (v += a dt; q += v dt).
-            ex_q, ex_dq = extrapolation.position_step(ref.q, ref.dq, ref.ddq_frozen, dt)
-            h = have[:, None]
-            q_cand = np.where(h, q_c, ex_q)
-            dq_cand = np.where(h, dq_c, ex_dq)
-        else:  # nothing to guess: the commands are the candidates (unapplied rows unread)
-            q_cand, dq_cand, ex_dq = q_c, dq_c, ref.dq
-        first = cycle.first & have
-        position = (have | extrapolate) & m.joint_position & tracking
-        velocity = (have | extrapolate) & m.joint_velocity & tracking
-        new_dq, new_ddq = ex_dq, ref.ddq_frozen
-        if np.count_nonzero(position):
-            pc = self._judge_positions(q_cand, position, first)
-            real = (have & m.joint_position)[:, None]
-            new_dq = np.where(real, pc.dq, new_dq)
-            new_ddq = np.where(real, pc.ddq, new_ddq)
-        if np.count_nonzero(velocity):
-            vc = self._judge_velocities(dq_cand, velocity, first)
-            real = (have & m.joint_velocity)[:, None]
-            new_dq = np.where(real, dq_c, new_dq)
-            new_ddq = np.where(real, vc.ddq, new_ddq)
-            q_cand = np.where((velocity & have)[:, None], ref.q + dq_c * dt, q_cand)
-        # Robots a verdict aborted above are not applied.
-        apply = self.engine.live(position | velocity)
-        held = self.engine.live(lost & ~extrapolate)
-        ref.record_masked(apply, have & apply, q_cand, new_dq, new_ddq, held, echo)
+        constants, positional = self.table.joint_constants
+        config = self.config
+        pending = _CYCLE.joint_advance(
+            q_c, dq_c, have, started, m.tracking, self.engine.aborted, m.joint_position,
+            m.joint_velocity, cycle.first, extrapolate_lost, self.accounting.lost_run,
+            MAX_LOST_CYCLES, echo, *ref.arrays, constants, positional,
+            config.start_pose_tolerance, config.start_velocity_tolerance,
+            JOINT_VELOCITY_LIMIT_TOLERANCE, DELTA_T, *s,
+        )  # fmt: skip
+        if pending:
+            self._judge_pending(cycle.first & have, have, echo)
         cycle.first &= ~have
 
-    def _advance_everyone(
-        self, cycle: CycleInput, q_c: np.ndarray, dq_c: np.ndarray, echo: np.ndarray
-    ) -> None:
-        """:meth:`_advance_joints` when every robot has a command of one joint generator:
-        the same judgement and record without the masks (where the judge aborts some
-        robot, the general record with the masks it would have had)."""
+    def _judge_pending(self, first: np.ndarray, have: np.ndarray, echo: np.ndarray) -> None:
+        """The robots :meth:`_advance_joints` left to the engine (a row tripped): judged as
+        their generator's rules name it, then recorded unless a verdict aborts them."""
         m, ref = self.modes, self.reference
-        everyone = m.tracking
-        first = cycle.first.copy()
-        if m.n_joint_position == m.n:
-            check = self._judge_positions(q_c, everyone, first)
-            q, dq = q_c, check.dq
-        else:
-            check = self._judge_velocities(dq_c, everyone, first)
-            q, dq = ref.q + dq_c * DELTA_T, dq_c
-        apply = self.engine.live(everyone)
-        if np.count_nonzero(apply) == m.n:
-            ref.record_applied(q, dq, check.ddq, echo)
-        else:
-            nobody = np.zeros_like(apply)
-            ref.record_masked(apply, apply, q, dq, check.ddq, nobody, echo)
-        cycle.first[...] = False
+        error, candidate, new_q, new_dq, new_ddq = self._scratch
+        tripped = error >= 0
+        for rows, describe, start, tolerance in (
+            (tripped & m.joint_position, limits.describe_joint_position, ref.q,
+             self.config.start_pose_tolerance),
+            (tripped & m.joint_velocity, limits.describe_joint_velocity, ref.dq,
+             self.config.start_velocity_tolerance),
+        ):  # fmt: skip
+            if np.count_nonzero(rows):
+                args = (candidate, ref.q, ref.dq, ref.ddq, first, start, 1, self.table, tolerance)
+                self.engine.judge(error, rows, lambda i, a=args, d=describe: d(i, *a))
+        _CYCLE.joint_record(
+            self.engine.live(tripped), have, new_q, new_dq, new_ddq, echo, *ref.arrays
+        )
 
     def late_datagrams(
         self, cycle: CycleInput, commands: np.ndarray, late: np.ndarray, ids: np.ndarray

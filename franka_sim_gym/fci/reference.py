@@ -6,7 +6,10 @@ and "What the sim does with a lost cycle"), so there is one copy of it.
 
 The arrays are the published q_d / dq_d / ddq_d themselves (views into the
 state's float64 shadow), updated in place: what the robot applied is exactly
-what it reports, and the next command is differenced against that.
+what it reports, and the next command is differenced against that. A cycle's
+record (a real command, a lost cycle's guess, a hold at rest) is written by the joint
+generators' C cycle (fci/limits/_joint.c ``joint_advance``, ``joint_record``); this
+module seeds, rewinds and remembers.
 """
 
 from __future__ import annotations
@@ -47,6 +50,12 @@ class JointReference:
         # The references the last RING published states carried (by message id), so
         # a late datagram is judged against the reference of the state it answers.
         self._ring = np.zeros((3, n, RING, 7))
+        #: the arrays the joint generators' cycle records into, in its order (fci/limits/
+        #: _joint.c joint_advance / joint_record: the record's only text)
+        self.arrays = (
+            self.q, self.dq, self.ddq, self.ddq_frozen,
+            self._real_q, self._real_dq, self._real_ddq, self.real_echo, self.run,
+        )  # fmt: skip
 
     def remember(self, message_id: int) -> None:
         """Store the reference as published in state ``message_id``."""
@@ -87,56 +96,3 @@ class JointReference:
         np.copyto(self.dq, self._real_dq, where=r)
         np.copyto(self.ddq, self._real_ddq, where=r)
         self.run[rows] = 0
-
-    def record_applied(
-        self, q_c: np.ndarray, dq: np.ndarray, ddq: np.ndarray, echo: np.ndarray
-    ) -> None:
-        """Every robot applied a fresh command this cycle (q_c, or q_d + dq_c dt), with
-        its judged derivatives (no masks)."""
-        self.q[...] = q_c
-        self.dq[...] = dq
-        self.ddq[...] = ddq
-        self.ddq_frozen[...] = ddq
-        self.real_echo[...] = echo
-        self.run[...] = 0
-
-    def record_masked(
-        self,
-        apply: np.ndarray,
-        real: np.ndarray,
-        q: np.ndarray,
-        dq: np.ndarray,
-        ddq: np.ndarray,
-        held: np.ndarray,
-        echo: np.ndarray,
-    ) -> None:
-        """Record the cycle's reference where ``apply`` (the general path).
-
-        Args:
-            apply: (n,) robots whose reference advances to (q, dq, ddq): an applied
-                command or an extrapolated waypoint.
-            real: (n,) of those, the ones a command actually arrived for: only
-                these re-freeze the acceleration a lost cycle continues with (docs/fci-behaviour.md
-                "Frozen, not continued").
-            held: (n,) robots past 20 lost cycles: the last extrapolated value
-                holds, at rest (docs/fci-behaviour.md "Extrapolation stops at 20").
-        """
-        a = apply[:, None]
-        guessed = apply & ~real
-        starting = guessed & (self.run == 0)
-        if np.count_nonzero(starting):  # a run of guesses begins: remember the real sample
-            st = starting[:, None]
-            np.copyto(self._real_q, self.q, where=st)
-            np.copyto(self._real_dq, self.dq, where=st)
-            np.copyto(self._real_ddq, self.ddq, where=st)
-        self.run += guessed
-        self.run[real] = 0
-        np.copyto(self.real_echo, echo, where=real)
-        np.copyto(self.q, q, where=a)
-        np.copyto(self.dq, dq, where=a)
-        np.copyto(self.ddq, ddq, where=a)
-        np.copyto(self.ddq_frozen, ddq, where=real[:, None])
-        if np.count_nonzero(held):
-            h = held[:, None]
-            np.copyto(self.dq, 0.0, where=h)
-            np.copyto(self.ddq, 0.0, where=h)

@@ -3,10 +3,11 @@
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
 twin, no switch): ``fci/_frames.c`` (libfranka's isHomogeneousTransformation),
 ``fci/limits/_joint.c`` (the joint and Cartesian generators' precedence tables, the
-velocity envelope's law, the safety controller's errors 3 and 4, the torque interface's
-34 and 32), ``fci/contact/_contact.c`` (the contact estimate, the wrench at K, the collision
-levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the Jacobian at a point),
-``sim/_truth.c`` (a reality draw's drive friction and link weights),
+joint generators' cycle with the q_c and dq_c lost-cycle laws and the reference's
+record, the velocity envelope's law, the safety controller's errors 3 and 4, the torque
+interface's 34 and 32), ``fci/contact/_contact.c`` (the contact estimate, the wrench at
+K, the collision levels), ``sim/_ik.c`` (the IK solve), ``sim/_dynamics.c`` (the
+Jacobian at a point), ``sim/_truth.c`` (a reality draw's drive friction and link weights),
 ``sim/_rotations.c`` (the rotation library, sim/rotations.py's one text),
 ``envs/_client_filters.c`` (libfranka's client filters), and ``sim/_rows.c`` (no rule:
 the copies of every robot's MjData rows). docs/architecture.md, "One implementation per

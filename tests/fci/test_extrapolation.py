@@ -57,3 +57,14 @@ def test_elbow_law_moves_the_angle_and_holds_the_branch_flag():
     assert e[0, 1] == -1.0
     assert e[0, 0] == pytest.approx(0.3 + (0.5 + 1e-3) * DT)
     assert v[0] == pytest.approx(0.5 + 1e-3)
+
+
+def test_the_laws_take_one_shape_and_name_the_array_that_differs():
+    x, v, a = np.array([0.1, 0.2]), np.array([1.0, -1.0]), np.array([2.0, 0.0])
+    x1, v1 = ex.position_step(x, v, a)
+    np.testing.assert_array_equal(v1, v + a * DT)
+    np.testing.assert_array_equal(x1, x + (v + a * DT) * DT)
+    with pytest.raises(ValueError, match="a: axis 0 has length 3, expected 2"):
+        ex.position_step(x, v, np.zeros(3))
+    with pytest.raises(ValueError, match="a: axis 1 has length 6, expected 3"):
+        ex.velocity_step(np.zeros((2, 3)), np.zeros((2, 6)))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, RobotMode
-from tests.fci_helpers import IMP, JP, JV, make_controller
+from tests.fci_helpers import IMP, JP, JV, LoopClient, make_controller
 
 CYCLES = 200
 
@@ -57,3 +57,79 @@ def test_reference_does_not_depend_on_the_other_robot(generator, other):
     masked, mode = _run(generator, other)
     assert mode == (RobotMode.kReflex if other == "jump" else RobotMode.kMove)
     assert masked == every
+
+
+def test_the_opening_command_rebases_the_history_at_rest():
+    # docs/fci-behaviour.md "The difference formulas": the opening command (within the
+    # start tolerance of q_d) is recorded at rest, whatever it differs from q_d by; the
+    # next command is differenced against it.
+    ctrl = make_controller(enforce_motion_limits=True)
+    c = LoopClient(ctrl)
+    c.start(JP, IMP)
+    q = c.state["q_d"].astype(np.float64)
+    q[1] += 0.01  # 10 rad/s over one cycle, were it differenced
+    c.send(q_c=q)
+    assert c.state["robot_mode"] == RobotMode.kMove
+    np.testing.assert_array_equal(ctrl.reference.q[0], q)
+    assert not ctrl.reference.dq[0].any() and not ctrl.reference.ddq[0].any()
+    q[1] += 1e-6
+    c.send(q_c=q)
+    assert ctrl.reference.dq[0, 1] == pytest.approx(1e-3, rel=1e-6)
+    assert ctrl.reference.ddq[0, 1] == pytest.approx(1.0, rel=1e-6)
+
+
+def test_the_opening_velocity_command_rebases_the_acceleration_at_rest():
+    ctrl = make_controller(enforce_motion_limits=True)
+    c = LoopClient(ctrl)
+    c.start(JV, IMP)
+    dq = np.zeros(7)
+    dq[3] = 0.05  # within the start-velocity tolerance; 50 rad/s^2 were it differenced
+    c.send(dq_c=dq)
+    assert c.state["robot_mode"] == RobotMode.kMove
+    assert ctrl.reference.dq[0, 3] == 0.05
+    assert not ctrl.reference.ddq[0].any()
+
+
+def test_a_backlog_drained_in_order_leaves_the_history_of_its_real_samples():
+    # docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in
+    # for": a stream with a jerk, so that the guesses (at the frozen acceleration) are not
+    # its waypoints. After the backlog, q_d, dq_d and ddq_d are the backward differences of
+    # the real samples, not of the guesses they replaced.
+    ctrl = make_controller(enforce_motion_limits=True)
+    c = LoopClient(ctrl)
+    c.start(JP, IMP)
+    q0 = c.state["q_d"].astype(np.float64)
+
+    def waypoint(k: int) -> np.ndarray:
+        t = k * 1e-3
+        q = q0.copy()
+        q[1] += 0.5 * 2.0 * t * t + 50.0 * t**3 / 6
+        return q
+
+    for k in range(0, 100):
+        c.send(q_c=waypoint(k))
+    stalled = []
+    for k in range(100, 106):
+        stalled.append((int(c.state["message_id"]), waypoint(k)))
+        c.send(deliver=False)
+    command = np.zeros(1, dtype=ROBOT_COMMAND_DTYPE)
+    for message_id, q in [*stalled, (int(c.state["message_id"]), waypoint(106))]:
+        command[0] = np.zeros((), dtype=ROBOT_COMMAND_DTYPE)
+        command["message_id"][0] = message_id
+        command["q_c"][0] = q
+        ctrl.receive(command, np.ones(1, dtype=bool))
+    ctrl.step()
+    assert c.state["robot_mode"] == RobotMode.kMove
+    dq = [(waypoint(k)[1] - waypoint(k - 1)[1]) / 1e-3 for k in (105, 106)]
+    ref = ctrl.reference
+    assert ref.q[0, 1] == waypoint(106)[1]
+    assert ref.dq[0, 1] == pytest.approx(dq[1], abs=1e-9)
+    assert ref.ddq[0, 1] == pytest.approx((dq[1] - dq[0]) / 1e-3, abs=1e-5)
+    # differenced against the guess for cycle 105 instead, dq_d would be off by more
+    w = [waypoint(k)[1] for k in (97, 98, 99)]
+    v, a = (w[2] - w[1]) / 1e-3, ((w[2] - w[1]) - (w[1] - w[0])) / 1e-6
+    guess = w[2]
+    for _ in range(6):
+        v += a * 1e-3
+        guess += v * 1e-3
+    assert abs((waypoint(106)[1] - guess) / 1e-3 - dq[1]) > 1e-4

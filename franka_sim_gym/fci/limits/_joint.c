@@ -1,6 +1,8 @@
-/* The joint and Cartesian generators', the safety controller's and the torque interface's rules:
- * their only text (issue 38: one text per rule, compiled; fci/limits/joint.py, cartesian.py,
- * safety.py, torque.py hand them the table's constants and name what they find):
+/* The joint and Cartesian generators', the safety controller's and the torque interface's rules,
+ * and the joint generators' cycle (the lost-cycle laws, the reference's record): their only
+ * text (issue 38: one text per rule, compiled; fci/limits/joint.py, cartesian.py, safety.py,
+ * torque.py, fci/joint_generators.py and fci/extrapolation.py hand them the table's
+ * constants and name what they find):
  *
  *   envelope_halves(q, constants, positional, shift, out)
  *   position_rule(q_c, q_prev, dq_prev, ddq_prev, first, q_start, steps, constants,
@@ -12,6 +14,9 @@
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   cartesian_rule(kind, codes, stacked, first, start_pose, start_elbow, elbow, ...) (below)
+ *   joint_advance(q_c, dq_c, have, ..., error, candidate, new_q, new_dq, new_ddq) -> pending
+ *   joint_record(rows, have, new_q, new_dq, new_ddq, echo, <the reference>) (below)
+ *   position_step(x, v, a, dt) -> (x', v'), velocity_step(v, a, dt) -> v'
  *
  * A rule returns every robot's latched error; its detail what robot i's error was about, for
  * the log line, computed by the same helpers. No numpy path, no switch (native.require): the
@@ -546,6 +551,362 @@ static PyObject *velocity_detail(PyObject *self, PyObject *const *args, Py_ssize
 {
     (void)self;
     return joint_detail(args, nargs, &VELOCITY, "velocity_detail");
+}
+
+/* ---- the joint generators' cycle: the lost-cycle laws and the reference's record ------ */
+
+/* docs/fci-behaviour.md "What the sim does with a lost cycle": a signal the client did not
+ * send this cycle continues at the acceleration the last two real commands implied, frozen
+ * (libfranka docs/system_requirements.rst: "keep acceleration constant and integrate").
+ * dq_c's law: v' = v + a dt. q_c's (and a pose's translation, elbow[0]): semi-implicit, v'
+ * by dq_c's law, then x' = x + v' dt. Their only text (fci/extrapolation.py hands the
+ * Cartesian laws these). */
+static inline double velocity_law(double v, double a, double dt) { return v + a * dt; }
+
+static inline void position_law(double x, double v, double a, double dt, double *x1, double *v1)
+{
+    *v1 = velocity_law(v, a, dt);
+    *x1 = x + *v1 * dt;
+}
+
+/* The joint reference (fci/reference.py JointReference): q_d, dq_d, ddq_d as published,
+ * the frozen acceleration, the last real sample (kept while a run of guesses lasts), the
+ * id the last real command echoed, and the length of the run. */
+enum { R_Q, R_DQ, R_DDQ, R_FROZEN, R_REAL_Q, R_REAL_DQ, R_REAL_DDQ, R_ARRAYS };
+
+typedef struct {
+    F64 a[R_ARRAYS];
+    Int64s real_echo, run;
+} Reference;
+
+static void reference_release(Reference *r)
+{
+    f64_release_all(r->a, R_ARRAYS);
+    int64s_release(&r->real_echo);
+    int64s_release(&r->run);
+}
+
+/* Borrow the reference from args[0..8]: q, dq, ddq, ddq_frozen, real_q, real_dq, real_ddq,
+ * real_echo, run. */
+static int reference_get(PyObject *const *args, Py_ssize_t n, Reference *r)
+{
+    static const char *names[R_ARRAYS] = {"q", "dq", "ddq", "ddq_frozen", "real_q", "real_dq",
+                                          "real_ddq"};
+    Py_ssize_t s7[2] = {n, 7};
+    memset(r, 0, sizeof(*r));
+    for (int k = 0; k < R_ARRAYS; k++)
+        if (f64_get(args[k], &r->a[k], 2, s7, 1, names[k]) < 0) return -1;
+    if (int64s_get(args[7], &r->real_echo, n, 1, "real_echo") < 0 ||
+        int64s_get(args[8], &r->run, n, 1, "run") < 0)
+        return -1;
+    return 0;
+}
+
+/* Record robot i's cycle (docs/fci-behaviour.md "The difference formulas", "What the sim
+ * does with a lost cycle"): the reference moves to (q, dq, ddq). A real command
+ * (``real``) re-freezes the acceleration ("Frozen, not continued"), ends any run of guesses
+ * and is the last real sample; a guess extends the run, the first guess of a run keeping
+ * the real sample it replaces (a late datagram rewinds to it: "A datagram that turns up
+ * late replaces the guess it stood in for"). */
+static inline void record_row(const Reference *r, Py_ssize_t i, int real, const double q[7],
+                              const double dq[7], const double ddq[7], long long echo)
+{
+    const F64 *a = r->a;
+    if (!real && INT64_AT(r->run, i) == 0)
+        for (int j = 0; j < 7; j++) {
+            AT2(a[R_REAL_Q], i, j) = AT2(a[R_Q], i, j);
+            AT2(a[R_REAL_DQ], i, j) = AT2(a[R_DQ], i, j);
+            AT2(a[R_REAL_DDQ], i, j) = AT2(a[R_DDQ], i, j);
+        }
+    if (real) {
+        INT64_AT(r->run, i) = 0;
+        INT64_AT(r->real_echo, i) = echo;
+    } else {
+        INT64_AT(r->run, i) += 1;
+    }
+    for (int j = 0; j < 7; j++) {
+        AT2(a[R_Q], i, j) = q[j];
+        AT2(a[R_DQ], i, j) = dq[j];
+        AT2(a[R_DDQ], i, j) = ddq[j];
+        if (real) AT2(a[R_FROZEN], i, j) = ddq[j];
+    }
+}
+
+/* joint_advance(q_c, dq_c, have, started, tracking, aborted, joint_position, joint_velocity,
+ *               first, extrapolate_lost, lost_run, max_lost, echo,
+ *               q, dq, ddq, ddq_frozen, real_q, real_dq, real_ddq, real_echo, run,
+ *               constants, positional, position_tolerance, velocity_tolerance, shift, dt,
+ *               error, candidate, new_q, new_dq, new_ddq) -> pending
+ *
+ * One cycle of the joint generators (fci/joint_generators.py JointGenerators.advance) for
+ * every robot whose motion tracks (``tracking`` and not ``aborted`` by a pending verdict):
+ *
+ * - ``have``: its command (q_c or dq_c, echoing ``echo``) is the candidate;
+ * - else, when ``extrapolate_lost`` and its motion has ``started``, the cycle is lost: the
+ *   candidate is the lost-cycle law's guess while its run of lost cycles (``lost_run``) is
+ *   under ``max_lost`` (docs/fci-behaviour.md "Extrapolation stops at 20"), past it the
+ *   reference holds at rest (dq, ddq zeroed, nothing judged);
+ * - the candidate is judged by its generator's rows (position_rule / velocity_rule, the
+ *   same texts) against the reference over one cycle, ``first`` marking the opening command
+ *   (read only where ``have``), and the reference recorded: a q_c command moves it to q_c
+ *   with the derivatives it implies, a dq_c command to q_d + dq_c dt, dq_c, its ddq; a guess
+ *   to the law's q and dq at the frozen acceleration.
+ *
+ * A robot whose candidate trips a row is not recorded: ``error`` holds its error (-1 for
+ * every other robot), ``candidate`` (the judged q_c or dq_c), ``new_q`` / ``new_dq`` /
+ * ``new_ddq`` what it would record, and the count of such robots is returned, for the
+ * caller to judge (the engine) and record those the verdicts leave running
+ * (joint_record). */
+static PyObject *joint_advance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    enum { Q_C, DQ_C, IN_ARRAYS };
+    enum { HAVE, STARTED, TRACKING, ABORTED, POSITION_MODE, VELOCITY_MODE, FIRST, FLAGS };
+    enum { CANDIDATE, NEW_Q, NEW_DQ, NEW_DDQ, OUT_ARRAYS };
+    F64 in[IN_ARRAYS], out[OUT_ARRAYS], constants;
+    Bytes flags[FLAGS];
+    PerRobot lost_run;
+    Int64s echo, error;
+    Reference ref;
+    memset(in, 0, sizeof(in));
+    memset(out, 0, sizeof(out));
+    memset(&constants, 0, sizeof(constants));
+    memset(flags, 0, sizeof(flags));
+    memset(&lost_run, 0, sizeof(lost_run));
+    memset(&echo, 0, sizeof(echo));
+    memset(&error, 0, sizeof(error));
+    memset(&ref, 0, sizeof(ref));
+    PyObject *result = NULL;
+    if (check_nargs(nargs, 33, "joint_advance") < 0) return NULL;
+    Py_ssize_t n = leading(args[0], "q_c");
+    if (n < 0) return NULL;
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    static const char *flag_names[FLAGS] = {"have", "started", "tracking", "aborted",
+                                            "joint_position", "joint_velocity", "first"};
+    static const char *out_names[OUT_ARRAYS] = {"candidate", "new_q", "new_dq", "new_ddq"};
+    double extrapolate_lost, max_lost, positional, position_tolerance, velocity_tolerance,
+        shift, dt;
+    if (num_get(args[0], &in[Q_C], 2, s7, 0, "q_c") < 0 ||
+        num_get(args[1], &in[DQ_C], 2, s7, 0, "dq_c") < 0)
+        goto done;
+    for (int k = 0; k < FLAGS; k++)
+        if (bytes_get(args[2 + k], &flags[k], n, 0, flag_names[k]) < 0) goto done;
+    if (number(args[9], &extrapolate_lost, "extrapolate_lost") < 0 ||
+        per_robot_get(args[10], &lost_run, n, "lost_run") < 0 ||
+        number(args[11], &max_lost, "max_lost") < 0 ||
+        int64s_get(args[12], &echo, n, 0, "echo") < 0 || reference_get(args + 13, n, &ref) < 0 ||
+        f64_get(args[22], &constants, 2, sc, 0, "constants") < 0 ||
+        number(args[23], &positional, "positional") < 0 ||
+        number(args[24], &position_tolerance, "position_tolerance") < 0 ||
+        number(args[25], &velocity_tolerance, "velocity_tolerance") < 0 ||
+        number(args[26], &shift, "shift") < 0 || number(args[27], &dt, "dt") < 0 ||
+        int64s_get(args[28], &error, n, 1, "error") < 0)
+        goto done;
+    for (int k = 0; k < OUT_ARRAYS; k++)
+        if (f64_get(args[29 + k], &out[k], 2, s7, 1, out_names[k]) < 0) goto done;
+    /* The generators' rows read the candidate against the reference as it stands (the
+     * rules' arguments: start = q_d for q_c, dq_d for dq_c; one cycle). */
+    Joint rp, rv;
+    memset(&rp, 0, sizeof(rp));
+    rp.n = n;
+    rp.a[CMD] = out[CANDIDATE];
+    rp.a[Q_PREV] = ref.a[R_Q];
+    rp.a[DQ_PREV] = ref.a[R_DQ];
+    rp.a[DDQ_PREV] = ref.a[R_DDQ];
+    rp.a[START] = ref.a[R_Q];
+    rp.a[CONSTANTS] = constants;
+    rp.positional = positional != 0.0;
+    rp.tolerance = position_tolerance;
+    rp.shift = shift;
+    rp.dt = dt;
+    rv = rp;
+    rv.a[START] = ref.a[R_DQ];
+    rv.tolerance = velocity_tolerance;
+    const F64 *r = ref.a;
+    long long pending = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        INT64_AT(error, i) = NO_ERROR;
+        const int live = BYTE1(flags[TRACKING], i) && !BYTE1(flags[ABORTED], i);
+        const int have = BYTE1(flags[HAVE], i) != 0;
+        const int lost = extrapolate_lost != 0.0 && BYTE1(flags[STARTED], i) && !have && live;
+        const int guess = lost && per_robot_at(&lost_run, i) < max_lost;
+        const int moves = (have || guess) && live;
+        const int position = moves && BYTE1(flags[POSITION_MODE], i);
+        const int velocity = moves && !position && BYTE1(flags[VELOCITY_MODE], i);
+        if (!position && !velocity) {
+            if (lost && !guess) /* past the last guess: held at rest */
+                for (int j = 0; j < 7; j++) AT2(r[R_DQ], i, j) = 0.0, AT2(r[R_DDQ], i, j) = 0.0;
+            continue;
+        }
+        const int first = have && BYTE1(flags[FIRST], i);
+        double guess_q[7], guess_dq[7], q[7], dq[7], ddq[7];
+        for (int j = 0; j < 7; j++) {
+            position_law(AT2(r[R_Q], i, j), AT2(r[R_DQ], i, j), AT2(r[R_FROZEN], i, j), dt,
+                         &guess_q[j], &guess_dq[j]);
+            double command = num2(&in[position ? Q_C : DQ_C], i, j);
+            AT2(out[CANDIDATE], i, j) = have ? command : (position ? guess_q[j] : guess_dq[j]);
+        }
+        unsigned bits = 0;
+        for (int j = 0; j < 7; j++) {
+            double d[2] = {0.0, 0.0};
+            const double frozen = AT2(r[R_FROZEN], i, j);
+            if (position) {
+                bits |= position_joint(&rp, i, j, first, dt, NULL, d);
+                q[j] = AT2(out[CANDIDATE], i, j);
+                dq[j] = have ? (first ? 0.0 : d[0]) : guess_dq[j];
+            } else {
+                bits |= velocity_joint(&rv, i, j, first, dt, NULL, d);
+                const double dq_c = AT2(out[CANDIDATE], i, j);
+                q[j] = have ? AT2(r[R_Q], i, j) + dq_c * dt : guess_q[j];
+                dq[j] = have ? dq_c : guess_dq[j];
+            }
+            ddq[j] = have ? (first ? 0.0 : d[1]) : frozen;
+        }
+        const Generator *g = position ? &POSITION : &VELOCITY;
+        const int k = winner(bits & g->gate[first]);
+        if (k >= 0) { /* for the engine: judged, then recorded unless aborted */
+            INT64_AT(error, i) = g->codes[k];
+            for (int j = 0; j < 7; j++) {
+                AT2(out[NEW_Q], i, j) = q[j];
+                AT2(out[NEW_DQ], i, j) = dq[j];
+                AT2(out[NEW_DDQ], i, j) = ddq[j];
+            }
+            pending++;
+            continue;
+        }
+        record_row(&ref, i, have, q, dq, ddq, INT64_AT(echo, i));
+    }
+    result = PyLong_FromLongLong(pending);
+done:
+    f64_release_all(in, IN_ARRAYS);
+    f64_release_all(out, OUT_ARRAYS);
+    f64_release(&constants);
+    for (int k = 0; k < FLAGS; k++) bytes_release(&flags[k]);
+    per_robot_release(&lost_run);
+    int64s_release(&echo);
+    int64s_release(&error);
+    reference_release(&ref);
+    return result;
+}
+
+/* joint_record(rows, have, new_q, new_dq, new_ddq, echo, q, dq, ddq, ddq_frozen, real_q,
+ *              real_dq, real_ddq, real_echo, run)
+ *
+ * Record the cycle of ``rows`` (joint_advance's pending robots that the verdicts left
+ * running) from what joint_advance left in new_q / new_dq / new_ddq: a real command where
+ * ``have``, else a guess. */
+static PyObject *joint_record(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    enum { NEW_Q, NEW_DQ, NEW_DDQ, NEW_ARRAYS };
+    F64 next[NEW_ARRAYS];
+    Bytes rows, have;
+    Int64s echo;
+    Reference ref;
+    memset(next, 0, sizeof(next));
+    memset(&rows, 0, sizeof(rows));
+    memset(&have, 0, sizeof(have));
+    memset(&echo, 0, sizeof(echo));
+    memset(&ref, 0, sizeof(ref));
+    PyObject *result = NULL;
+    if (check_nargs(nargs, 15, "joint_record") < 0) return NULL;
+    Py_ssize_t n = leading(args[2], "new_q");
+    if (n < 0) return NULL;
+    Py_ssize_t s7[2] = {n, 7};
+    static const char *names[NEW_ARRAYS] = {"new_q", "new_dq", "new_ddq"};
+    if (bytes_get(args[0], &rows, n, 0, "rows") < 0 || bytes_get(args[1], &have, n, 0, "have") < 0)
+        goto done;
+    for (int k = 0; k < NEW_ARRAYS; k++)
+        if (f64_get(args[2 + k], &next[k], 2, s7, 0, names[k]) < 0) goto done;
+    if (int64s_get(args[5], &echo, n, 0, "echo") < 0 || reference_get(args + 6, n, &ref) < 0)
+        goto done;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (!BYTE1(rows, i)) continue;
+        double q[7], dq[7], ddq[7];
+        for (int j = 0; j < 7; j++) {
+            q[j] = AT2(next[NEW_Q], i, j);
+            dq[j] = AT2(next[NEW_DQ], i, j);
+            ddq[j] = AT2(next[NEW_DDQ], i, j);
+        }
+        record_row(&ref, i, BYTE1(have, i) != 0, q, dq, ddq, INT64_AT(echo, i));
+    }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release_all(next, NEW_ARRAYS);
+    bytes_release(&rows);
+    bytes_release(&have);
+    int64s_release(&echo);
+    reference_release(&ref);
+    return result;
+}
+
+/* position_step(x, v, a, dt) -> (x', v') and velocity_step(v, a, dt) -> v': the q_c and
+ * dq_c laws above on (m,) or (m, k) float64 arrays of one shape (the Cartesian generators'
+ * translation, elbow and twist: fci/extrapolation.py). */
+static PyObject *law_call(PyObject *const *args, Py_ssize_t nargs, int position)
+{
+    const char *name = position ? "position_step" : "velocity_step";
+    const int arrays = position ? 3 : 2;
+    F64 a[3];
+    memset(a, 0, sizeof(a));
+    PyObject *out[2] = {NULL, NULL}, *result = NULL;
+    Py_buffer views[2] = {{0}};
+    double dt;
+    if (check_nargs(nargs, arrays + 1, name) < 0 || numpy_refs() < 0) return NULL;
+    Py_buffer probe;
+    if (PyObject_GetBuffer(args[0], &probe, PyBUF_RECORDS_RO) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: expected a float64 array", name);
+        return NULL;
+    }
+    int ndim = probe.ndim;
+    Py_ssize_t shape[2] = {ndim >= 1 ? probe.shape[0] : 0, ndim == 2 ? probe.shape[1] : 1};
+    PyBuffer_Release(&probe);
+    if (ndim != 1 && ndim != 2) {
+        PyErr_Format(PyExc_ValueError, "%s: expected 1-D or 2-D arrays", name);
+        return NULL;
+    }
+    static const char *names[3] = {"x", "v", "a"};
+    for (int k = 0; k < arrays; k++)
+        if (f64_get(args[k], &a[k], ndim, shape, 0, names[k + !position]) < 0) goto done;
+    if (number(args[arrays], &dt, "dt") < 0) goto done;
+    for (int k = 0; k < 1 + position; k++) {
+        out[k] = empty(shape[0], ndim == 2 ? shape[1] : 0, np_float64);
+        if (!out[k] || PyObject_GetBuffer(out[k], &views[k], PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0)
+            goto done;
+    }
+    for (Py_ssize_t i = 0; i < shape[0]; i++)
+        for (Py_ssize_t j = 0; j < shape[1]; j++) {
+            const Py_ssize_t at = i * shape[1] + j;
+#define ELEMENT(arr) (ndim == 2 ? AT2(arr, i, j) : AT1(arr, i))
+            if (position) {
+                double *x1 = views[0].buf, *v1 = views[1].buf;
+                position_law(ELEMENT(a[0]), ELEMENT(a[1]), ELEMENT(a[2]), dt, &x1[at], &v1[at]);
+            } else {
+                double *v1 = views[0].buf;
+                v1[at] = velocity_law(ELEMENT(a[0]), ELEMENT(a[1]), dt);
+            }
+#undef ELEMENT
+        }
+    result = position ? Py_BuildValue("(OO)", out[0], out[1]) : Py_NewRef(out[0]);
+done:
+    for (int k = 0; k < 2; k++) {
+        if (views[k].obj) PyBuffer_Release(&views[k]);
+        Py_XDECREF(out[k]);
+    }
+    f64_release_all(a, 3);
+    return result;
+}
+
+static PyObject *position_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return law_call(args, nargs, 1);
+}
+static PyObject *velocity_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    return law_call(args, nargs, 0);
 }
 
 /* ---- the safety controller's velocity halves: the rules' only text ------------------- */
@@ -1089,6 +1450,10 @@ static PyMethodDef METHODS[] = {
     METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
     METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),
     METHOD(cartesian_rule, "The Cartesian pose (kind 0) or twist (kind 1) table of every robot: None, or (error, tripped)."),
+    METHOD(joint_advance, "One cycle of the joint generators: candidates, lost-cycle guesses, their rows, the record; returns the robots left to the engine."),
+    METHOD(joint_record, "Record the cycle of the rows joint_advance left to the engine."),
+    METHOD(position_step, "q_c's lost-cycle law on arrays: (x + (v + a dt) dt, v + a dt)."),
+    METHOD(velocity_step, "dq_c's lost-cycle law on arrays: v + a dt."),
     METHOD(safety_detail, "Robot i's error 3 or 4 for the log line: (error, joint, value, upper, lower)."),
     {NULL, NULL, 0, NULL},
 };
