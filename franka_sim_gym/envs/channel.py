@@ -213,38 +213,13 @@ class Links:
         self._account(sending, answered, lost)
 
     def _transmit_drawn(self, command, sending, lost, receive) -> None:
-        """:meth:`transmit` through the drawn links: the arms with nothing lost, late or
-        queued in one batch, the others' deliveries datagram by datagram."""
-        n = self.n
-        direct, deliveries = self.drawn.transmit(command, sending)
-        if not deliveries:
-            receive(command, direct)
-            if self._in_run:  # else every sending arm answered, and no run is open
-                self._account(sending, direct, lost)
-            return
-        open_ids = command["message_id"].copy()
-        answered = direct.copy()
-        masks: list[np.ndarray] = []
-        for i, delivered in deliveries.items():
-            for r, datagram in enumerate(delivered):
-                if r == len(self._rounds):
-                    self._rounds.append(np.zeros(n, dtype=command.dtype))
-                if r == len(masks):
-                    masks.append(np.zeros(n, dtype=bool))
-                self._rounds[r][i] = datagram[0]
-                masks[r][i] = True
-                answered[i] |= bool(datagram["message_id"][0] == open_ids[i])
-        if not masks:
-            masks.append(np.zeros(n, dtype=bool))
-            if not len(self._rounds):
-                self._rounds.append(np.zeros(n, dtype=command.dtype))
-        # The on-time arms' datagrams go with the first round (each arm's own order kept).
-        first = self._rounds[0]
-        first[direct] = command[direct]
-        masks[0] |= direct
-        for r, mask in enumerate(masks):
-            receive(self._rounds[r], mask)
-        self._account(sending, answered, lost)
+        """:meth:`transmit` through the drawn links: the datagrams that reach the robot in
+        their cycle go in one batch; the others answer nothing (the robot drops what misses
+        its window: :class:`DrawnLinks`)."""
+        delivered = self.drawn.transmit(sending)
+        receive(command, delivered)
+        if delivered is not sending or self._in_run:  # else every sending arm answered
+            self._account(sending, delivered, lost)
 
     def _account(self, sending, answered, lost) -> None:
         # A cycle is lost when no command answering it reached the robot in time (and the
@@ -259,11 +234,16 @@ class Links:
 
 class DrawnLinks:
     """The links of n arms under a reality profile's communication (docs/reality.md):
-    each episode arm i loses a command datagram with its drawn probability ``loss`` and
-    delays one with probability ``jitter`` by 1 to ``jitter_cycles`` cycles (uniformly),
-    first in, first out. Every arm's decisions of a cycle are one lookup (its own stream,
-    drawn ahead: reality/ahead.py); only arms with a datagram lost, late or still queued
-    are handled one by one.
+    each episode arm i loses a command datagram with its drawn probability ``loss``, and
+    with probability ``jitter`` a datagram is held up by 1 to ``jitter_cycles`` cycles
+    (uniformly) with the ones sent behind it (first in, first out: a spike of d cycles
+    holds up the datagrams of d cycles). A held-up datagram reaches the robot after its
+    1 ms window, and the FCI drops a command that missed its window (the seed's "A
+    datagram that turns up late replaces the guess it stood in for": the sim's server
+    applies one, a deliberate departure for clients that are not real-time; a link that
+    models the robot's own network hands the controller only what the robot would take):
+    each such cycle is lost. Every arm's decisions of a cycle are one lookup (its own
+    stream, drawn ahead: reality/ahead.py).
 
     Args:
         n: arms.
@@ -274,9 +254,9 @@ class DrawnLinks:
         self.jitter = np.zeros(n)
         self.cycles = np.ones(n, dtype=np.int64)
         self.ahead = Ahead(n, 2, lambda rng, i, count: rng.random((count, 2)))
-        self._queues: list[deque] = [deque() for _ in range(n)]
-        self._queued = np.zeros(n, dtype=bool)
-        self._any_queued = False
+        #: per arm, the first cycle whose datagram is not held up behind a spike
+        self._free = np.zeros(n, dtype=np.int64)
+        self._any_held = False
         self._now = 0
 
     def apply(self, arms, draws) -> None:
@@ -286,49 +266,36 @@ class DrawnLinks:
         self.jitter[arms] = draws["communication.jitter"]
         self.cycles[arms] = draws["communication.jitter_cycles"].astype(np.int64)
         self.ahead.reseed(arms, [stream(d.seed, "communication") for d in draws.draws])
-        for i in arms.tolist():
-            self._queues[i].clear()
-        self._queued[arms] = False
-        self._any_queued = bool(self._queued.any())
+        self._free[arms] = self._now
+        self._any_held = bool(np.count_nonzero(self._free > self._now))
 
     def begin_step(self, cycles: int) -> None:
-        """The losses and delays of the next ``cycles`` cycles of every arm, drawn at once
+        """The losses and spikes of the next ``cycles`` cycles of every arm, drawn at once
         (the streams move on by ``cycles`` whether or not all of them are used)."""
         u = self.ahead.take(cycles)
         self._lost = u[..., 0] < self.loss
-        self._late = u[..., 1] < self.jitter
-        self._delay = u[..., 1]
-        self._event = (self._lost | self._late).any(axis=1).tolist()
+        self._spike = u[..., 1] < self.jitter
+        # u / jitter is uniform in [0, 1) given u < jitter: a spike of 1 to cycles cycles
+        ratio = np.divide(u[..., 1], self.jitter, out=np.zeros(u.shape[:2]), where=self._spike)
+        self._until = np.where(self._spike, 1 + (ratio * self.cycles).astype(np.int64), 0)
+        self._event = (self._lost | self._spike).any(axis=1).tolist()
         self._k = 0
 
-    def transmit(self, command: np.ndarray, sending: np.ndarray):
-        """(the sending arms whose datagram arrives now and alone, {arm: the datagrams
-        delivered to it this cycle, oldest first} for the others that send)."""
+    def transmit(self, sending: np.ndarray) -> np.ndarray:
+        """The sending arms whose datagram reaches the robot in this cycle (``sending``
+        itself when every one does)."""
         k = self._k
         self._k += 1
         now = self._now
         self._now += 1
-        if not (self._event[k] or self._any_queued):
-            return sending, {}
-        lost, late = self._lost[k], self._late[k]
-        busy = sending & (lost | late | self._queued)
-        deliveries = {}
-        for i in np.flatnonzero(busy).tolist():
-            queue = self._queues[i]
-            if not lost[i]:
-                due = now
-                if late[i]:  # u / jitter is uniform in [0, 1) given u < jitter
-                    due += 1 + int(self._delay[k, i] / self.jitter[i] * self.cycles[i])
-                if queue:
-                    due = max(due, queue[-1][0])  # FIFO: never overtake
-                queue.append((due, command[i : i + 1].copy()))
-            delivered = []
-            while queue and queue[0][0] <= now:
-                delivered.append(queue.popleft()[1])
-            deliveries[i] = delivered
-            self._queued[i] = bool(queue)
-        self._any_queued = bool(self._queued.any())
-        return sending & ~busy, deliveries
+        if not (self._event[k] or self._any_held):
+            return sending
+        spike = self._spike[k]
+        if np.count_nonzero(spike):
+            np.maximum(self._free, now + self._until[k], out=self._free)
+        held = self._free > now
+        self._any_held = bool(np.count_nonzero(self._free > now + 1))
+        return sending & ~self._lost[k] & ~held
 
 
 def per_arm_channels(spec, n: int) -> list[Channel]:

@@ -131,6 +131,29 @@ def test_the_link_loses_what_its_draw_says():
     assert pattern[0] == pattern[1] != pattern[2]
 
 
+def test_a_held_up_datagram_is_a_lost_cycle_and_a_filtered_stream_runs_on():
+    # docs/reality.md, "The link": a spike holds up a datagram and the ones behind it past
+    # their window, which the FCI drops: runs of lost cycles, no late datagram. A smooth
+    # joint stream through libfranka's filters (which read the state's q_d, the robot's
+    # guess in a lost cycle) then runs to its time limit, as over the robot's network;
+    # handed to the controller late, the same datagrams would be differenced against a
+    # rewound history the client never saw, and abort with 14 / 15.
+    spiky = {"communication": {"jitter": 0.05, "jitter_cycles": 3}}
+    env = gym.make("FrankaFCIJointPosition-v0", reality=spiky, max_episode_steps=40)
+    env.reset(seed=2)
+    phase = np.random.default_rng(0).uniform(0, 2 * np.pi, 7)
+    lost, longest = 0, 0
+    for t in range(40):
+        action = (0.1 * np.sin(2 * np.pi * t / 40 + phase)).astype(np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        assert not terminated, info["reflex_reason"]
+        lost += info["lost_cycles"]
+        longest = max(longest, info["longest_lost_run"])
+    assert truncated
+    assert 0.05 * 1600 < lost < 0.3 * 1600  # a spike of 1-3 cycles in ~5 % of them
+    assert longest >= 2  # the datagrams behind a spike wait with it
+
+
 def test_a_profile_and_a_lossy_channel_together_are_refused():
     with pytest.raises(ValueError, match="channel and reality's communication"):
         gym.make("FrankaFCI-v0", reality="randomized", channel="loss:0.01")
