@@ -151,7 +151,7 @@ def motion_rate(n: int, seconds: float) -> float:
 
     def close_cycle() -> None:
         answered[...] = True
-        ctrl.accounting.close_cycle(n)
+        ctrl.accounting.close_cycle()
 
     accounting = rate(close_cycle, seconds / 4)
     ACCOUNTING_SHARE[n] = cycles / accounting

@@ -15,7 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import native
 from .tables import SUCCESS_RATE_WINDOW
+
+#: the close of a cycle's one text (fci/_accounting.c)
+_RULES = native.require("fci._accounting", "close_cycle")
 
 _NO_MOTION = np.iinfo(np.uint64).max
 
@@ -43,8 +47,6 @@ class CycleAccounting:
         #: the first message_id a command of the running motion may echo
         self.motion_first_id = np.full(n, _NO_MOTION, dtype=np.uint64)
         self._rate = np.zeros(n)
-        #: consecutive cycles every robot counted and answered (see close_cycle)
-        self._steady = 0
 
     def start_motion(self, i: int, last_published_id: int) -> None:
         """A Move started; commands echoing states from now on belong to it."""
@@ -64,7 +66,6 @@ class CycleAccounting:
         self.lost_total[i] = 0
         self.motion_first_id[i] = _NO_MOTION
         self._rate[i] = 0.0
-        self._steady = 0
 
     def motion_summary(self, i: int) -> tuple[int, int, int]:
         """(cycles counted, cycles lost, longest lost run) of robot i's running motion."""
@@ -78,87 +79,16 @@ class CycleAccounting:
         """AutomaticErrorRecovery re-arms the lost-cycle bound."""
         self.lost_run[i] = 0
 
-    def close_cycle(self, n_started: int) -> None:
-        """Close the open cycle for the robots whose accounting is open (``n_started`` of them)."""
-        if self.n == 1:
-            self._close_cycle_one(n_started)
-            return
-        answered = self.answered
-        every = n_started == self.n and np.count_nonzero(answered) == self.n
-        self._steady = self._steady + 1 if every else 0
-        if self._steady > self.window:
-            # every robot counted and answered for the whole window: every ring is full
-            # of answers, the sums are the window, the rates 1.0 and the runs 0 already;
-            # only the count goes on
-            self._counted += 1
-            answered[...] = False
-            self._pos = (self._pos + 1) % self.window
-            return
-        column = self._ring[:, self._pos]  # the oldest entry, about to be replaced
-        if every:
-            # every robot counts and answered: nothing lost, no run goes on (the longest
-            # stays the longest)
-            self._answered_sum += 1
-            self._answered_sum -= column
-            column[...] = True
-            self._counted += 1
-            self.lost_run[...] = 0
-        elif n_started == self.n:  # every robot counts: no masks
-            self._answered_sum += answered
-            self._answered_sum -= column
-            column[...] = answered
-            self._counted += 1
-            lost = ~answered
-            self.lost_total += lost
-            self.lost_run += 1
-            self.lost_run *= lost
-            np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
-        else:
-            counting = self.started
-            lost = counting & ~answered
-            entry = answered & counting  # robots not counting keep an empty (cleared) window
-            self._answered_sum += entry
-            self._answered_sum -= column
-            column[...] = entry
-            self._counted += counting
-            self.lost_total += lost
-            self.lost_run = np.where(lost, self.lost_run + 1, np.where(counting, 0, self.lost_run))
-            np.maximum(self.longest_lost_run, self.lost_run, out=self.longest_lost_run)
-        answered[...] = False
-        self._pos = (self._pos + 1) % self.window
-        # While the window fills the divisor is what it holds (never 0 here: an
-        # empty window has an empty sum, and 0 / 1 reads 0.0 as between motions).
-        np.minimum(self._counted, self.window, out=self._held)
-        np.maximum(self._held, 1, out=self._held)
-        np.divide(self._answered_sum, self._held, out=self._rate)
-
-    def _close_cycle_one(self, n_started: int) -> None:
-        """One robot: the same bookkeeping on Python scalars (a dozen numpy calls on
-        size-1 arrays cost ~10 us a cycle; item reads and writes cost ~1.5 us)."""
-        answered = bool(self.answered[0])
-        self.answered[0] = False
+    def close_cycle(self) -> None:
+        """Close the open cycle for every robot whose accounting is open: one C call
+        (fci/_accounting.c, the rule's only text)."""
         pos = self._pos
         self._pos = (pos + 1) % self.window
-        if not n_started:
-            return  # a robot not counting keeps its cleared window
-        ring = self._ring
-        old = bool(ring[0, pos])
-        ring[0, pos] = answered
-        total = int(self._answered_sum[0]) + answered - old
-        self._answered_sum[0] = total
-        counted = int(self._counted[0]) + 1
-        self._counted[0] = counted
-        if answered:
-            self.lost_run[0] = 0
-        else:
-            run = int(self.lost_run[0]) + 1
-            self.lost_run[0] = run
-            self.lost_total[0] += 1
-            if run > self.longest_lost_run[0]:
-                self.longest_lost_run[0] = run
-        held = counted if counted < self.window else self.window
-        self._held[0] = held
-        self._rate[0] = total / held
+        _RULES.close_cycle(
+            self.answered, self.started, self._ring, pos, self._answered_sum, self._counted,
+            self.lost_total, self.lost_run, self.longest_lost_run, self._held, self._rate,
+            self.window,
+        )  # fmt: skip
 
     def success_rate(self) -> np.ndarray:
         """control_command_success_rate per robot: answered / cycles held by the window."""

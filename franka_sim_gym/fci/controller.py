@@ -274,7 +274,7 @@ class FciController(ControllerRequests):
                 self.safety.check()
                 self._apply_verdicts()
             acc = self.accounting
-            acc.close_cycle(int(np.count_nonzero(acc.started)))
+            acc.close_cycle()
             if np.count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
                 self.safety.communication_constraints()
                 self._apply_verdicts()

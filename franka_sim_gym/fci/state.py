@@ -16,10 +16,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import native
 from ..sim.arm import ArmPhysics
 from . import frames
 from .tables import DELTA_T, GRAVITY
 from .wire import ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
+
+#: the measured joint fields' one text (fci/_measured.c)
+_MEASURED = native.require("fci._measured", "measured")
+#: dtau_J's backward difference over one cycle, as a factor (1 / dt)
+_RATE = 1.0 / DELTA_T
 
 _FLOAT_BEGIN, _FLOAT_END = 8, 1288  # docs/wire-protocol.md §7: O_T_EE ... dtheta, all float32
 #: column-major wire index <- row-major xmat index, for the rotation block
@@ -131,21 +137,15 @@ class StateWriter:
 
     # -- per-cycle fields -----------------------------------------------------------------------
 
-    def write_measured(self, physics: ArmPhysics) -> None:
-        """Copy this cycle's physics into q, dq, theta, dtheta, tau_J, dtau_J, O_T_EE, elbow."""
-        q, dq, tau = physics.q, physics.dq, physics.tau_J
-        self.q[...] = q
-        self.theta[...] = q  # no joint elasticity is modelled: motor side reads the link side
-        self.dq[...] = dq
-        self.dtheta[...] = dq
-        self.write_torque(tau)
-        self.write_pose(physics, q)
-
-    def write_torque(self, tau: np.ndarray) -> None:
-        """tau_J (n, 7) measured this cycle, and dtau_J its backward difference."""
-        np.subtract(tau, self.tau_J, out=self.dtau_J)
-        self.dtau_J *= 1.0 / DELTA_T
-        self.tau_J[...] = tau
+    def write_measured(self, physics: ArmPhysics, noise: np.ndarray | None = None) -> None:
+        """This cycle's physics into q, dq, theta, dtheta, tau_J, dtau_J (plus the sensors'
+        ``noise``, (n, 21) q | dq | tau_J, or None: fci/_measured.c, their one text), then
+        O_T_EE and the elbow from the measured q."""
+        _MEASURED.measured(
+            physics.q, physics.dq, physics.tau_J, noise, self.q, self.theta, self.dq,
+            self.dtheta, self.tau_J, self.dtau_J, _RATE,
+        )  # fmt: skip
+        self.write_pose(physics, self.q)
 
     def write_pose(self, physics: ArmPhysics, q: np.ndarray) -> None:
         """O_T_EE from the physics' flange (and F_T_EE), the elbow from the joints ``q``."""

@@ -2,6 +2,8 @@
 
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
 twin, no switch): ``fci/_frames.c`` (libfranka's isHomogeneousTransformation),
+``fci/_measured.c`` (the RobotState's measured joint fields, with the sensors' noise),
+``fci/_accounting.c`` (the close of a cycle: success-rate window, lost-cycle runs),
 ``fci/limits/_joint.c`` (the joint and Cartesian generators' precedence tables, the
 joint generators' cycle with the q_c and dq_c lost-cycle laws and the reference's
 record, the velocity envelope's law, the safety controller's errors 3 and 4, the torque
@@ -30,7 +32,9 @@ from types import ModuleType
 
 #: The C extensions setup.py builds (one per ``<layer>/_<name>.c``), all required.
 REQUIRED = (
+    "fci._accounting",
     "fci._frames",
+    "fci._measured",
     "fci.limits._joint",
     "fci.contact._contact",
     "sim._ik",

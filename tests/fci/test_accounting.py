@@ -39,7 +39,7 @@ def test_success_rate_and_lost_run_follow_the_last_window_of_answers(stretches):
             for i in range(n):
                 acc.answered[i] = answers[i]
                 history[i].append(answers[i])
-            acc.close_cycle(n)
+            acc.close_cycle()
             for i in range(n):
                 window = history[i][-SUCCESS_RATE_WINDOW:]
                 assert acc.success_rate()[i] == sum(window) / len(window)

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.wire import RobotMode
@@ -56,22 +54,3 @@ def test_without_enforcement_a_violation_is_logged_and_no_verdict():
     assert ctrl.engine.take_verdicts() == []
     assert ctrl.modes.in_motion[0]
     assert ctrl.violations.seen[0, int(Error.joint_motion_generator_velocity_discontinuity)]
-
-
-@settings(max_examples=100, deadline=None)
-@given(answers=st.lists(st.booleans(), min_size=1, max_size=260))
-def test_one_robot_accounting_matches_the_batched_arithmetic(answers):
-    from franka_sim_gym.fci.accounting import CycleAccounting
-
-    one, two = CycleAccounting(1), CycleAccounting(2)  # n = 2 takes the array path
-    for acc in (one, two):
-        acc.start_motion(0, 0)
-        acc.started[0] = True
-    for answered in answers:
-        one.answered[0] = two.answered[0] = answered
-        one.close_cycle(1)
-        two.close_cycle(1)
-        assert one.success_rate()[0] == two.success_rate()[0]
-        assert one.lost_run[0] == two.lost_run[0]
-        assert one.longest_lost_run[0] == two.longest_lost_run[0]
-        assert one.lost_total[0] == two.lost_total[0]

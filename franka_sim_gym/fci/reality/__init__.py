@@ -25,7 +25,7 @@ from ...reality import DrawBatch, stream
 from ...sim.arm import ArmPhysics
 from ...sim.friction import JointFriction
 from ..state import StateWriter
-from .sensors import DQ, TAU, Q, SensorNoise
+from .sensors import SensorNoise
 
 __all__ = ["RobotReality", "SensorNoise"]
 
@@ -48,7 +48,6 @@ class RobotReality:
         self.sensors = SensorNoise(n)
         #: the robot's compensation of the friction in its drives
         self.friction = JointFriction(n)
-        self._tau = np.zeros((n, 7))
         self._extra = np.zeros((n, 7))
         # The servos read the robot's measurements (the state's float64 fields).
         physics.sense_with(writer.q, writer.dq)
@@ -85,11 +84,4 @@ class RobotReality:
         sensors = self.sensors
         if advance:
             sensors.advance()
-        noise = sensors.current()
-        physics, w = self.physics, self.writer
-        np.add(physics.q, noise[:, Q], out=w.q)
-        w.theta[...] = w.q  # no joint elasticity: the motor side reads the link side
-        np.add(physics.dq, noise[:, DQ], out=w.dq)
-        w.dtheta[...] = w.dq
-        w.write_torque(np.add(physics.tau_J, noise[:, TAU], out=self._tau))
-        w.write_pose(physics, w.q)
+        self.writer.write_measured(self.physics, sensors.current())
