@@ -3,7 +3,7 @@
  * CycleAccounting.close_cycle calls it once a cycle for every robot:
  *
  *   close_cycle(answered, started, ring, pos, answered_sum, counted, lost_total, lost_run,
- *               longest_lost_run, held, rate, window)
+ *               longest_lost_run, rate, window)
  *
  * For a robot whose accounting is open (``started``): the cycle enters its window (ring
  * column ``pos``, the oldest entry leaving) as answered or not, a cycle not answered is
@@ -20,9 +20,9 @@
 static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    enum { SUM, COUNTED, LOST_TOTAL, LOST_RUN, LONGEST, HELD, COUNTERS };
+    enum { SUM, COUNTED, LOST_TOTAL, LOST_RUN, LONGEST, COUNTERS };
     static const char *names[COUNTERS] = {"answered_sum", "counted", "lost_total", "lost_run",
-                                          "longest_lost_run", "held"};
+                                          "longest_lost_run"};
     Bytes answered, started;
     Int64s counters[COUNTERS];
     F64 rate;
@@ -32,10 +32,10 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
     memset(counters, 0, sizeof(counters));
     memset(&rate, 0, sizeof(rate));
     PyObject *result = NULL;
-    if (check_nargs(nargs, 12, "close_cycle") < 0) return NULL;
+    if (check_nargs(nargs, 11, "close_cycle") < 0) return NULL;
     Py_ssize_t n = leading(args[1], "started");
     if (n < 0) return NULL;
-    Py_ssize_t pos = PyLong_AsSsize_t(args[3]), window = PyLong_AsSsize_t(args[11]);
+    Py_ssize_t pos = PyLong_AsSsize_t(args[3]), window = PyLong_AsSsize_t(args[10]);
     if ((pos == -1 || window == -1) && PyErr_Occurred()) return NULL;
     if (window < 1 || pos < 0 || pos >= window) {
         PyErr_Format(PyExc_ValueError, "close_cycle: pos %zd outside a window of %zd", pos,
@@ -62,7 +62,7 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
     }
     for (int k = 0; k < COUNTERS; k++)
         if (int64s_get(args[4 + k], &counters[k], n, 1, names[k]) < 0) goto done;
-    if (f64_get(args[10], &rate, 1, s1, 1, "rate") < 0) goto done;
+    if (f64_get(args[9], &rate, 1, s1, 1, "rate") < 0) goto done;
     for (Py_ssize_t i = 0; i < n; i++) {
         const int is_answered = BYTE1(answered, i) != 0;
         BYTE1(answered, i) = 0;
@@ -81,7 +81,6 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
         }
         /* while the window fills the divisor is what it holds (never 0 here) */
         const long long held = counted < window ? counted : window;
-        INT64_AT(counters[HELD], i) = held;
         AT1(rate, i) = (double)sum / (double)held;
     }
     result = Py_NewRef(Py_None);

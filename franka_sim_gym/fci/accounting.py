@@ -33,7 +33,6 @@ class CycleAccounting:
         self._ring = np.zeros((n, window), dtype=bool)
         self._pos = 0  # one ring position for all robots; each robot's ring is cleared per motion
         self._counted = np.zeros(n, dtype=np.int64)
-        self._held = np.zeros(n, dtype=np.int64)
         self._answered_sum = np.zeros(n, dtype=np.int64)
         #: a command answering the open cycle has arrived
         self.answered = np.zeros(n, dtype=bool)
@@ -57,7 +56,6 @@ class CycleAccounting:
         """The motion ended: the window empties and the rate reads 0.0."""
         self._ring[i] = False
         self._counted[i] = 0
-        self._held[i] = 0
         self._answered_sum[i] = 0
         self.answered[i] = False
         self.started[i] = False
@@ -86,7 +84,7 @@ class CycleAccounting:
         self._pos = (pos + 1) % self.window
         _RULES.close_cycle(
             self.answered, self.started, self._ring, pos, self._answered_sum, self._counted,
-            self.lost_total, self.lost_run, self.longest_lost_run, self._held, self._rate,
+            self.lost_total, self.lost_run, self.longest_lost_run, self._rate,
             self.window,
         )  # fmt: skip
 
