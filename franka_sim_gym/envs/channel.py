@@ -227,9 +227,11 @@ class Links:
         answered = answered | self.robot_answers
         missed = sending & ~answered
         lost += missed
-        self.lost_run[sending] = np.where(answered[sending], 0, self.lost_run[sending] + 1)
-        np.maximum(self.longest_lost, self.lost_run, out=self.longest_lost)
-        self._in_run = bool(self.lost_run.any())
+        run = self.lost_run  # a sending arm's run goes on when missed, ends when answered
+        run += missed
+        run *= ~(sending & answered)
+        np.maximum(self.longest_lost, run, out=self.longest_lost)
+        self._in_run = bool(np.count_nonzero(run))
 
 
 class DrawnLinks:
@@ -256,7 +258,6 @@ class DrawnLinks:
         self.ahead = Ahead(n, 2, lambda rng, i, count: rng.random((count, 2)))
         #: per arm, the first cycle whose datagram is not held up behind a spike
         self._free = np.zeros(n, dtype=np.int64)
-        self._any_held = False
         self._now = 0
 
     def apply(self, arms, draws) -> None:
@@ -266,19 +267,25 @@ class DrawnLinks:
         self.jitter[arms] = draws["communication.jitter"]
         self.cycles[arms] = draws["communication.jitter_cycles"].astype(np.int64)
         self.ahead.reseed(arms, [stream(d.seed, "communication") for d in draws.draws])
+        self._free = self._free.copy()  # (a row of the last step's table)
         self._free[arms] = self._now
-        self._any_held = bool(np.count_nonzero(self._free > self._now))
 
     def begin_step(self, cycles: int) -> None:
         """The losses and spikes of the next ``cycles`` cycles of every arm, drawn at once
-        (the streams move on by ``cycles`` whether or not all of them are used)."""
+        (the streams move on by ``cycles`` whether or not all of them are used), and which
+        arm's datagram each of those cycles drops."""
         u = self.ahead.take(cycles)
-        self._lost = u[..., 0] < self.loss
-        self._spike = u[..., 1] < self.jitter
-        # u / jitter is uniform in [0, 1) given u < jitter: a spike of 1 to cycles cycles
-        ratio = np.divide(u[..., 1], self.jitter, out=np.zeros(u.shape[:2]), where=self._spike)
-        self._until = np.where(self._spike, 1 + (ratio * self.cycles).astype(np.int64), 0)
-        self._event = (self._lost | self._spike).any(axis=1).tolist()
+        lost = u[..., 0] < self.loss
+        spike = u[..., 1] < self.jitter
+        # u / jitter is uniform in [0, 1) given u < jitter: a spike of 1 to cycles cycles,
+        # holding up the datagrams until the cycle ``ends`` (the later of overlapping ones)
+        ratio = np.divide(u[..., 1], self.jitter, out=np.zeros(u.shape[:2]), where=spike)
+        now = self._now + np.arange(cycles)[:, None]
+        ends = np.where(spike, now + 1 + (ratio * self.cycles).astype(np.int64), 0)
+        ends[0] = np.maximum(ends[0], self._free)
+        self._frees = np.maximum.accumulate(ends, axis=0)
+        self._blocked = lost | (self._frees > now)
+        self._quiet = (~self._blocked.any(axis=1)).tolist()
         self._k = 0
 
     def transmit(self, sending: np.ndarray) -> np.ndarray:
@@ -286,16 +293,11 @@ class DrawnLinks:
         itself when every one does)."""
         k = self._k
         self._k += 1
-        now = self._now
         self._now += 1
-        if not (self._event[k] or self._any_held):
+        self._free = self._frees[k]
+        if self._quiet[k]:
             return sending
-        spike = self._spike[k]
-        if np.count_nonzero(spike):
-            np.maximum(self._free, now + self._until[k], out=self._free)
-        held = self._free > now
-        self._any_held = bool(np.count_nonzero(self._free > now + 1))
-        return sending & ~self._lost[k] & ~held
+        return sending & ~self._blocked[k]
 
 
 def per_arm_channels(spec, n: int) -> list[Channel]:
