@@ -47,3 +47,16 @@ def test_a_perfect_draw_hands_over_the_sending_mask_itself():
     links = links_with([0.0, 0.0], [0.0, 0.0], [3, 3], np.full((2, 2, 2), 0.5))
     sending = np.array([True, False])
     assert links.transmit(sending) is sending
+
+
+def test_a_spike_at_the_end_of_a_step_holds_up_the_next_steps_first_datagrams():
+    u = np.full((3, 2, 2), 0.9)
+    u[2, 0, 1] = 0.45  # arm 0, the step's last cycle: a spike of 3 (cycles 2, 3, 4)
+    links = links_with([0.0, 0.0], [0.5, 0.5], [3, 3], u)
+    first = delivered(links, 3)
+    links.ahead.take = lambda count: np.full((count, 2, 2), 0.9)  # a quiet next step
+    links.begin_step(4)
+    second = delivered(links, 4)
+    np.testing.assert_array_equal(first[:, 0], [True, True, False])
+    np.testing.assert_array_equal(second[:, 0], [False, False, True, True])
+    assert first[:, 1].all() and second[:, 1].all()
