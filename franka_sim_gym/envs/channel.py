@@ -19,8 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import native
 from ..reality import stream
 from ..reality.ahead import Ahead
+
+#: the lost-cycle run law's one text, the controller's (fci/_accounting.c lost_runs)
+_LOST_RUNS = native.require("fci._accounting", "lost_runs").lost_runs
 
 
 class Channel:
@@ -223,15 +227,10 @@ class Links:
 
     def _account(self, sending, answered, lost) -> None:
         # A cycle is lost when no command answering it reached the robot in time (and the
-        # robot does not answer it itself).
-        answered = answered | self.robot_answers
-        missed = sending & ~answered
-        lost += missed
-        run = self.lost_run  # a sending arm's run goes on when missed, ends when answered
-        run += missed
-        run *= ~(sending & answered)
-        np.maximum(self.longest_lost, run, out=self.longest_lost)
-        self._in_run = bool(np.count_nonzero(run))
+        # robot does not answer it itself): the controller's run law (fci/_accounting.c).
+        self._in_run = _LOST_RUNS(
+            sending, answered, self.robot_answers, lost, self.lost_run, self.longest_lost
+        )
 
 
 class DrawnLinks:

@@ -11,11 +11,30 @@
  * run; control_command_success_rate is the answered cycles over the cycles the window
  * holds (what it holds while it fills). A robot whose accounting is not open keeps its
  * cleared window, rate 0.0, and its run as it is (AutomaticErrorRecovery re-arms it).
- * ``answered`` is cleared for the next cycle. */
+ * ``answered`` is cleared for the next cycle.
+ *
+ *   lost_runs(sending, answered, robot_answers, lost, lost_run, longest_lost_run) -> bool
+ *
+ * The same run law for the env's links (envs/channel.py Links, what ``info`` reports): a
+ * sending arm whose cycle neither a datagram nor the robot itself (the asynchronous
+ * generator) answered lost it (its count and run go on), one answered ends its run; an
+ * arm not sending keeps its run. True when some run is open. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "_arrays.h"
+
+/* A cycle of an open accounting: answered ends the run, else the cycle is lost (the run
+ * goes on, the count and the longest run follow). */
+static inline void run_law(int answered, long long *run, long long *lost, long long *longest)
+{
+    if (answered) {
+        *run = 0;
+        return;
+    }
+    *lost += 1;
+    if (++*run > *longest) *longest = *run;
+}
 
 static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -72,13 +91,8 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
         *slot = (unsigned char)is_answered;
         INT64_AT(counters[SUM], i) = sum;
         const long long counted = ++INT64_AT(counters[COUNTED], i);
-        if (is_answered) {
-            INT64_AT(counters[LOST_RUN], i) = 0;
-        } else {
-            const long long run = ++INT64_AT(counters[LOST_RUN], i);
-            INT64_AT(counters[LOST_TOTAL], i) += 1;
-            if (run > INT64_AT(counters[LONGEST], i)) INT64_AT(counters[LONGEST], i) = run;
-        }
+        run_law(is_answered, &INT64_AT(counters[LOST_RUN], i),
+                &INT64_AT(counters[LOST_TOTAL], i), &INT64_AT(counters[LONGEST], i));
         /* while the window fills the divisor is what it holds (never 0 here) */
         const long long held = counted < window ? counted : window;
         AT1(rate, i) = (double)sum / (double)held;
@@ -93,9 +107,45 @@ done:
     return result;
 }
 
+static PyObject *lost_runs(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    static const char *names[3] = {"lost", "lost_run", "longest_lost_run"};
+    Bytes sending, answered, itself;
+    Int64s counters[3];
+    memset(&sending, 0, sizeof(sending));
+    memset(&answered, 0, sizeof(answered));
+    memset(&itself, 0, sizeof(itself));
+    memset(counters, 0, sizeof(counters));
+    PyObject *result = NULL;
+    if (check_nargs(nargs, 6, "lost_runs") < 0) return NULL;
+    Py_ssize_t n = leading(args[0], "sending");
+    if (n < 0) return NULL;
+    if (bytes_get(args[0], &sending, n, 0, "sending") < 0) goto done;
+    if (bytes_get(args[1], &answered, n, 0, "answered") < 0) goto done;
+    if (bytes_get(args[2], &itself, n, 0, "robot_answers") < 0) goto done;
+    for (int k = 0; k < 3; k++)
+        if (int64s_get(args[3 + k], &counters[k], n, 1, names[k]) < 0) goto done;
+    int open = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (BYTE1(sending, i))
+            run_law(BYTE1(answered, i) || BYTE1(itself, i), &INT64_AT(counters[1], i), &INT64_AT(counters[0], i),
+                    &INT64_AT(counters[2], i));
+        open |= INT64_AT(counters[1], i) != 0;
+    }
+    result = PyBool_FromLong(open);
+done:
+    bytes_release(&sending);
+    bytes_release(&answered);
+    bytes_release(&itself);
+    for (int k = 0; k < 3; k++) int64s_release(&counters[k]);
+    return result;
+}
+
 static PyMethodDef METHODS[] = {
     METHOD(close_cycle, "Close the open cycle: every robot's window, lost-cycle run and success rate."),
+    METHOD(lost_runs, "A cycle of the env's links: the lost cycles and runs of the sending arms."),
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_accounting, "The cycle accounting's close of a cycle: its only text (fci/accounting.py).")
+KERNEL_MODULE(_accounting, "The lost-cycle accounting's rules, their only text (fci/accounting.py, envs/channel.py).")

@@ -4,8 +4,9 @@ link"): which datagrams reach the robot in their cycle."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from franka_sim_gym.envs.channel import DrawnLinks
+from franka_sim_gym.envs.channel import DrawnLinks, Links
 
 
 def links_with(loss, jitter, cycles, u):
@@ -60,3 +61,25 @@ def test_a_spike_at_the_end_of_a_step_holds_up_the_next_steps_first_datagrams():
     np.testing.assert_array_equal(first[:, 0], [True, True, False])
     np.testing.assert_array_equal(second[:, 0], [False, False, True, True])
     assert first[:, 1].all() and second[:, 1].all()
+
+
+def test_the_links_count_a_sending_arms_lost_runs_and_the_robots_own_answers():
+    links = Links(None, 3)
+    links.robot_answers[2] = True  # the asynchronous generator answers its cycles itself
+    lost = np.zeros(3, dtype=np.int64)
+    sending = np.array([True, False, True])
+    nothing = np.zeros(3, dtype=bool)
+    for _ in range(3):
+        links._account(sending, nothing, lost)
+    assert links._in_run
+    np.testing.assert_array_equal(lost, [3, 0, 0])
+    np.testing.assert_array_equal(links.lost_run, [3, 0, 0])
+    links._account(np.array([False, True, True]), nothing, lost)  # arm 0 pauses, arm 1 lost
+    np.testing.assert_array_equal(links.lost_run, [3, 1, 0])
+    links._account(np.ones(3, dtype=bool), np.array([True, True, False]), lost)
+    np.testing.assert_array_equal(links.lost_run, [0, 0, 0])
+    np.testing.assert_array_equal(links.longest_lost, [3, 1, 0])
+    np.testing.assert_array_equal(lost, [3, 1, 0])
+    assert not links._in_run
+    with pytest.raises(ValueError, match="answered"):
+        links._account(sending, np.zeros(2, dtype=bool), lost)
