@@ -129,8 +129,8 @@ static PyObject *lost_runs(PyObject *self, PyObject *const *args, Py_ssize_t nar
     int open = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
         if (BYTE1(sending, i))
-            run_law(BYTE1(answered, i) || BYTE1(itself, i), &INT64_AT(counters[1], i), &INT64_AT(counters[0], i),
-                    &INT64_AT(counters[2], i));
+            run_law(BYTE1(answered, i) || BYTE1(itself, i), &INT64_AT(counters[1], i),
+                    &INT64_AT(counters[0], i), &INT64_AT(counters[2], i));
         open |= INT64_AT(counters[1], i) != 0;
     }
     result = PyBool_FromLong(open);
