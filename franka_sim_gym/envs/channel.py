@@ -167,6 +167,7 @@ class Links:
                 )
             self.drawn = DrawnLinks(n)
             self.perfect = False
+            self.transmit = self._transmit_drawn  # (a cycle's one call on this path)
         #: per arm: the robot answers every cycle itself (the asynchronous generator,
         #: docs/motion-limits.md): a datagram the link drops is a target late, no lost cycle
         self.robot_answers = np.zeros(n, dtype=bool)
@@ -193,9 +194,6 @@ class Links:
         """Send ``command`` (n rows) of the ``sending`` arms through their channels and
         hand what arrives to ``receive(batch, mask)`` (the controller's), round by round;
         count in ``lost`` the cycles no command answered in time."""
-        if self.drawn is not None:
-            self._transmit_drawn(command, sending, lost, receive)
-            return
         n = self.n
         open_ids = command["message_id"].copy()
         answered = np.zeros(n, dtype=bool)
@@ -220,10 +218,18 @@ class Links:
         """:meth:`transmit` through the drawn links: the datagrams that reach the robot in
         their cycle go in one batch; the others answer nothing (the robot drops what misses
         its window: :class:`DrawnLinks`)."""
-        delivered = self.drawn.transmit(sending)
+        drawn = self.drawn
+        k = drawn.k
+        drawn.k = k + 1
+        blocked = drawn.blocked[k]
+        if blocked is None:  # every sending arm's datagram reaches the robot in time
+            receive(command, sending)
+            if self._in_run:
+                self._account(sending, sending, lost)
+            return
+        delivered = sending & ~blocked
         receive(command, delivered)
-        if delivered is not sending or self._in_run:  # else every sending arm answered
-            self._account(sending, delivered, lost)
+        self._account(sending, delivered, lost)
 
     def _account(self, sending, answered, lost) -> None:
         # A cycle is lost when no command answering it reached the robot in time (and the
@@ -251,13 +257,19 @@ class DrawnLinks:
     """
 
     def __init__(self, n: int) -> None:
-        self.loss = np.zeros(n)
-        self.jitter = np.zeros(n)
+        # per arm, the odds of a loss and of a spike, one row against a cycle's two draws
+        self._odds = np.zeros((n, 2))
+        self.loss = self._odds[:, 0]
+        self.jitter = self._odds[:, 1]
         self.cycles = np.ones(n, dtype=np.int64)
         self.ahead = Ahead(n, 2, lambda rng, i, count: rng.random((count, 2)))
         #: per arm, the first cycle whose datagram is not held up behind a spike
         self._free = np.zeros(n, dtype=np.int64)
         self._now = 0
+        #: this step's table (begin_step) and the cycles of it transmitted so far
+        self.blocked: list[np.ndarray | None] = []
+        self._frees: np.ndarray | None = None
+        self.k = 0
 
     def apply(self, arms, draws) -> None:
         """New episodes on ``arms`` with their draws (rows of a reality DrawBatch)."""
@@ -266,16 +278,23 @@ class DrawnLinks:
         self.jitter[arms] = draws["communication.jitter"]
         self.cycles[arms] = draws["communication.jitter_cycles"].astype(np.int64)
         self.ahead.reseed(arms, [stream(d.seed, "communication") for d in draws.draws])
-        self._free = self._free.copy()  # (a row of the last step's table)
+        self._settle()
         self._free[arms] = self._now
 
     def begin_step(self, cycles: int) -> None:
         """The losses and spikes of the next ``cycles`` cycles of every arm, drawn at once
         (the streams move on by ``cycles`` whether or not all of them are used), and which
-        arm's datagram each of those cycles drops."""
+        arm's datagram each of those cycles drops: ``blocked[k]`` ((n,) bool, or None
+        when cycle k drops none), read by :meth:`Links.transmit` (which moves ``k`` on)."""
+        self._settle()
         u = self.ahead.take(cycles)
-        lost = u[..., 0] < self.loss
-        spike = u[..., 1] < self.jitter
+        events = u < self._odds  # (cycles, n, 2): a loss, a spike
+        if not events.any() and int(self._free.max()) <= self._now:
+            # A quiet step (most are): nothing drops and nothing is held up after it.
+            self.blocked = [None] * cycles
+            self._frees = None
+            return
+        lost, spike = events[..., 0], events[..., 1]
         # u / jitter is uniform in [0, 1) given u < jitter: a spike of 1 to cycles cycles,
         # holding up the datagrams until the cycle ``ends`` (the later of overlapping ones)
         ratio = np.divide(u[..., 1], self.jitter, out=np.zeros(u.shape[:2]), where=spike)
@@ -283,20 +302,18 @@ class DrawnLinks:
         ends = np.where(spike, now + 1 + (ratio * self.cycles).astype(np.int64), 0)
         ends[0] = np.maximum(ends[0], self._free)
         self._frees = np.maximum.accumulate(ends, axis=0)
-        self._blocked = lost | (self._frees > now)
-        self._quiet = (~self._blocked.any(axis=1)).tolist()
-        self._k = 0
+        blocked = lost | (self._frees > now)
+        drops = blocked.any(axis=1).tolist()
+        self.blocked = [row if drop else None for row, drop in zip(blocked, drops, strict=True)]
 
-    def transmit(self, sending: np.ndarray) -> np.ndarray:
-        """The sending arms whose datagram reaches the robot in this cycle (``sending``
-        itself when every one does)."""
-        k = self._k
-        self._k += 1
-        self._now += 1
-        self._free = self._frees[k]
-        if self._quiet[k]:
-            return sending
-        return sending & ~self._blocked[k]
+    def _settle(self) -> None:
+        """Move the clock and the held-up datagrams' end on by the cycles the last step
+        transmitted (a step can end before its last cycle)."""
+        if self.k:
+            if self._frees is not None:
+                self._free = self._frees[self.k - 1].copy()
+            self._now += self.k
+            self.k = 0
 
 
 def per_arm_channels(spec, n: int) -> list[Channel]:

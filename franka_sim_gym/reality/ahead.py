@@ -66,7 +66,11 @@ class Ahead:
         """(count, n, width): every robot's samples of this cycle and the ``count - 1``
         next, a copy; afterwards the stream is ``count`` cycles on (as many advances)."""
         if self._cycle + count <= self._next:  # no robot runs out before the last
-            out = self._ring.take(np.arange(self._cycle, self._cycle + count) % BLOCK, axis=0)
+            at = self._cycle % BLOCK
+            if at + count <= BLOCK:  # (the ring does not wrap round within them)
+                out = self._ring[at : at + count].copy()
+            else:
+                out = self._ring.take(np.arange(at, at + count) % BLOCK, axis=0)
             self._cycle += count - 1
             self.advance()  # the refills due at the last advance, if any
             return out

@@ -131,6 +131,7 @@ class ArmPhysics:
         self.payload_weight = np.zeros((n_arms, 7))
         self._tau = np.zeros((n_arms, 7))
         self._tmp = np.zeros((n_arms, 7))
+        self._compensated = np.zeros((n_arms, 7))  # the servo's torque plus compensation
         #: the flange's position (n, 3) and its rotation transposed (n, 3, 3) -- the
         #: column-major wire layout of O_T_EE's block -- refreshed after every step
         self.flange_views: tuple[np.ndarray, np.ndarray] = (
@@ -387,7 +388,7 @@ class ArmPhysics:
         elif external is not None and external is not False:
             tau = np.where(external[:, None], tau_external, tau)
         if compensation is not None:
-            tau = tau + compensation
+            tau = np.add(tau, compensation, out=self._compensated)
         self._ctrl.scatter(tau)
         if self.truth is not None:
             self.truth.before_step()

@@ -25,7 +25,7 @@ import numpy as np
 from .. import native
 
 #: The law's one text (sim/_truth.c ``friction``; issue 38).
-RULES = native.require("sim._truth", "friction", "link_weights", "forces")
+RULES = native.require("sim._truth", "friction", "link_weights", "Forces", "Friction")
 
 #: Gaz et al. 2019's friction parameters, joints 1..7, as the authors publish them with
 #: their model (github.com/marcocognetti/FrankaEmikaPandaDynModel,
@@ -53,6 +53,9 @@ class JointFriction:
         self._half_alpha = np.broadcast_to(GAZ_ALPHA / 2.0, (n, 7)).copy()
         self._shift = self._half_alpha * GAZ_PHI
         self.out = np.zeros((n, 7))
+        # (the arrays are changed in place only: one tuple serves every call)
+        self._terms = (self.gain, self._half_alpha, self._shift)
+        self._tail = (*self._terms, self.out)
 
     def set_scale(self, robots, scale) -> None:
         """The friction of ``robots`` is ``scale`` (rows, (k, 7)) times Gaz et al.'s."""
@@ -61,10 +64,15 @@ class JointFriction:
     def torque(self, dq: np.ndarray) -> np.ndarray:
         """(n, 7) the friction torque at joint velocity ``dq`` (``out``, overwritten by
         the next call)."""
-        return RULES.friction(dq, *self.terms, self.out)
+        return RULES.friction(dq, *self._tail)
+
+    def planned(self, dq: np.ndarray):
+        """The law at the velocity array ``dq`` (n, 7; its values change, not its memory)
+        planned once: ``.torque()`` is :meth:`torque` of ``dq``'s current values."""
+        return RULES.Friction(dq, *self._tail)
 
     @property
     def terms(self) -> tuple[np.ndarray, ...]:
         """The law's per-robot terms as sim/_truth.c takes them: the gain (scale A / 2),
         alpha / 2 and alpha phi / 2."""
-        return self.gain, self._half_alpha, self._shift
+        return self._terms

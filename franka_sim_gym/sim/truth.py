@@ -114,7 +114,11 @@ class ArmTruth:
         self.friction = JointFriction(n)
         self._dq = physics.dq
         self._applied = ArmRows([d.qfrc_applied for d in physics.datas], lay.dof_adr[0])
-        self._force = np.zeros((n, 7))
+        # The step's forces planned once (sim/_truth.c Forces: every array changes in place
+        # only), written straight into each arm's qfrc_applied rows.
+        self._forces = RULES.Forces(
+            self._dq, *self.friction.terms, *self.weights.terms, tuple(self._applied.views)
+        )
         #: (n,) each table's surface above the base plane [m]
         self.table_height = np.zeros(n)
         #: (n, 2) each fixture's x, y offset from where its task puts it [m]
@@ -161,5 +165,4 @@ class ArmTruth:
     def before_step(self) -> None:
         """The joints' extra forces for the next step, at the current (true) state: the
         drives' friction and the links' weight differences."""
-        terms = (*self.friction.terms, *self.weights.terms)
-        self._applied.scatter(RULES.forces(self._dq, *terms, self._force))
+        self._forces.apply()

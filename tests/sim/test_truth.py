@@ -47,5 +47,11 @@ def test_the_c_text_names_a_bad_argument():
         RULES.friction(seven, seven[:1], seven, seven, seven)
     with pytest.raises(ValueError, match="^xmat: axis 2 has length 3, expected 9"):
         RULES.link_weights(np.zeros((2, 7, 3)), *[np.zeros((2, 7, 3))] * 5, seven)
-    with pytest.raises(TypeError, match=r"forces\(\) takes 11 arguments \(7 given\)"):
-        RULES.forces(*[seven] * 7)
+    with pytest.raises(TypeError, match=r"Forces\(\) takes 11 arguments \(7 given\)"):
+        RULES.Forces(*[seven] * 7)
+    # xmat, dmc, dm, tail, origins, axes
+    weights = [np.zeros((2, 7, k)) for k in (9, 3, 1, 1, 3, 3)]
+    with pytest.raises(ValueError, match=r"^targets\[1\]: expected 7 float64 values"):
+        RULES.Forces(*[seven] * 4, *weights, (np.zeros(7), np.zeros(6)))
+    with pytest.raises(ValueError, match="^out: axis 1 has length 6, expected 7"):
+        RULES.Friction(*[seven] * 4, np.zeros((2, 6)))

@@ -78,6 +78,7 @@ class ContactSensing:
         self.joint_over = np.zeros((n, 7))
         self.cartesian_over = np.zeros((n, 6))
         self.accelerating = np.zeros(n, dtype=np.uint8)
+        self._loaded_bias = np.zeros((n, 7))  # the model's bias plus the load's weight
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -145,7 +146,7 @@ class ContactSensing:
             physics.dq, dynamics.mass_matrix(), dynamics.bias()
         )
         if load_weight is not None:
-            bias = bias + load_weight
+            bias = np.add(bias, load_weight, out=self._loaded_bias)
         point, rotation = self.k_point, self.k_rotation
         rules = contact.RULES  # the rules' C text (fci/contact/_contact.c)
         rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)

@@ -48,6 +48,7 @@ class RobotReality:
         self.sensors = SensorNoise(n)
         #: the robot's compensation of the friction in its drives
         self.friction = JointFriction(n)
+        self._compensation = self.friction.planned(writer.dq)  # at the measured velocity
         self._extra = np.zeros((n, 7))
         # The servos read the robot's measurements (the state's float64 fields).
         physics.sense_with(writer.q, writer.dq)
@@ -73,7 +74,7 @@ class RobotReality:
         gravity (which MuJoCo's actuators carry): its friction compensation on its measured
         velocity, plus a configured load's weight (``load``, or None). The same terms are
         in the model its estimate runs on."""
-        extra = self.friction.torque(self.writer.dq)
+        extra = self._compensation.torque()
         if load is not None:
             return np.add(extra, load, out=self._extra)
         return extra
