@@ -41,6 +41,7 @@ REQUIRED = (
     "sim._dynamics",
     "sim._rows",
     "sim._truth",
+    "sim._stepping",
     "sim._rotations",
     "envs._client_filters",
 )

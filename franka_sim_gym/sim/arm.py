@@ -23,9 +23,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from .. import native
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
 from .layout import ArmLayout, repeat_layout
+from .libmujoco import function_address, variable_address
 from .truth import ArmTruth
 from .views import ArmRows, Gathering
 from .world import FINGER_OPEN, HOME_Q, build_world
@@ -34,6 +36,9 @@ from .world import FINGER_OPEN, HOME_Q, build_world
 #: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,
 #: 2000, 2000}}), e.g. examples/joint_impedance_control.cpp callers); the
 #: robot's own factory value is not published.
+#: A cycle's physics of every arm, one C call (sim/_stepping.c: its one text).
+STEPPING = native.require("sim._stepping", "Steps")
+
 DEFAULT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 
 
@@ -83,6 +88,7 @@ class ArmPhysics:
         #: the arm (the ideal robot)
         self.truth: ArmTruth | None = None
         self._own_models = False
+        self._steps = None  # the C plan of a cycle's physics, made at the first step
         self.n = n_arms
         self.hand = hand
         #: (n, 3) every base at its world's origin (zeros, read-only)
@@ -113,7 +119,8 @@ class ArmPhysics:
             self._finger_ctrl = rows("ctrl", one.finger_actuator[:1])
             self._finger_act = int(one.finger_actuator[0])
             self.finger_force = np.full(n_arms, self.model.actuator_forcerange[self._finger_act, 1])
-            self._applied_force = float(self.finger_force[0])
+            # the limit the shared model holds now (1,): set by forward and by the steps
+            self._applied_force = self.finger_force[:1].copy()
         self._payload = None if one.payload_body is None else rows("xipos", one.payload_body[0])
         self._link_contacts = rows("sensordata", one.link_contact_adr[0])
         #: (n, 7) measured joint positions, velocities and torques (refreshed in place
@@ -189,6 +196,7 @@ class ArmPhysics:
             if self.truth.models is not None:
                 self.models = self.truth.models
                 self._own_models = True
+                self._steps = None
                 if self.finger_force is not None:
                     for i in range(self.n):
                         self._set_model_finger_force(i)
@@ -256,8 +264,8 @@ class ArmPhysics:
         """The shared model's finger force range set to arm i's (only when it differs)."""
         if self._own_models:
             return
-        if self.finger_force is not None and self.finger_force[i] != self._applied_force:
-            force = self._applied_force = float(self.finger_force[i])
+        if self.finger_force is not None and self.finger_force[i] != self._applied_force[0]:
+            force = self._applied_force[0] = float(self.finger_force[i])
             self.model.actuator_forcerange[self._finger_act] = (-force, force)
 
     def gather_also(self, *rows: ArmRows) -> None:
@@ -392,24 +400,37 @@ class ArmPhysics:
         self._ctrl.scatter(tau)
         if self.truth is not None:
             self.truth.before_step()
-        if self._own_models or self.finger_force is None:
-            # every arm its own model (a reality draw's, holding its own finger limit),
-            # or one shared model without a hand: self.models says which
-            for model, data in zip(self.models, self.datas, strict=True):
-                mujoco.mj_step2(model, data)
-                mujoco.mj_step1(model, data)
-        else:
-            model = self.model  # the force range is the model's, the limits are every arm's own
-            forcerange, act = model.actuator_forcerange, self._finger_act
-            applied = self._applied_force
-            for force, data in zip(self.finger_force.tolist(), self.datas, strict=True):
-                if force != applied:
-                    forcerange[act] = (-force, force)
-                    applied = force
-                mujoco.mj_step2(model, data)
-                mujoco.mj_step1(model, data)
-            self._applied_force = applied
+        steps = self._steps
+        if steps is None:
+            steps = self._steps = self._plan_steps()
+        # mj_step2 then mj_step1 of every arm's world; on one shared model with a hand its
+        # finger limit set to each arm's first (every arm's own model, a reality draw's,
+        # holds its own)
+        steps.run(None if self._own_models else self.finger_force)
         self._refresh()
+
+    def _plan_steps(self):
+        """The C plan of a cycle's physics (sim/_stepping.c) over :attr:`models` and
+        :attr:`datas`, and the shared model's finger limit where there is one to set."""
+        functions = (
+            function_address("mj_step2"),
+            function_address("mj_step1"),
+            variable_address("mju_user_error"),
+        )
+        if not all(functions):
+            raise ImportError(
+                "franka_sim_gym needs the libmujoco the mujoco package ships "
+                f"(mj_step2, mj_step1, mju_user_error): found {functions}"
+            )
+        shared = self.finger_force is not None and not self._own_models
+        return STEPPING.Steps(
+            functions,
+            tuple(self.models),
+            tuple(self.datas),
+            self.model.actuator_forcerange if shared else None,
+            self._finger_act if shared else -1,
+            self._applied_force if shared else None,
+        )
 
     def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
         """(n, 7) the Cartesian impedance servo's torque (without Coriolis) of every arm."""

@@ -13,12 +13,12 @@ step capped at :data:`MAX_STEP`, the verdicts) has one text, in C: ``sim/_ik.c``
 
 from __future__ import annotations
 
-import ctypes
-from pathlib import Path
 from typing import NamedTuple
 
 import mujoco
 import numpy as np
+
+from .libmujoco import function_address
 
 __all__ = [
     "ELBOW_JOINT",
@@ -58,28 +58,12 @@ class IkResult(NamedTuple):
 
 def mj_kinematics_addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple | None:
     """(mj_kinematics, model, data) as addresses, for the C solve to call MuJoCo's own
-    forward kinematics; None where they cannot be had (ArmKinematics then refuses to start).
-
-    The function is looked up in the libmujoco the Python bindings ship and have loaded
-    (the same library, so the same code as ``mujoco.mj_kinematics``); the structs'
-    addresses are the bindings' ``_address`` (tested in MuJoCo's own bindings tests).
-    The caller keeps ``model`` and ``data`` alive as long as the addresses are used.
-    """
+    forward kinematics (sim/libmujoco.py); None where they cannot be had (ArmKinematics
+    then refuses to start). The caller keeps ``model`` and ``data`` alive as long as the
+    addresses are used."""
     model_address = getattr(model, "_address", None)
     data_address = getattr(data, "_address", None)
-    if not model_address or not data_address:
+    function = function_address("mj_kinematics")
+    if not model_address or not data_address or not function:
         return None
-    package = Path(mujoco.__file__).parent
-    for library in sorted(package.glob("*mujoco*")):
-        if library.suffix not in {".so", ".dylib", ".dll"} and ".so." not in library.name:
-            continue
-        if library.name.startswith("_"):  # the bindings' own extension modules
-            continue
-        try:
-            function = ctypes.CDLL(str(library)).mj_kinematics
-        except (OSError, AttributeError):
-            continue
-        address = ctypes.cast(function, ctypes.c_void_p).value
-        if address:
-            return (address, int(model_address), int(data_address))
-    return None
+    return (function, int(model_address), int(data_address))

@@ -1,0 +1,236 @@
+/* Every arm's world through one cycle's physics, sim/arm.py ArmPhysics.step: its one
+ * text (issue 38), required (native.require):
+ *
+ *   Steps(functions, models, datas, forcerange, act, applied)
+ *       a plan: MuJoCo's mj_step2 and mj_step1 (the addresses of the functions the
+ *       Python bindings' own libmujoco exports, sim/libmujoco.py), each arm's MjModel
+ *       and MjData, and for one shared model with a hand its actuator force range
+ *       ((nu, 2) float64, the model's own array), the fingers' actuator row and the
+ *       (1,) limit the model holds now (shared with ArmPhysics, which sets it too);
+ *   Steps.run(finger_force)
+ *       arm by arm: the shared model's finger limit set to the arm's (finger_force (n,)
+ *       float64, or None) where it differs from the one it holds, then mj_step2 and
+ *       mj_step1 of the arm's world -- what n calls of each binding did, without their
+ *       per-call cost (about 0.4 us each: 50 us of a 64-arm cycle).
+ *
+ * The same library and the same calls in the same order: the same bits as the bindings'.
+ * A MuJoCo error inside a step (mju_error: the bindings raise mujoco.FatalError) is caught
+ * through MuJoCo's public mju_user_error hook, set for the loop only, and raised as a
+ * RuntimeError naming the arm; that arm's MjData is then as MuJoCo left it. */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "_arrays.h"
+
+typedef void (*StepFn)(const void *model, void *data);
+typedef void (*ErrorFn)(const char *message);
+
+typedef struct {
+    PyObject_HEAD
+    StepFn step2, step1;
+    ErrorFn *user_error; /* MuJoCo's mju_user_error hook (a global of the library) */
+    Py_ssize_t n;
+    const void **models;
+    void **datas;
+    PyObject *keep; /* the models, datas and arrays, alive as long as the plan */
+    F64 forcerange, applied;
+    Py_ssize_t act; /* -1: no shared finger limit to set */
+} StepsObject;
+
+/* The error a step raised, read by run after the jump (one plan runs at a time: the GIL
+ * is held throughout). */
+static jmp_buf error_jump;
+static char error_text[512];
+
+static void on_error(const char *message)
+{
+    snprintf(error_text, sizeof(error_text), "%s", message ? message : "");
+    longjmp(error_jump, 1);
+}
+
+static void Steps_dealloc(StepsObject *self)
+{
+    f64_release(&self->forcerange);
+    f64_release(&self->applied);
+    PyMem_Free(self->models);
+    PyMem_Free(self->datas);
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static void *address_of(PyObject *obj, const char *name, Py_ssize_t i)
+{
+    void *p = PyLong_Check(obj) ? PyLong_AsVoidPtr(obj) : NULL;
+    if (!p && !PyErr_Occurred())
+        PyErr_Format(PyExc_ValueError, "%s[%zd]: expected a non-null address", name, i);
+    return p;
+}
+
+/* The struct address behind a MuJoCo binding object of type ``kind`` (its ``_address``). */
+static void *struct_address(PyObject *obj, const char *kind, const char *name, Py_ssize_t i)
+{
+    const char *type = Py_TYPE(obj)->tp_name, *dot = strrchr(type, '.');
+    PyObject *address = NULL;
+    if (strcmp(dot ? dot + 1 : type, kind) != 0 ||
+        !(address = PyObject_GetAttrString(obj, "_address"))) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_TypeError, "%s[%zd]: expected a mujoco.%s, got %s", name, i, kind,
+                     type);
+        return NULL;
+    }
+    void *p = address_of(address, name, i);
+    Py_DECREF(address);
+    return p;
+}
+
+static PyObject *Steps_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "Steps() takes no keyword arguments");
+        return NULL;
+    }
+    if (check_nargs(PyTuple_GET_SIZE(args), 6, "Steps") < 0) return NULL;
+    PyObject *functions = PyTuple_GET_ITEM(args, 0), *models = PyTuple_GET_ITEM(args, 1),
+             *datas = PyTuple_GET_ITEM(args, 2), *forcerange = PyTuple_GET_ITEM(args, 3),
+             *act = PyTuple_GET_ITEM(args, 4), *applied = PyTuple_GET_ITEM(args, 5);
+    if (!PyTuple_Check(functions) || PyTuple_GET_SIZE(functions) != 3) {
+        PyErr_SetString(PyExc_TypeError,
+                        "functions: expected a tuple (mj_step2, mj_step1, &mju_user_error) "
+                        "of addresses");
+        return NULL;
+    }
+    if (!PyTuple_Check(models) || !PyTuple_Check(datas)) {
+        PyErr_SetString(PyExc_TypeError, "models and datas must be tuples");
+        return NULL;
+    }
+    Py_ssize_t n = PyTuple_GET_SIZE(datas);
+    if (PyTuple_GET_SIZE(models) != n) {
+        PyErr_Format(PyExc_ValueError, "models: %zd of them for %zd datas",
+                     PyTuple_GET_SIZE(models), n);
+        return NULL;
+    }
+    StepsObject *self = (StepsObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->n = n;
+    self->act = -1;
+    self->keep = PyTuple_Pack(5, models, datas, forcerange, act, applied);
+    self->models = PyMem_Calloc((size_t)n + 1, sizeof(void *));
+    self->datas = PyMem_Calloc((size_t)n + 1, sizeof(void *));
+    if (!self->keep || !self->models || !self->datas) {
+        Py_DECREF(self);
+        return PyErr_NoMemory();
+    }
+    void *f[3];
+    for (Py_ssize_t k = 0; k < 3; k++) {
+        if (!(f[k] = address_of(PyTuple_GET_ITEM(functions, k), "functions", k))) {
+            Py_DECREF(self);
+            return NULL;
+        }
+    }
+    self->step2 = (StepFn)f[0];
+    self->step1 = (StepFn)f[1];
+    self->user_error = (ErrorFn *)f[2];
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (!(self->models[i] = struct_address(PyTuple_GET_ITEM(models, i), "MjModel", "models", i)) ||
+            !(self->datas[i] = struct_address(PyTuple_GET_ITEM(datas, i), "MjData", "datas", i))) {
+            Py_DECREF(self);
+            return NULL;
+        }
+    }
+    if (forcerange != Py_None) {
+        Py_ssize_t any2[2] = {-1, 2}, one[1] = {1};
+        if (f64_get(forcerange, &self->forcerange, 2, any2, 1, "forcerange") < 0 ||
+            f64_get(applied, &self->applied, 1, one, 1, "applied") < 0) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        Py_ssize_t row = PyLong_AsSsize_t(act);
+        if (row == -1 && PyErr_Occurred()) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        if (row < 0 || row >= self->forcerange.shape[0]) {
+            PyErr_Format(PyExc_ValueError, "act: %zd is not a row of forcerange (%zd rows)",
+                         row, self->forcerange.shape[0]);
+            Py_DECREF(self);
+            return NULL;
+        }
+        self->act = row;
+    }
+    return (PyObject *)self;
+}
+
+static PyObject *Steps_run(StepsObject *self, PyObject *finger_force)
+{
+    F64 force;
+    memset(&force, 0, sizeof(force));
+    int limits = self->act >= 0 && finger_force != Py_None;
+    if (limits) {
+        Py_ssize_t sn[1] = {self->n};
+        if (f64_get(finger_force, &force, 1, sn, 0, "finger_force") < 0) return NULL;
+    }
+    ErrorFn previous = *self->user_error;
+    /* volatile: read after the jump */
+    volatile Py_ssize_t i = 0;
+    if (setjmp(error_jump)) {
+        *self->user_error = previous;
+        f64_release(&force);
+        PyErr_Format(PyExc_RuntimeError, "MuJoCo error in arm %zd's step: %s", (Py_ssize_t)i,
+                     error_text);
+        return NULL;
+    }
+    *self->user_error = on_error;
+    for (; i < self->n; i++) {
+        if (limits) {
+            double want = AT1(force, i), *held = &AT1(self->applied, 0);
+            if (want != *held) { /* as numpy's != : a NaN limit is set every time */
+                AT2(self->forcerange, self->act, 0) = -want;
+                AT2(self->forcerange, self->act, 1) = want;
+                *held = want;
+            }
+        }
+        self->step2(self->models[i], self->datas[i]);
+        self->step1(self->models[i], self->datas[i]);
+    }
+    *self->user_error = previous;
+    f64_release(&force);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef STEPS_METHODS[] = {
+    {"run", (PyCFunction)Steps_run, METH_O,
+     "run(finger_force): every arm's mj_step2 then mj_step1, the shared finger limit set "
+     "to the arm's first (finger_force (n,) float64, or None)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject StepsType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.sim._stepping.Steps",
+    .tp_basicsize = sizeof(StepsObject),
+    .tp_dealloc = (destructor)Steps_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Steps(functions, models, datas, forcerange, act, applied): a cycle's "
+              "physics of every arm, by run(finger_force).",
+    .tp_methods = STEPS_METHODS,
+    .tp_new = Steps_new,
+};
+
+static struct PyModuleDef _stepping_definition = {
+    PyModuleDef_HEAD_INIT, "_stepping", "Every arm's world through one cycle's physics.", -1,
+    NULL, NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__stepping(void)
+{
+    if (PyType_Ready(&StepsType) < 0) return NULL;
+    PyObject *m = kernel_module(&_stepping_definition);
+    if (!m) return NULL;
+    if (PyModule_AddObjectRef(m, "Steps", (PyObject *)&StepsType) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -1,0 +1,126 @@
+"""A cycle's physics of every arm, one C call (sim/_stepping.c, ArmPhysics.step).
+
+What the plan must do: each arm's world stepped as MuJoCo's own mj_step2 then mj_step1
+step it (the same library, so the same bits as the bindings' calls), a shared model's
+finger limit set to each arm's own before its world steps, a MuJoCo error raised as
+an exception naming the arm (the bindings raise mujoco.FatalError) with MuJoCo's error
+hook given back, and bad arguments refused by name.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import mujoco
+import numpy as np
+import pytest
+
+from franka_sim_gym.sim.arm import STEPPING, ArmPhysics
+from franka_sim_gym.sim.libmujoco import function_address, variable_address
+
+FUNCTIONS = (
+    function_address("mj_step2"),
+    function_address("mj_step1"),
+    variable_address("mju_user_error"),
+)
+
+
+def _squeezing(n: int = 3) -> ArmPhysics:
+    """n arms with hands, fingers commanded shut from open (their servo saturates)."""
+    physics = ArmPhysics(n_arms=n, hand=True)
+    physics.set_finger_width(np.arange(n), np.zeros(n))
+    return physics
+
+
+def _finger_force(physics: ArmPhysics) -> np.ndarray:
+    """(n,) the fingers' actuator force of every arm's world after its last step."""
+    act = physics._finger_act
+    return np.array([d.actuator_force[act] for d in physics.datas])
+
+
+def test_each_arm_squeezes_at_its_own_finger_limit_on_one_shared_model():
+    alone = _squeezing(1)
+    default = float(alone.finger_force[0])  # the limit the shared model starts with
+    alone.step(alone.q.copy(), None)
+    physics = _squeezing()
+    physics.set_finger_force([0, 1, 2], [10.0, default, 15.0])
+    hook = ctypes.c_void_p.from_address(FUNCTIONS[2]).value
+    physics.step(physics.q.copy(), None)
+    # The shared model's range is set to each arm's limit before its world steps: the
+    # servo, saturated in its first cycle (open to shut asks ~40 N), pushes with exactly
+    # that limit, arm by arm; arm 1, back at the model's first limit after arm 0's, as a
+    # lone arm does.
+    force = _finger_force(physics)
+    np.testing.assert_array_equal(force[[0, 2]], [-10.0, -15.0])
+    assert force[1] == _finger_force(alone)[0] < -15.0
+    # ... and holds the last arm's when the cycle ends (what forward compares against).
+    assert physics.model.actuator_forcerange[physics._finger_act, 1] == 15.0
+    # MuJoCo's error hook is as the cycle found it
+    assert ctypes.c_void_p.from_address(FUNCTIONS[2]).value == hook
+
+
+def test_the_steps_give_the_bindings_bits():
+    physics, twin = _squeezing(), _squeezing()
+    for p in (physics, twin):
+        p.set_finger_force([0, 1, 2], [20.0, 70.0, 20.0])
+    q = physics.q + 0.05
+    act = twin._finger_act
+    for _ in range(20):
+        physics.step(q, None)
+        # the same cycle through the bindings, arm by arm
+        twin._ctrl.scatter(physics._tau)
+        for force, data in zip(twin.finger_force.tolist(), twin.datas, strict=True):
+            twin.model.actuator_forcerange[act] = (-force, force)
+            mujoco.mj_step2(twin.model, data)
+            mujoco.mj_step1(twin.model, data)
+        for a, b in zip(physics.datas, twin.datas, strict=True):
+            for field in ("qpos", "qvel", "qfrc_bias", "xpos", "qfrc_actuator"):  # mj_step1's last
+                assert getattr(a, field).tobytes() == getattr(b, field).tobytes(), field
+
+
+def _chain(memory: str = "") -> mujoco.MjModel:
+    """A 60-link chain; with a small ``memory`` its step overflows MuJoCo's stack."""
+    links = "".join(
+        f"<body pos='0 0 {0.1 * i}'><joint type='hinge'/><geom size='.05'/>" for i in range(60)
+    )
+    size = f"<size memory='{memory}'/>" if memory else ""
+    return mujoco.MjModel.from_xml_string(
+        f"<mujoco>{size}<worldbody>{links}{'</body>' * 60}</worldbody></mujoco>"
+    )
+
+
+def test_a_mujoco_error_in_a_step_is_an_exception_naming_the_arm():
+    good, bad = _chain(), _chain("8K")
+    datas = (mujoco.MjData(good), mujoco.MjData(bad))
+    steps = STEPPING.Steps(FUNCTIONS, (good, bad), datas, None, -1, None)
+    hook = ctypes.c_void_p.from_address(FUNCTIONS[2]).value
+    with pytest.raises(RuntimeError, match=r"MuJoCo error in arm 1's step: mj_stackAlloc"):
+        steps.run(None)
+    assert datas[0].time == good.opt.timestep  # the arm before it stepped
+    # MuJoCo's hook is given back (a later error elsewhere must not jump into this call)
+    assert ctypes.c_void_p.from_address(FUNCTIONS[2]).value == hook
+    with pytest.raises(mujoco.FatalError):
+        mujoco.mj_step1(bad, datas[1])
+
+
+def test_bad_arguments_are_refused_by_name():
+    model = _chain()
+    data = mujoco.MjData(model)
+    forcerange, applied = np.zeros((2, 2)), np.zeros(1)
+    cases = [
+        ((FUNCTIONS[:2], (model,), (data,), None, -1, None), TypeError, "functions"),
+        ((FUNCTIONS, [model], (data,), None, -1, None), TypeError, "tuples"),
+        ((FUNCTIONS, (model, model), (data,), None, -1, None), ValueError, "models: 2"),
+        ((FUNCTIONS, (model,), (model,), None, -1, None), TypeError, r"datas\[0\]"),
+        ((FUNCTIONS, ("x",), (data,), None, -1, None), TypeError, r"models\[0\]"),
+        ((FUNCTIONS, (model,), (data,), forcerange, 2, applied), ValueError, "act: 2"),
+        ((FUNCTIONS, (model,), (data,), np.zeros((2, 3)), 0, applied), ValueError, "forcerange"),
+        ((FUNCTIONS, (model,), (data,), forcerange, 0, np.zeros(2)), ValueError, "applied"),
+        (((0, 0, 0), (model,), (data,), None, -1, None), ValueError, "non-null"),
+    ]
+    for args, error, text in cases:
+        with pytest.raises(error, match=text):
+            STEPPING.Steps(*args)
+    steps = STEPPING.Steps(FUNCTIONS, (model,), (data,), forcerange, 0, applied)
+    with pytest.raises(ValueError, match="finger_force"):
+        steps.run(np.zeros(3))
