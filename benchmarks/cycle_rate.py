@@ -20,8 +20,6 @@ import numpy as np
 import smoke  # benchmarks/smoke.py: --smoke
 
 from franka_sim_gym.fci.config import ControllerConfig
-from franka_sim_gym.fci.contact.collision import ACCELERATION_PHASE
-from franka_sim_gym.fci.contact.estimate import ALPHA, RESOLUTION_DECIMALS, RULES, WRENCH_DAMPING
 from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, MoveControllerMode, MoveMotionGeneratorMode
 from franka_sim_gym.native import describe
@@ -160,26 +158,11 @@ def motion_rate(n: int, seconds: float) -> float:
     safety = rate(ctrl.safety.check, seconds / 4)
     SAFETY[n] = (1e6 / safety, cycles / safety)
     # What the robot senses of contact (fci/contact/sensing.py), every cycle: the model
-    # terms and the Jacobian at K (sim/dynamics.py), then the estimate, the wrench at K
-    # and the collision thresholds (one C call: fci/contact/_contact.c sense).
-    contact, field = ctrl.contact, ctrl.contact.field
+    # terms, the estimate, the wrench at K and the collision thresholds, one planned C
+    # call (fci/contact/_contact.c Sensing).
     in_motion = ctrl.modes.in_motion
-    sensing = rate(lambda: contact.sense(in_motion, None), seconds / 4)
+    sensing = rate(lambda: ctrl.contact.sense(in_motion, None), seconds / 4)
     SENSING_SHARE[n] = cycles / sensing
-    dynamics = contact.dynamics
-    bias, m_ddq = dynamics.bias().copy(), np.zeros((n, 7))
-    jacobian = dynamics.jacobian(contact.k_point).copy()
-    tau, wrench, ddq_d = (field[k] for k in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "ddq_d"))
-    estimate = contact.estimator.tau_ext.copy()
-    outputs = tuple(field[k] for k in ("K_F_ext_hat_K", "joint_contact", "cartesian_contact"))
-    levels = (contact.joint_over.copy(), contact.cartesian_over.copy(), contact.accelerating.copy())
-    args = (
-        estimate, ctrl.physics.tau_J, m_ddq, bias, jacobian, contact.k_rotation, ddq_d,
-        in_motion, contact.behavior.thresholds, ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS,
-        ACCELERATION_PHASE, tau, wrench, *outputs, *levels,
-    )  # fmt: skip
-    step = rate(lambda: RULES.sense(*args), seconds / 4)
-    STEP_SHARE[n] = cycles / step
     return cycles
 
 
@@ -191,10 +174,7 @@ PIECES = (
     ("advance", "joint generators and their limits", lambda c: c.joint),
     ("step", "physics step (servo, mj_step2/mj_step1, rows gathered)", lambda c: c.physics),
     ("write_measured", "state writer: measured fields", lambda c: c.writer),
-    ("sense", "contact sensing", lambda c: c.contact),
-    ("bias", "  model terms C dq + g (sim)", lambda c: c.contact.dynamics),
-    ("mass_matrix", "  model term M (sim)", lambda c: c.contact.dynamics),
-    ("jacobian", "  Jacobian at K (sim)", lambda c: c.contact.dynamics),
+    ("sense", "contact sensing (model, estimate, wrench, levels)", lambda c: c.contact),
     ("check", "safety controller (errors 2, 3, 4)", lambda c: c.safety),
     ("close_cycle", "cycle accounting", lambda c: c.accounting),
     ("publish", "state writer: publish", lambda c: c.writer),
@@ -257,8 +237,7 @@ def print_breakdown(n: int, goal: float, blocks: int) -> None:
     print(f"\nwhere a joint-position cycle goes, n={n} (us, wall clock, fastest of {blocks}):")
     print(f"{'bare mj_step of the same world':<50}{bare_us:>8.1f}")
     print(f"{'the whole cycle':<50}{total:>8.1f}{bare_us / total:>8.2f} of bare")
-    inner = {"bias", "mass_matrix", "jacobian"}
-    outer = sum(t for name, t in pieces.items() if name not in inner)
+    outer = sum(pieces.values())
     for name, label, _ in PIECES:
         print(f"{label:<50}{pieces[name]:>8.1f}{pieces[name] / total:>8.1%}")
     print(
@@ -274,8 +253,6 @@ ACCOUNTING_SHARE: dict[int, float] = {}
 SAFETY: dict[int, tuple[float, float]] = {}
 #: per n: the contact estimator's and the collision detector's share of one motion cycle
 SENSING_SHARE: dict[int, float] = {}
-#: per n: the C step's share (estimate, wrench, thresholds: fci/contact/_contact.c sense)
-STEP_SHARE: dict[int, float] = {}
 
 
 def main() -> None:
@@ -314,8 +291,6 @@ def main() -> None:
         print(
             f"contact sensing's share (model terms, estimate, wrench, levels), n={n}: {share:.1%}"
         )
-    for n, share in STEP_SHARE.items():
-        print(f"  of which the C step (estimate, wrench at K, thresholds), n={n}: {share:.1%}")
     if args.breakdown:
         for n, goal in BREAKDOWN_GOALS.items():
             print_breakdown(n, goal, blocks=20 if args.smoke else 500)

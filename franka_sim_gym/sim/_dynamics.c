@@ -6,14 +6,13 @@
  *       (n, 6, 7): column j is [z_j x (p - o_j); z_j], axes / anchors (n, 7, 3), point
  *       (n, 3)
  *
- * Each component of the cross product is one product minus another plus zeros, added
- * from a zero (the sum the deleted Levi-Civita contraction made, so trajectories kept
- * their bits, the sign of a zero included). Built without fused multiply-adds (setup.py);
- * tests/sim/test_dynamics.py holds it to MuJoCo's own mj_jac. */
+ * The rows are native/_jacobian.h's (the contact sensing's plan runs them too);
+ * tests/sim/test_dynamics.py holds them to MuJoCo's own mj_jac. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "_arrays.h"
+#include "_jacobian.h"
 
 static PyObject *jacobian_at(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -31,19 +30,7 @@ static PyObject *jacobian_at(PyObject *self, PyObject *const *args, Py_ssize_t n
         f64_get(args[2], &a[POINT], 2, s3, 0, "point") < 0 ||
         f64_get(args[3], &a[OUT], 3, s67, 1, "out") < 0)
         goto done;
-    for (Py_ssize_t i = 0; i < n; i++)
-        for (int j = 0; j < 7; j++) {
-            double z[3], l[3];
-            for (int k = 0; k < 3; k++) {
-                z[k] = AT3(a[AXES], i, j, k);
-                l[k] = AT2(a[POINT], i, k) - AT3(a[ANCHORS], i, j, k);
-            }
-            /* eps_iab z_a l_b summed from zero: z_a l_b - z_b l_a, never a negative zero */
-            AT3(a[OUT], i, 0, j) = 0.0 + (z[1] * l[2] - z[2] * l[1]);
-            AT3(a[OUT], i, 1, j) = 0.0 + (z[2] * l[0] - z[0] * l[2]);
-            AT3(a[OUT], i, 2, j) = 0.0 + (z[0] * l[1] - z[1] * l[0]);
-            for (int k = 0; k < 3; k++) AT3(a[OUT], i, 3 + k, j) = z[k];
-        }
+    for (Py_ssize_t i = 0; i < n; i++) jacobian_row(&a[AXES], &a[ANCHORS], &a[POINT], i, &a[OUT]);
     result = Py_NewRef(a[OUT].view.obj);
 done:
     f64_release_all(a, COUNT);

@@ -80,6 +80,17 @@ class ArmDynamics:
         # refreshed by the arms with their measured state, after every step
         physics.gather_also(self._qfrc_bias, self._passive, self._qM)
 
+    def model_rows(self) -> tuple:
+        """What the model terms are read from after every step, for a C plan of them
+        (fci/contact/_contact.c Sensing): the arm's stretch of MuJoCo's sparse inertia
+        (n, L) and where :meth:`mass_matrix`'s 7 x 7 entries sit in it ((49,) int64,
+        row-major), qfrc_bias and qfrc_passive (n, 7), and the weight of a payload the
+        robot is not told of (n, 7; None without one): :meth:`bias` is the bias minus the
+        passive forces minus that weight."""
+        payload = None if self._payload is None else self.physics.payload_weight
+        block = np.ascontiguousarray(self._block.reshape(-1), dtype=np.int64)
+        return self._qM.out, block, self._qfrc_bias.out, self._passive.out, payload
+
     def mass_matrix(self) -> np.ndarray:
         """(n, 7, 7) each arm's own block of MuJoCo's joint-space inertia (armature
         included), gathered from every arm's MjData after the last step."""

@@ -23,8 +23,10 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
+#include <stdio.h>
 
 #include "_arrays.h"
+#include "_jacobian.h"
 #include "_solve6.h"
 
 /* An int argument >= 0 (the decimals), as the power of ten numpy's round scales by. */
@@ -205,6 +207,23 @@ done:
     return result;
 }
 
+/* Robot i's frame K: origin p_EE + R_EE t_K into point[i], axes R_EE R_K into rotation[i]. */
+static inline void k_frame_row(const F64 *O_T_EE, const F64 *EE_T_K, Py_ssize_t i, F64 *point,
+                               F64 *rotation)
+{
+    double T[16], E[16];
+    for (int k = 0; k < 16; k++) {
+        T[k] = num2(O_T_EE, i, k);
+        E[k] = num2(EE_T_K, i, k);
+    }
+    for (int r = 0; r < 3; r++) {
+        AT2(*point, i, r) = T[12 + r] + T[r] * E[12] + T[4 + r] * E[13] + T[8 + r] * E[14];
+        for (int c = 0; c < 3; c++)
+            AT3(*rotation, i, r, c) =
+                T[r] * E[4 * c] + T[4 + r] * E[4 * c + 1] + T[8 + r] * E[4 * c + 2];
+    }
+}
+
 /* k_frame(O_T_EE, EE_T_K, point, rotation): (n, 16) wire poses (column-major: element
  * (r, c) at 4 c + r) to K's origin (n, 3) p_EE + R_EE t_K and axes (n, 3, 3) R_EE R_K. */
 static PyObject *k_frame(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
@@ -223,19 +242,7 @@ static PyObject *k_frame(PyObject *self, PyObject *const *args, Py_ssize_t nargs
         f64_get(args[2], &a[POINT], 2, s3, 1, "point") < 0 ||
         f64_get(args[3], &a[ROT], 3, s33, 1, "rotation") < 0)
         goto done;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double T[16], E[16];
-        for (int k = 0; k < 16; k++) {
-            T[k] = num2(&a[O_T_EE], i, k);
-            E[k] = num2(&a[EE_T_K], i, k);
-        }
-        for (int r = 0; r < 3; r++) {
-            AT2(a[POINT], i, r) = T[12 + r] + T[r] * E[12] + T[4 + r] * E[13] + T[8 + r] * E[14];
-            for (int c = 0; c < 3; c++)
-                AT3(a[ROT], i, r, c) =
-                    T[r] * E[4 * c] + T[4 + r] * E[4 * c + 1] + T[8 + r] * E[4 * c + 2];
-        }
-    }
+    for (Py_ssize_t i = 0; i < n; i++) k_frame_row(&a[O_T_EE], &a[EE_T_K], i, &a[POINT], &a[ROT]);
     result = Py_None;
     Py_INCREF(result);
 done:
@@ -260,6 +267,53 @@ enum { LOWER_TORQUE = 0, UPPER_TORQUE = 7, LOWER_FORCE = 14, UPPER_FORCE = 20, T
  * not, a NaN never is). Returns the number of robots over an upper threshold. (n, 7) /
  * (n, 6) each; jacobian (n, 6, 7), rotation (n, 3, 3), in_motion (n,) bool, thresholds
  * (n, 2, 26), accelerating (n,) uint8 written. */
+/* What sense_row reads and writes (the arrays of sense's arguments, or of a plan). */
+typedef struct {
+    F64 *tau_ext;
+    const F64 *tau_J, *m_ddq, *bias, *jacobian, *rotation, *ddq_d;
+    const Bytes *in_motion;
+    const F64 *thresholds;
+    double alpha, damping, scale, phase_bound;
+    F64 *tau, *wrench, *k_wrench, *joint_contact, *cartesian_contact, *joint_over,
+        *cartesian_over;
+    Bytes *accelerating;
+} SenseRow;
+
+/* Robot i's estimate, wrench at K and in K's axes, and collision levels (sense's rules);
+ * 1 where it crossed an upper threshold. */
+static inline int sense_row(const SenseRow *r, Py_ssize_t i)
+{
+    double tau[7], w[6], k[6];
+    filter_row(r->tau_ext, r->tau_J, r->m_ddq, r->bias, i, r->alpha, r->scale, tau);
+    wrench_row(r->jacobian, i, tau, r->damping, r->scale, w);
+    frame_row(r->rotation, i, w, r->scale, k);
+    /* the acceleration phase: in motion and some |ddq_d| above the bound (a NaN is not) */
+    int accelerating = 0;
+    if (BYTE1(*r->in_motion, i))
+        for (int j = 0; j < 7; j++) accelerating |= fabs(num2(r->ddq_d, i, j)) > r->phase_bound;
+    r->accelerating->data[i * r->accelerating->stride] = (char)accelerating;
+    int p = accelerating ? 0 : 1; /* thresholds: phase 0 acceleration, 1 nominal */
+    int crossed = 0;
+    for (int j = 0; j < 7; j++) {
+        double size = fabs(tau[j]);
+        int hit = size > AT3(*r->thresholds, i, p, UPPER_TORQUE + j);
+        AT2(*r->tau, i, j) = tau[j];
+        AT2(*r->joint_contact, i, j) = size > AT3(*r->thresholds, i, p, LOWER_TORQUE + j);
+        AT2(*r->joint_over, i, j) = hit;
+        crossed |= hit;
+    }
+    for (int c = 0; c < 6; c++) {
+        double size = fabs(w[c]);
+        int hit = size > AT3(*r->thresholds, i, p, UPPER_FORCE + c);
+        AT2(*r->wrench, i, c) = w[c];
+        AT2(*r->k_wrench, i, c) = k[c];
+        AT2(*r->cartesian_contact, i, c) = size > AT3(*r->thresholds, i, p, LOWER_FORCE + c);
+        AT2(*r->cartesian_over, i, c) = hit;
+        crossed |= hit;
+    }
+    return crossed;
+}
+
 static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
@@ -298,38 +352,12 @@ static PyObject *sense(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         f64_get(args[19], &a[CARTESIAN_OVER], 2, s6, 1, "cartesian_over") < 0 ||
         bytes_get(args[20], &phase_out, n, 1, "accelerating") < 0)
         goto done;
+    SenseRow r = {&a[TAU_EXT], &a[TAU_J], &a[M_DDQ], &a[BIAS], &a[JAC], &a[ROT], &a[DDQ_D],
+                  &in_motion, &a[LIMITS], alpha, damping, scale, phase_bound, &a[TAU],
+                  &a[WRENCH], &a[K_WRENCH], &a[JOINT_CONTACT], &a[CARTESIAN_CONTACT],
+                  &a[JOINT_OVER], &a[CARTESIAN_OVER], &phase_out};
     long over = 0;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double tau[7], w[6], k[6];
-        filter_row(&a[TAU_EXT], &a[TAU_J], &a[M_DDQ], &a[BIAS], i, alpha, scale, tau);
-        wrench_row(&a[JAC], i, tau, damping, scale, w);
-        frame_row(&a[ROT], i, w, scale, k);
-        /* the acceleration phase: in motion and some |ddq_d| above the bound (a NaN is not) */
-        int accelerating = 0;
-        if (BYTE1(in_motion, i))
-            for (int j = 0; j < 7; j++) accelerating |= fabs(num2(&a[DDQ_D], i, j)) > phase_bound;
-        phase_out.data[i * phase_out.stride] = (char)accelerating;
-        int p = accelerating ? 0 : 1; /* thresholds: phase 0 acceleration, 1 nominal */
-        int crossed = 0;
-        for (int j = 0; j < 7; j++) {
-            double size = fabs(tau[j]);
-            int hit = size > AT3(a[LIMITS], i, p, UPPER_TORQUE + j);
-            AT2(a[TAU], i, j) = tau[j];
-            AT2(a[JOINT_CONTACT], i, j) = size > AT3(a[LIMITS], i, p, LOWER_TORQUE + j);
-            AT2(a[JOINT_OVER], i, j) = hit;
-            crossed |= hit;
-        }
-        for (int c = 0; c < 6; c++) {
-            double size = fabs(w[c]);
-            int hit = size > AT3(a[LIMITS], i, p, UPPER_FORCE + c);
-            AT2(a[WRENCH], i, c) = w[c];
-            AT2(a[K_WRENCH], i, c) = k[c];
-            AT2(a[CARTESIAN_CONTACT], i, c) = size > AT3(a[LIMITS], i, p, LOWER_FORCE + c);
-            AT2(a[CARTESIAN_OVER], i, c) = hit;
-            crossed |= hit;
-        }
-        over += crossed;
-    }
+    for (Py_ssize_t i = 0; i < n; i++) over += sense_row(&r, i);
     result = PyLong_FromLong(over);
 done:
     f64_release_all(a, COUNT);
@@ -337,6 +365,203 @@ done:
     bytes_release(&phase_out);
     return result;
 }
+
+
+/* ---- the whole sensing step, planned (fci/contact/sensing.py ContactSensing.sense) ---- */
+
+/* Sensing(qM, block, qfrc_bias, passive, payload, dq, dq_prev, mass, bias, O_T_EE, EE_T_K,
+ *         axes, anchors, point, rotation, jacobian, tau_J, ddq_d, thresholds, tau_ext,
+ *         m_ddq, loaded, tau, wrench, k_wrench, joint_contact, cartesian_contact,
+ *         joint_over, cartesian_over, accelerating, constants)
+ * holds every array of a cycle's sensing; run(in_motion, load) -> int is the step:
+ *   - the model terms of the new state: M gathered out of each arm's stretch of MuJoCo's
+ *     sparse inertia (qM (n, L), block (49,) int64 indices into it, row-major), the bias
+ *     C dq + g + friction = qfrc_bias - passive (- payload (n, 7), a payload the robot's
+ *     model does not know of, or None);
+ *   - the estimator's terms of the step that ended (estimate.py ExternalTorqueEstimator):
+ *     ddq = (dq - dq_prev) / cycle, m_ddq = mass ddq (the M of the state the step started
+ *     from, summed j = 0..6 in order), loaded = bias (+ load (n, 7), a configured load's
+ *     weight, or None); then dq_prev, mass and bias become the new state's;
+ *   - K's frame (point, rotation) from O_T_EE and EE_T_K (n, 16) and the Jacobian at K
+ *     (axes, anchors (n, 7, 3): native/_jacobian.h);
+ *   - sense's rules on them (sense_row), in_motion (n,) bool this cycle's.
+ * constants: (alpha, damping, decimals, acceleration_phase, cycle). */
+enum {
+    S_QM, S_BLOCK, S_QFRC_BIAS, S_PASSIVE, S_PAYLOAD, S_DQ, S_DQ_PREV, S_MASS, S_BIAS,
+    S_O_T_EE, S_EE_T_K, S_AXES, S_ANCHORS, S_POINT, S_ROT, S_JAC, S_TAU_J, S_DDQ_D,
+    S_LIMITS, S_TAU_EXT, S_M_DDQ, S_LOADED, S_TAU, S_WRENCH, S_K_WRENCH, S_JOINT_CONTACT,
+    S_CARTESIAN_CONTACT, S_JOINT_OVER, S_CARTESIAN_OVER, S_ACCELERATING, S_CONSTANTS,
+    S_COUNT
+};
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n, stretch;
+    F64 a[S_COUNT]; /* the float64 arrays, by their S_ index (block, payload,
+                       accelerating and constants unused) */
+    Py_ssize_t block[49];
+    int payload;
+    Bytes accelerating;
+    double alpha, damping, scale, phase_bound, cycle;
+} SensingObject;
+
+static void Sensing_dealloc(SensingObject *self)
+{
+    f64_release_all(self->a, S_COUNT);
+    bytes_release(&self->accelerating);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static const char *const SENSING_NAMES[S_COUNT] = {
+    "qM", "block", "qfrc_bias", "passive", "payload", "dq", "dq_prev", "mass", "bias",
+    "O_T_EE", "EE_T_K", "axes", "anchors", "point", "rotation", "jacobian", "tau_J", "ddq_d",
+    "thresholds", "tau_ext", "m_ddq", "loaded", "tau", "wrench", "k_wrench", "joint_contact",
+    "cartesian_contact", "joint_over", "cartesian_over", "accelerating", "constants"};
+
+static PyObject *Sensing_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "Sensing() takes no keyword arguments");
+        return NULL;
+    }
+    if (check_nargs(PyTuple_GET_SIZE(args), S_COUNT, "Sensing") < 0) return NULL;
+    PyObject *const *v = &PyTuple_GET_ITEM(args, 0);
+    Py_ssize_t n = leading(v[S_QM], "qM");
+    if (n < 0) return NULL;
+    SensingObject *self = (SensingObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->n = n;
+    Py_ssize_t anyL[2] = {n, -1}, s7[2] = {n, 7}, s77[3] = {n, 7, 7}, s16[2] = {n, 16},
+               s73[3] = {n, 7, 3}, s3[2] = {n, 3}, s33[3] = {n, 3, 3}, s67[3] = {n, 6, 7},
+               s6[2] = {n, 6}, sl[3] = {n, 2, THRESHOLDS};
+    /* each float64 array: its shape, writable, float32 accepted (the wire's fields) */
+    struct { int k, ndim; const Py_ssize_t *shape; int writable, any_float; } specs[] = {
+        {S_QM, 2, anyL, 0, 0},         {S_QFRC_BIAS, 2, s7, 0, 0}, {S_PASSIVE, 2, s7, 0, 0},
+        {S_DQ, 2, s7, 0, 0},           {S_DQ_PREV, 2, s7, 1, 0},   {S_MASS, 3, s77, 1, 0},
+        {S_BIAS, 2, s7, 1, 0},         {S_O_T_EE, 2, s16, 0, 1},   {S_EE_T_K, 2, s16, 0, 1},
+        {S_AXES, 3, s73, 0, 0},        {S_ANCHORS, 3, s73, 0, 0},  {S_POINT, 2, s3, 1, 0},
+        {S_ROT, 3, s33, 1, 0},         {S_JAC, 3, s67, 1, 0},      {S_TAU_J, 2, s7, 0, 1},
+        {S_DDQ_D, 2, s7, 0, 1},        {S_LIMITS, 3, sl, 0, 0},    {S_TAU_EXT, 2, s7, 1, 0},
+        {S_M_DDQ, 2, s7, 1, 0},        {S_LOADED, 2, s7, 1, 0},    {S_TAU, 2, s7, 1, 0},
+        {S_WRENCH, 2, s6, 1, 0},       {S_K_WRENCH, 2, s6, 1, 0},  {S_JOINT_CONTACT, 2, s7, 1, 0},
+        {S_CARTESIAN_CONTACT, 2, s6, 1, 0}, {S_JOINT_OVER, 2, s7, 1, 0},
+        {S_CARTESIAN_OVER, 2, s6, 1, 0},
+    };
+    for (size_t k = 0; k < sizeof(specs) / sizeof(specs[0]); k++) {
+        int at = specs[k].k;
+        if (borrow(v[at], &self->a[at], specs[k].ndim, specs[k].shape, specs[k].writable,
+                   SENSING_NAMES[at], specs[k].any_float) < 0)
+            goto fail;
+    }
+    self->stretch = self->a[S_QM].shape[1];
+    self->payload = v[S_PAYLOAD] != Py_None;
+    if (self->payload && f64_get(v[S_PAYLOAD], &self->a[S_PAYLOAD], 2, s7, 0, "payload") < 0)
+        goto fail;
+    Int64s block;
+    if (int64s_get(v[S_BLOCK], &block, 49, 0, "block") < 0) goto fail;
+    for (int k = 0; k < 49; k++) {
+        long long at = INT64_AT(block, k);
+        if (at < 0 || at >= self->stretch) {
+            int64s_release(&block);
+            PyErr_Format(PyExc_ValueError, "block[%d]: %lld is outside qM's %zd columns", k, at,
+                         self->stretch);
+            goto fail;
+        }
+        self->block[k] = (Py_ssize_t)at;
+    }
+    int64s_release(&block);
+    if (bytes_get(v[S_ACCELERATING], &self->accelerating, n, 1, "accelerating") < 0) goto fail;
+    PyObject *c = v[S_CONSTANTS];
+    if (!PyTuple_Check(c) || PyTuple_GET_SIZE(c) != 5) {
+        PyErr_SetString(PyExc_TypeError, "constants: expected a tuple (alpha, damping, "
+                                         "decimals, acceleration_phase, cycle)");
+        goto fail;
+    }
+    if (double_get(PyTuple_GET_ITEM(c, 0), &self->alpha, "alpha") < 0 ||
+        double_get(PyTuple_GET_ITEM(c, 1), &self->damping, "damping") < 0 ||
+        scale_get(PyTuple_GET_ITEM(c, 2), &self->scale) < 0 ||
+        double_get(PyTuple_GET_ITEM(c, 3), &self->phase_bound, "acceleration_phase") < 0 ||
+        double_get(PyTuple_GET_ITEM(c, 4), &self->cycle, "cycle") < 0)
+        goto fail;
+    if (!(self->cycle > 0.0)) {
+        char text[64];
+        snprintf(text, sizeof(text), "cycle: %g is not a positive duration", self->cycle);
+        PyErr_SetString(PyExc_ValueError, text);
+        goto fail;
+    }
+    return (PyObject *)self;
+fail:
+    Py_DECREF(self);
+    return NULL;
+}
+
+static PyObject *Sensing_run(SensingObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 2, "run") < 0) return NULL;
+    Py_ssize_t n = self->n, s7[2] = {n, 7};
+    Bytes in_motion;
+    F64 load;
+    memset(&load, 0, sizeof(load));
+    if (bytes_get(args[0], &in_motion, n, 0, "in_motion") < 0) return NULL;
+    int loaded = args[1] != Py_None;
+    if (loaded && f64_get(args[1], &load, 2, s7, 0, "load") < 0) {
+        bytes_release(&in_motion);
+        return NULL;
+    }
+    F64 *a = self->a;
+    SenseRow r = {&a[S_TAU_EXT], &a[S_TAU_J], &a[S_M_DDQ], &a[S_LOADED], &a[S_JAC], &a[S_ROT],
+                  &a[S_DDQ_D], &in_motion, &a[S_LIMITS], self->alpha, self->damping,
+                  self->scale, self->phase_bound, &a[S_TAU], &a[S_WRENCH], &a[S_K_WRENCH],
+                  &a[S_JOINT_CONTACT], &a[S_CARTESIAN_CONTACT], &a[S_JOINT_OVER],
+                  &a[S_CARTESIAN_OVER], &self->accelerating};
+    long over = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        /* the step that ended: its acceleration against the M and bias it started from */
+        double ddq[7];
+        for (int j = 0; j < 7; j++) {
+            double dq = AT2(a[S_DQ], i, j);
+            ddq[j] = (dq - AT2(a[S_DQ_PREV], i, j)) / self->cycle;
+            AT2(a[S_DQ_PREV], i, j) = dq;
+        }
+        for (int row = 0; row < 7; row++) {
+            double sum = 0.0;
+            for (int j = 0; j < 7; j++) sum += AT3(a[S_MASS], i, row, j) * ddq[j];
+            AT2(a[S_M_DDQ], i, row) = sum;
+            double bias = AT2(a[S_BIAS], i, row);
+            AT2(a[S_LOADED], i, row) = loaded ? bias + AT2(load, i, row) : bias;
+        }
+        /* the new state's model terms, kept for the next cycle */
+        for (int k = 0; k < 49; k++) AT3(a[S_MASS], i, k / 7, k % 7) = AT2(a[S_QM], i, self->block[k]);
+        for (int j = 0; j < 7; j++) {
+            double bias = AT2(a[S_QFRC_BIAS], i, j) - AT2(a[S_PASSIVE], i, j);
+            AT2(a[S_BIAS], i, j) = self->payload ? bias - AT2(a[S_PAYLOAD], i, j) : bias;
+        }
+        k_frame_row(&a[S_O_T_EE], &a[S_EE_T_K], i, &a[S_POINT], &a[S_ROT]);
+        jacobian_row(&a[S_AXES], &a[S_ANCHORS], &a[S_POINT], i, &a[S_JAC]);
+        over += sense_row(&r, i);
+    }
+    bytes_release(&in_motion);
+    f64_release(&load);
+    return PyLong_FromLong(over);
+}
+
+static PyMethodDef SENSING_METHODS[] = {
+    {"run", (PyCFunction)(void (*)(void))Sensing_run, METH_FASTCALL,
+     "run(in_motion, load) -> the robots over an upper threshold: the cycle's sensing."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject SensingType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.fci.contact._contact.Sensing",
+    .tp_basicsize = sizeof(SensingObject),
+    .tp_dealloc = (destructor)Sensing_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Sensing(...): a cycle's model terms, estimate, wrench at K and collision "
+              "levels, planned; run(in_motion, load).",
+    .tp_methods = SENSING_METHODS,
+    .tp_new = Sensing_new,
+};
 
 static PyMethodDef METHODS[] = {
     METHOD(filter_residual, "One step of the estimate's filter, out given."),
@@ -347,4 +572,19 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_contact, "The contact estimate's and the collision levels' rules: their only text (fci/).")
+static struct PyModuleDef _contact_definition = {
+    PyModuleDef_HEAD_INIT, "_contact",
+    "The contact estimate's and the collision levels' rules: their only text (fci/).", -1,
+    METHODS, NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__contact(void)
+{
+    if (PyType_Ready(&SensingType) < 0) return NULL;
+    PyObject *m = kernel_module(&_contact_definition);
+    if (!m) return NULL;
+    if (PyModule_AddObjectRef(m, "Sensing", (PyObject *)&SensingType) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

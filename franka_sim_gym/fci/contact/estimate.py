@@ -25,9 +25,10 @@ velocity a real robot's noisy encoders make unusable; the simulation's velocitie
 carry no sensor noise, so the residual with a first-order filter gives the same
 estimate at a fraction of the cost (docs/robot-state.md, the contact group).
 
-The rules (the filter step, the frame K, the wrench at K, its copy in K's axes, and the
-whole cycle's step with the collision levels, fci/contact/sensing.py) have one text, C:
-``fci/contact/_contact.c`` (issue 38: one text per rule, compiled), :data:`RULES`.
+The rules (the model terms' M ddq, the filter step, the frame K, the wrench at K, its
+copy in K's axes, and the whole cycle's step with the collision levels,
+fci/contact/sensing.py) have one text, C: ``fci/contact/_contact.c`` (issue 38: one
+text per rule, compiled), :data:`RULES`.
 """
 
 from __future__ import annotations
@@ -63,7 +64,13 @@ WRENCH_DAMPING = 1e-8
 
 #: The rules' only text (fci/contact/_contact.c; a required extension: there is no other).
 RULES = native.require(
-    "fci.contact._contact", "filter_residual", "wrench_from_torque", "in_frame", "k_frame", "sense"
+    "fci.contact._contact",
+    "filter_residual",
+    "wrench_from_torque",
+    "in_frame",
+    "k_frame",
+    "sense",
+    "Sensing",
 )
 
 
@@ -92,7 +99,7 @@ def in_frame(wrench: np.ndarray, rotation: np.ndarray, out: np.ndarray | None = 
 
 
 class ExternalTorqueEstimator:
-    """The filtered model residual of n robots (the one state of the estimate).
+    """The filtered model residual of n robots: the estimate's state.
 
     The residual of a cycle pairs the torque the drives applied during its step with the
     model at the state that step started from: MuJoCo's step integrates
@@ -100,12 +107,14 @@ class ExternalTorqueEstimator:
     it measures (``qfrc_actuator``, gravity compensation included) is the one of state k.
     So the estimator keeps the model terms of the last state it saw for the next cycle.
 
-    Call :meth:`update` (or :meth:`model_terms` and :meth:`filter`) once per cycle after
-    physics stepped, with the model terms at the new state; :meth:`reset` where a robot is
-    teleported (a velocity jump is no acceleration).
+    The cycle's arithmetic (ddq, M ddq, the filter step) is fci/contact/_contact.c's
+    ``Sensing``, which fci/contact/sensing.py runs once per cycle after physics stepped
+    on these arrays; :meth:`reset` where a robot is teleported (a velocity jump is no
+    acceleration).
     """
 
     def __init__(self, n: int) -> None:
+        #: the velocity of the state the next step starts from
         self.dq_prev = np.zeros((n, 7))
         #: the filtered estimate, tau_ext_hat_filtered (robot convention: J^T F)
         self.tau_ext = np.zeros((n, 7))
@@ -113,7 +122,6 @@ class ExternalTorqueEstimator:
         #: starts from
         self.mass = np.zeros((n, 7, 7))
         self.bias = np.zeros((n, 7))
-        self._spare_bias = np.zeros((n, 7))
 
     def reset(self, robots, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray) -> None:
         """Forget ``robots``' history: their estimate restarts at zero from the state
@@ -122,50 +130,3 @@ class ExternalTorqueEstimator:
         self.tau_ext[robots] = 0.0
         self.mass[robots] = mass
         self.bias[robots] = bias
-
-    def acceleration(self, dq: np.ndarray) -> np.ndarray:
-        """(n, 7) the measured acceleration of the cycle: ``dq`` (the new velocity)
-        differenced against the last one over the 1 ms cycle; remembers ``dq``."""
-        ddq = (dq - self.dq_prev) / DELTA_T
-        self.dq_prev[...] = dq
-        return ddq
-
-    def model_terms(
-        self, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(M ddq, bias) of the cycle that ended at velocity ``dq``, both at the state its
-        step started from; keeps ``mass`` (n, 7, 7, kept as given: pass an array nothing
-        else writes) and a copy of ``bias`` (n, 7), the new state's, for the next cycle.
-        The returned bias is valid until the next call."""
-        m_ddq = np.matmul(self.mass, self.acceleration(dq)[..., None])[..., 0]
-        bias_k = self.bias
-        self.mass = mass
-        self.bias, self._spare_bias = self._spare_bias, bias_k
-        np.copyto(self.bias, bias)
-        return m_ddq, bias_k
-
-    def filter(
-        self, tau_J: np.ndarray, m_ddq: np.ndarray, bias: np.ndarray, out: np.ndarray
-    ) -> np.ndarray:
-        """One step of the filter on the residual tau_J - (M ddq + bias); the estimate
-        at the published resolution into ``out``."""
-        return RULES.filter_residual(
-            self.tau_ext, tau_J, m_ddq, bias, ALPHA, RESOLUTION_DECIMALS, out
-        )
-
-    def update(
-        self,
-        mass: np.ndarray,
-        bias: np.ndarray,
-        tau_J: np.ndarray,
-        dq: np.ndarray,
-        out: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """One cycle: ``mass`` M(q) (n, 7, 7) and ``bias`` C dq + g at the new state,
-        ``tau_J`` the measured joint torque of the cycle, ``dq`` the new velocity.
-        Returns the filtered estimate (n, 7), at the published resolution (in ``out``
-        where given, e.g. the state's own field)."""
-        if out is None:
-            out = np.empty_like(self.tau_ext)
-        m_ddq, bias_k = self.model_terms(dq, mass, bias)
-        return self.filter(tau_J, m_ddq, bias_k, out)

@@ -24,6 +24,7 @@ from ...sim.arm import ArmPhysics
 from ...sim.dynamics import ArmDynamics, weight_torque
 from ..engine import MotionLimitEngine
 from ..errors import Error
+from ..tables import DELTA_T
 from ..wire.statuses import SetterStatus
 from . import estimate as contact
 from .collision import (
@@ -57,8 +58,7 @@ class ContactSensing:
     ) -> None:
         n = physics.n
         self.physics = physics
-        #: (n, 7) the measured joint torques the estimate reads (the physics', or the
-        #: robot's sensors' under a reality draw: fci/reality/)
+        self._plan = None  # the C plan of a cycle (fci/contact/_contact.c Sensing)
         self.tau_J = physics.tau_J
         self.dynamics = ArmDynamics(physics)
         self.estimator = ExternalTorqueEstimator(n)
@@ -78,7 +78,22 @@ class ContactSensing:
         self.joint_over = np.zeros((n, 7))
         self.cartesian_over = np.zeros((n, 6))
         self.accelerating = np.zeros(n, dtype=np.uint8)
-        self._loaded_bias = np.zeros((n, 7))  # the model's bias plus the load's weight
+        #: this cycle's model terms of the step that ended: M ddq and the bias (plus a
+        #: configured load's weight), and the Jacobian at K
+        self.m_ddq = np.zeros((n, 7))
+        self.loaded_bias = np.zeros((n, 7))
+        self.jacobian = np.zeros((n, 6, 7))
+
+    @property
+    def tau_J(self) -> np.ndarray:
+        """(n, 7) the measured joint torques the estimate reads (the physics', or the
+        robot's sensors' under a reality draw: fci/reality/)."""
+        return self._tau_J
+
+    @tau_J.setter
+    def tau_J(self, tau_J: np.ndarray) -> None:
+        self._tau_J = tau_J
+        self._plan = None
 
     # -- configuration ----------------------------------------------------------------------
 
@@ -136,32 +151,43 @@ class ContactSensing:
 
     def sense(self, in_motion: np.ndarray, load_weight: np.ndarray | None) -> None:
         """Estimate, write the contact group, judge the thresholds (after the state's
-        measured fields are written)."""
-        physics, f = self.physics, self.field
-        # The model at the state the step started from, paired with the torque of that
-        # step (estimate.py, ExternalTorqueEstimator); the load's weight is of that state
-        # too (the controller computes it before the step).
-        dynamics = self.dynamics
-        m_ddq, bias = self.estimator.model_terms(
-            physics.dq, dynamics.mass_matrix(), dynamics.bias()
-        )
-        if load_weight is not None:
-            bias = np.add(bias, load_weight, out=self._loaded_bias)
-        point, rotation = self.k_point, self.k_rotation
-        rules = contact.RULES  # the rules' C text (fci/contact/_contact.c)
-        rules.k_frame(f["O_T_EE"], f["EE_T_K"], point, rotation)
-        jacobian = self.dynamics.jacobian(point)
-        tau, wrench = f["tau_ext_hat_filtered"], f["O_F_ext_hat_K"]
-        # The estimate, the wrench at K and in K's axes, the collision levels: one call.
-        over = rules.sense(
-            self.estimator.tau_ext, self.tau_J, m_ddq, bias, jacobian, rotation,
-            f["ddq_d"], in_motion, self.behavior.thresholds,
-            ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE,
-            tau, wrench, f["K_F_ext_hat_K"], f["joint_contact"], f["cartesian_contact"],
-            self.joint_over, self.cartesian_over, self.accelerating,
+        measured fields are written).
+
+        The model at the state the step started from, paired with the torque of that step
+        (estimate.py, ExternalTorqueEstimator); the load's weight is of that state too (the
+        controller computes it before the step). One C call: the model terms, the
+        estimate, the wrench at K and in K's axes, the collision levels."""
+        plan = self._plan
+        if plan is None:
+            plan = self._plan = self._plan_sensing()
+        if plan.run(in_motion, load_weight):
+            f = self.field
+            self._collide(
+                in_motion & self.engine.live(in_motion),
+                f["tau_ext_hat_filtered"],
+                f["O_F_ext_hat_K"],
+            )
+
+    def _plan_sensing(self):
+        """The C plan of a cycle's sensing (fci/contact/_contact.c Sensing)."""
+        return contact.RULES.Sensing(*self.plan_arrays())
+
+    def plan_arrays(self) -> tuple:
+        """What the C plan of a cycle's sensing holds, in its order: the arrays it reads
+        and writes (MuJoCo's rows of the model terms, the estimator's state, the state
+        writer's fields, this object's scratch and levels) and the constants."""
+        physics, f, est = self.physics, self.field, self.estimator
+        qM, block, qfrc_bias, passive, payload = self.dynamics.model_rows()
+        return (
+            qM, block, qfrc_bias, passive, payload, physics.dq, est.dq_prev, est.mass,
+            est.bias, f["O_T_EE"], f["EE_T_K"], physics.joint_axes, physics.joint_anchors,
+            self.k_point, self.k_rotation, self.jacobian, self.tau_J, f["ddq_d"],
+            self.behavior.thresholds, est.tau_ext, self.m_ddq, self.loaded_bias,
+            f["tau_ext_hat_filtered"], f["O_F_ext_hat_K"], f["K_F_ext_hat_K"],
+            f["joint_contact"], f["cartesian_contact"], self.joint_over, self.cartesian_over,
+            self.accelerating,
+            (ALPHA, WRENCH_DAMPING, RESOLUTION_DECIMALS, ACCELERATION_PHASE, DELTA_T),
         )  # fmt: skip
-        if over:
-            self._collide(in_motion & self.engine.live(in_motion), tau, wrench)
 
     def _collide(self, rows: np.ndarray, tau: np.ndarray, wrench: np.ndarray) -> None:
         """Latch the collision flags of the robots in motion (``rows``) that crossed an

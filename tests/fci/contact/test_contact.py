@@ -10,15 +10,36 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_sim_gym.fci.contact.estimate import (
-    ExternalTorqueEstimator,
-    in_frame,
-    wrench_from_torque,
-)
+from franka_sim_gym.fci.config import ControllerConfig
+from franka_sim_gym.fci.contact.estimate import in_frame, wrench_from_torque
+from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.dynamics import ArmDynamics
 from franka_sim_gym.sim.scene import TABLE
 from tests.sim.test_scene import OVER_THE_TABLE
+
+
+class Sensed:
+    """The robot's contact sensing on ``physics`` stepped by hand: after each step the
+    controller's own measured fields and sensing (fci/contact/sensing.py), as its cycle
+    runs them, and the estimate it publishes."""
+
+    def __init__(self, physics: ArmPhysics) -> None:
+        self.physics = physics
+        self.ctrl = FciController(physics, ControllerConfig())
+        self.reset()
+
+    def reset(self) -> None:
+        """The estimate restarts from the arms' current state (a teleport)."""
+        self.ctrl.contact.reset(np.arange(self.physics.n))
+
+    def step(self, q_ref: np.ndarray, dq_ref: np.ndarray | None) -> np.ndarray:
+        """One physics step, then the cycle's sensing: tau_ext_hat_filtered (n, 7)."""
+        self.physics.step(q_ref, dq_ref)
+        ctrl = self.ctrl
+        ctrl.writer.write_measured(self.physics)
+        ctrl.contact.sense(ctrl.modes.in_motion, None)
+        return ctrl.writer.field["tau_ext_hat_filtered"]
 
 
 def flange_jacobian(physics: ArmPhysics, dyn: ArmDynamics) -> tuple[np.ndarray, np.ndarray]:
@@ -55,14 +76,11 @@ def test_a_wrench_in_the_k_frame_is_rotated_not_moved():
 
 def test_at_rest_in_free_space_the_estimate_is_zero():
     physics = ArmPhysics(1, hand=True)
-    dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
-    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
+    sensed = Sensed(physics)
     q = physics.q.copy()
     worst = 0.0
     for _ in range(1000):
-        physics.step(q, None)
-        worst = max(worst, np.abs(est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J,
-                                             physics.dq)).max())  # fmt: skip
+        worst = max(worst, np.abs(sensed.step(q, None)).max())
     assert worst < 0.05
 
 
@@ -86,16 +104,15 @@ def contact_wrench_on_the_environment(physics: ArmPhysics, point: np.ndarray) ->
 
 def test_in_static_contact_the_estimate_is_the_contact_wrench_within_5_percent():
     physics = ArmPhysics(1, hand=True)
-    dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
+    sensed = Sensed(physics)
     physics.reset_arms([0], OVER_THE_TABLE[None])
-    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
+    sensed.reset()
     target = OVER_THE_TABLE.copy()
     for k in range(3000):
         if k < 2100:
             target[1] += 0.0001  # down onto the table at 0.1 rad/s, then press
-        physics.step(target[None], None)
-        tau = est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J, physics.dq)
-    J, point = flange_jacobian(physics, dyn)
+        tau = sensed.step(target[None], None)
+    J, point = flange_jacobian(physics, ArmDynamics(physics))
     estimate = wrench_from_torque(J, tau)[0]
     truth = contact_wrench_on_the_environment(physics, point[0])
     assert truth[2] < -50.0  # pressing down: the arm pushes the table in -z
@@ -110,8 +127,7 @@ def test_in_free_space_motion_the_estimate_stays_near_zero():
     state that step started from (paired with the next state's, gravity alone moved it
     by up to 0.07 Nm here)."""
     physics = ArmPhysics(1, hand=True)
-    dyn, est = ArmDynamics(physics), ExternalTorqueEstimator(1)
-    est.reset([0], physics.dq, dyn.mass_matrix(), dyn.bias())
+    sensed = Sensed(physics)
     home = physics.q[0].copy()
     amplitude = np.array([0.6, 0.4, 0.5, 0.5, 0.8, 0.5, 1.0])
     worst = fastest = 0.0
@@ -119,8 +135,7 @@ def test_in_free_space_motion_the_estimate_stays_near_zero():
         phase = np.pi * k * 1e-3  # one 2 s period of 1 - cos
         q = home + amplitude * (1.0 - np.cos(phase))
         dq = amplitude * np.pi * np.sin(phase)
-        physics.step(q[None], dq[None])
-        tau = est.update(dyn.mass_matrix(), dyn.bias(), physics.tau_J, physics.dq)
+        tau = sensed.step(q[None], dq[None])
         worst = max(worst, np.abs(tau).max())
         fastest = max(fastest, np.abs(physics.dq).max())
     assert fastest > 3.0  # it did move fast

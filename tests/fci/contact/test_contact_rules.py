@@ -191,3 +191,50 @@ def test_outputs_of_the_wrong_kind_are_refused_by_name(bad):
             np.eye(3)[None].copy(), np.zeros((n, 7)), np.zeros(n, bool), b.thresholds,
             contact.ALPHA, 0.0, DECIMALS, ACCELERATION_PHASE, *out, flags,
         )  # fmt: skip
+
+
+def _plan_arrays():
+    """The arrays and constants of a one-arm controller's sensing plan, as a list."""
+    from franka_sim_gym.fci.config import ControllerConfig
+    from franka_sim_gym.fci.controller import FciController
+    from franka_sim_gym.sim.arm import ArmPhysics
+
+    return list(FciController(ArmPhysics(1), ControllerConfig()).contact.plan_arrays())
+
+
+def _read_only(a):
+    a = a.copy()
+    a.flags.writeable = False
+    return a
+
+
+@pytest.mark.parametrize(
+    ("index", "bad", "error", "text"),
+    [
+        (0, lambda a: a[0], ValueError, "qM"),
+        (1, lambda a: np.where(np.arange(49) == 3, 10**6, a), ValueError, r"block\[3\]"),
+        (1, lambda a: a[:48], ValueError, "block"),
+        (4, lambda a: np.zeros((1, 6)), ValueError, "payload"),
+        (6, _read_only, ValueError, "dq_prev"),
+        (7, lambda a: np.zeros((1, 7, 6)), ValueError, "mass"),
+        (29, lambda a: np.zeros(1), ValueError, "accelerating"),
+        (30, lambda a: a[:4], TypeError, "constants"),
+        (30, lambda a: (*a[:4], 0.0), ValueError, "cycle: 0"),
+    ],
+)
+def test_the_sensing_plan_refuses_bad_arrays_by_name(index, bad, error, text):
+    arrays = _plan_arrays()
+    arrays[index] = bad(arrays[index] if arrays[index] is not None else np.zeros((1, 7)))
+    with pytest.raises(error, match=text):
+        C.Sensing(*arrays)
+
+
+def test_the_sensing_plan_refuses_a_bad_cycle_by_name():
+    plan = C.Sensing(*_plan_arrays())
+    with pytest.raises(ValueError, match="in_motion"):
+        plan.run(np.zeros(2, bool), None)
+    with pytest.raises(ValueError, match="load"):
+        plan.run(np.zeros(1, bool), np.zeros((1, 6)))
+    with pytest.raises(TypeError, match="run"):
+        plan.run(np.zeros(1, bool))
+    assert plan.run(np.zeros(1, bool), None) == 0  # and it still runs
