@@ -46,6 +46,7 @@ class SafetyController:
         self.engine = engine
         #: the measured EE position of the previous cycle (for the EE speed)
         self.ee_prev = np.zeros((physics.n, 3))
+        self._planned = None  # errors 3 and 4 on these arrays, planned at the first check
 
     def remember_ee(self) -> None:
         """Keep the measured EE position before physics steps (the speed's other end)."""
@@ -58,9 +59,11 @@ class SafetyController:
         dq, q, ee = physics.dq, physics.q, self.O_T_EE[:, 12:15]
         # The measured EE speed at F_T_EE: the rule differences the measured O_T_EE
         # position over the 1 ms cycle (equal to J(q) dq to first order).
-        error, bad, count = limits.check_safety(
-            dq, q, ee, self.ee_prev, self.modes.in_motion, table, margin
-        )
+        planned = self._planned
+        if planned is None:
+            planned = self._planned = limits.PlannedSafety(dq, q, ee, self.ee_prev, table, margin)
+        count = planned.run(self.modes.in_motion)
+        error, bad = planned.error, planned.bad
         distance = self.config.self_collision_distance
         close = close_link_pairs(physics, distance)
         if self.modes.n_motion < self.modes.n:

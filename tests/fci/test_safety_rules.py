@@ -13,6 +13,7 @@ import pytest
 from franka_sim_gym.fci.limits import (
     MEASURED_VELOCITY_MARGIN,
     NO_ERROR,
+    PlannedSafety,
     check_safety,
     describe_safety,
 )
@@ -35,6 +36,13 @@ def _judge(dq=Z, q=HOME, v=(0.0, 0.0, 0.0), margin=MEASURED_VELOCITY_MARGIN, tab
     ee_prev = EE - np.asarray(v, dtype=np.float64) * DELTA_T
     args = (as_batch(dq), as_batch(q), EE, ee_prev)
     check = check_safety(*args, np.ones(1, bool), table, margin)
+    # the safety controller's planned call: the same answer on the same arrays
+    planned = PlannedSafety(*args, table, margin)
+    assert planned.run(np.ones(1, bool)) == check.count
+    assert (planned.error.tolist(), planned.bad.tolist()) == (
+        check.error.tolist(),
+        check.bad.tolist(),
+    )
     return int(check.error[0]), describe_safety(0, *args, table, margin)
 
 
@@ -157,3 +165,39 @@ def test_a_nan_position_makes_its_joint_the_one_named():
     error, why = _measured_joint(on(1, 2.0), q=HOME + on(2, math.nan))
     assert (error, why.joint, why.check) == (E3, 2, "envelope + margin")
     assert math.isnan(why.limit)
+
+
+def test_the_planned_check_reads_its_arrays_at_every_run_and_counts_robots_in_motion():
+    dq, q = np.zeros((3, 7)), np.tile(HOME, (3, 1))
+    ee = np.tile(EE, (3, 1))
+    ee_prev = ee.copy()
+    planned = PlannedSafety(dq, q, ee, ee_prev, FR3)
+    moving = np.array([True, False, True])
+    assert planned.run(moving) == 0
+    assert planned.error.tolist() == [NO_ERROR] * 3
+    dq[0, 0] = dq[1, 0] = 3.0  # joint 1 past its envelope on robots 0 and 1
+    ee_prev[2] -= (0.0, 0.0, 4.0 * DELTA_T)  # robot 2's EE at 4 m/s
+    assert planned.run(moving) == 2  # robot 1 is not in motion: judged, not counted
+    assert planned.error.tolist() == [E3, E3, E4]
+    assert planned.bad.tolist() == [True, False, True]
+    dq[...] = 0.0
+    ee_prev[...] = ee
+    assert planned.run(moving) == 0 and not planned.bad.any()
+
+
+def test_the_planned_check_refuses_bad_arrays_by_name():
+    from franka_sim_gym.fci.limits.safety import RULES
+
+    dq, q, ee = np.zeros((2, 7)), np.tile(HOME, (2, 1)), np.zeros((2, 3))
+    constants, positional = FR3.joint_constants
+    head = (dq, q, ee, ee.copy(), constants, positional, 0.0, 0.1, 3.0, DELTA_T)
+    with pytest.raises(ValueError, match="error"):
+        RULES.SafetyPlan(*head, np.zeros(2, np.int32), np.zeros(2, np.uint8))
+    with pytest.raises(ValueError, match="bad"):
+        RULES.SafetyPlan(*head, np.zeros(2, np.int64), np.zeros(2, bool))
+    with pytest.raises(ValueError, match="ee_prev"):
+        RULES.SafetyPlan(*head[:3], np.zeros((2, 2)), *head[4:], np.zeros(2, np.int64),
+                         np.zeros(2, np.uint8))  # fmt: skip
+    plan = RULES.SafetyPlan(*head, np.zeros(2, np.int64), np.zeros(2, np.uint8))
+    with pytest.raises(ValueError, match="in_motion"):
+        plan.run(np.zeros(3, bool))

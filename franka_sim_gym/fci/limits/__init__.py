@@ -57,6 +57,7 @@ from .joint import (
 from .record import NO_ERROR, Violation
 from .safety import (
     MEASURED_VELOCITY_MARGIN,
+    PlannedSafety,
     SafetyCheck,
     check_safety,
     describe_safety,
@@ -73,6 +74,7 @@ __all__ = [
     "check_joint_position",
     "check_joint_velocity",
     "check_safety",
+    "PlannedSafety",
     "check_torque",
     "describe_joint_position",
     "describe_joint_velocity",

@@ -1027,6 +1027,78 @@ done:
     return result;
 }
 
+/* SafetyPlan(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt, error,
+ *            bad): safety_rule's arrays held (safety_controller.py, every cycle of a motion),
+ * its outputs written into error (n,) int64 and bad (n,) uint8; run(in_motion) -> count.
+ * The same safety_error as safety_rule and safety_detail: one text of the rule. */
+typedef struct {
+    PyObject_HEAD
+    Safety s;
+    Int64s error;
+    Bytes bad;
+} SafetyPlanObject;
+
+static void SafetyPlan_dealloc(SafetyPlanObject *self)
+{
+    f64_release_all(self->s.a, S_ARRAYS);
+    int64s_release(&self->error);
+    bytes_release(&self->bad);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *SafetyPlan_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "SafetyPlan() takes no keyword arguments");
+        return NULL;
+    }
+    if (check_nargs(PyTuple_GET_SIZE(args), 12, "SafetyPlan") < 0) return NULL;
+    PyObject *const *v = &PyTuple_GET_ITEM(args, 0);
+    SafetyPlanObject *self = (SafetyPlanObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    if (safety_get(v, &self->s) < 0 ||
+        int64s_get(v[10], &self->error, self->s.n, 1, "error") < 0 ||
+        bytes_get(v[11], &self->bad, self->s.n, 1, "bad") < 0) {
+        Py_DECREF(self);
+        return NULL;
+    }
+    return (PyObject *)self;
+}
+
+static PyObject *SafetyPlan_run(SafetyPlanObject *self, PyObject *in_motion)
+{
+    Bytes motion;
+    if (bytes_get(in_motion, &motion, self->s.n, 0, "in_motion") < 0) return NULL;
+    Py_ssize_t count = 0;
+    for (Py_ssize_t i = 0; i < self->s.n; i++) {
+        long long e = safety_error(&self->s, i);
+        int b = e != NO_ERROR && BYTE1(motion, i);
+        INT64_AT(self->error, i) = e;
+        self->bad.data[i * self->bad.stride] = (char)b;
+        count += b;
+    }
+    bytes_release(&motion);
+    return PyLong_FromSsize_t(count);
+}
+
+static PyMethodDef SAFETY_PLAN_METHODS[] = {
+    {"run", (PyCFunction)SafetyPlan_run, METH_O,
+     "run(in_motion) -> the bad robots: errors 3 and 4 into error, bad."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject SafetyPlanType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.fci.limits._joint.SafetyPlan",
+    .tp_basicsize = sizeof(SafetyPlanObject),
+    .tp_dealloc = (destructor)SafetyPlan_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "SafetyPlan(dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, "
+              "dt, error, bad): safety_rule planned; run(in_motion).",
+    .tp_methods = SAFETY_PLAN_METHODS,
+    .tp_new = SafetyPlan_new,
+};
+
 /* safety_detail(i, dq, q, ee, ee_prev, constants, positional, shift, margin, v_max, dt)
  *   -> None | (error, joint, value, upper, lower)
  *
@@ -1458,4 +1530,20 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_joint, "The joint and Cartesian generators', safety controller's and torque interface's rules and the velocity envelope: their only text (fci/limits).")
+static struct PyModuleDef _joint_definition = {
+    PyModuleDef_HEAD_INIT, "_joint",
+    "The joint and Cartesian generators', safety controller's and torque interface's rules "
+    "and the velocity envelope: their only text (fci/limits).",
+    -1, METHODS, NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__joint(void)
+{
+    if (PyType_Ready(&SafetyPlanType) < 0) return NULL;
+    PyObject *m = kernel_module(&_joint_definition);
+    if (!m) return NULL;
+    if (PyModule_AddObjectRef(m, "SafetyPlan", (PyObject *)&SafetyPlanType) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

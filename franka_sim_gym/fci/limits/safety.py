@@ -27,7 +27,7 @@ from .record import Violation
 MEASURED_VELOCITY_MARGIN = 0.1
 
 #: the C text of the rules (a required extension: there is no other)
-RULES = native.require("fci.limits._joint", "safety_rule", "safety_detail")
+RULES = native.require("fci.limits._joint", "safety_rule", "safety_detail", "SafetyPlan")
 
 
 class SafetyCheck(NamedTuple):
@@ -81,6 +81,45 @@ def check_safety(
         JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T, in_motion,
     )  # fmt: skip
     return SafetyCheck(error, bad, count)
+
+
+class PlannedSafety:
+    """:func:`check_safety` on arrays held for every cycle (the safety controller's):
+    :meth:`run` judges them as they are then and writes :attr:`error` and :attr:`bad`.
+
+    Args:
+        dq, q: (n, 7) measured joint velocity and position (read at each run).
+        ee, ee_prev: (n, 3) the measured EE position this cycle and the one before.
+        table: the robot's limits.
+        margin: [rad/s] allowed beyond the envelope on either side.
+    """
+
+    def __init__(
+        self,
+        dq: np.ndarray,
+        q: np.ndarray,
+        ee: np.ndarray,
+        ee_prev: np.ndarray,
+        table: RobotTable,
+        margin: float = MEASURED_VELOCITY_MARGIN,
+    ) -> None:
+        n = len(dq)
+        #: (n,) int64: 4, 3 or -1, as :class:`SafetyCheck`'s error
+        self.error = np.full(n, -1, dtype=np.int64)
+        self._bad = np.zeros(n, dtype=np.uint8)
+        #: (n,) bool: an error, on a robot in motion (a view of the C text's flags)
+        self.bad = self._bad.view(bool)
+        constants, positional = table.joint_constants
+        self._plan = RULES.SafetyPlan(
+            dq, q, ee, ee_prev, constants, positional,
+            JOINT_VELOCITY_LIMIT_TOLERANCE, margin, table.v_trans_max, DELTA_T,
+            self.error, self._bad,
+        )  # fmt: skip
+
+    def run(self, in_motion: np.ndarray) -> int:
+        """Errors 3 and 4 of every robot now (``in_motion`` (n,) bool: whose count);
+        returns how many robots are bad."""
+        return self._plan.run(in_motion)
 
 
 def describe_safety(
