@@ -395,15 +395,9 @@ class FciController(ControllerRequests):
         w = self.writer
         physics = self.physics
         # Idle and under joint generators the desired/commanded pose and elbow
-        # are the measured ones (docs/fci-behaviour.md "RobotState fields": O_T_EE_d / O_T_EE_c).
-        w.O_T_EE_d[...] = w.O_T_EE
-        w.O_T_EE_c[...] = w.O_T_EE
-        w.elbow_d[...] = w.elbow
-        w.elbow_c[...] = w.elbow
-        if m.n_motion == 0:
-            w.q_d[...] = physics.q  # between motions q_d is the measured q
-        elif m.n_motion < self.n:
-            np.copyto(w.q_d, physics.q, where=~m.in_motion[:, None])
+        # are the measured ones (docs/fci-behaviour.md "RobotState fields": O_T_EE_d /
+        # O_T_EE_c); between motions q_d is the measured q.
+        w.copy_for_publish(physics.q, m.in_motion)
         if m.n_cartesian:
             self.cartesian.publish()
         w.publish(self.accounting.success_rate())

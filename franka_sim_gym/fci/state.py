@@ -6,8 +6,8 @@ sends ``states[i].tobytes()`` and the env reads fields out of it.
 All 320 float32 values of the wire state (bytes 8..1287: O_T_EE ... dtheta)
 have a float64 *shadow* (n, 320) in the same order. The controller computes
 into named views of the shadow in place (q_d / dq_d / ddq_d and tau_J_d live
-there), and publishing is one cast-copy of the shadow into the wire bytes:
-the hot path pays one numpy call per field it changes, not one per field.
+there), and publishing is one C call (fci/_publish.c) that casts the shadow into
+the wire bytes: the hot path pays one call per field it changes, not one per field.
 Mode bytes and error arrays are written only when they change.
 docs/robot-state.md lists every field with its source.
 """
@@ -24,6 +24,8 @@ from .wire import ROBOT_STATE_DTYPE, ROBOT_STATE_SIZE
 
 #: the measured joint fields' one text (fci/_measured.c)
 _MEASURED = native.require("fci._measured", "measured")
+#: what publishing a state copies, its one text (fci/_publish.c)
+_PUBLISH = native.require("fci._publish", "Publishing")
 #: dtau_J's backward difference over one cycle, as a factor (1 / dt)
 _RATE = 1.0 / DELTA_T
 
@@ -45,8 +47,6 @@ class StateWriter:
         #: for a mounted Franka Hand; identity on a bare flange
         self.F_T_NE = np.eye(4) if ee_load is None else np.array(ee_load.F_T_NE, dtype=np.float64)
         self.states = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
-        raw = self.states.view(np.uint8).reshape(n, ROBOT_STATE_SIZE)
-        self._wire = raw[:, _FLOAT_BEGIN:_FLOAT_END].view("<f4")
         self.shadow = np.zeros((n, (_FLOAT_END - _FLOAT_BEGIN) // 4))
         views = {}
         for name in ROBOT_STATE_DTYPE.names:
@@ -66,8 +66,6 @@ class StateWriter:
             views[k] for k in ("O_T_EE", "O_T_EE_d", "O_T_EE_c")
         )
         self.elbow, self.elbow_d, self.elbow_c = views["elbow"], views["elbow_d"], views["elbow_c"]
-        self._message_id = self.states["message_id"]
-        self._success_rate = self.states["control_command_success_rate"]
         #: id of the last published state per robot (message ids start at 1: docs/fci-behaviour.md
         #: "The cycle contract" — the first state can be answered like any other)
         self.message_id = np.zeros(n, dtype=np.uint64)
@@ -84,6 +82,13 @@ class StateWriter:
         # libfranka docs fix O_ddP_O at (0, 0, -9.81), and Model::gravity(state)
         # uses it as the gravity vector.
         views["O_ddP_O"][:] = GRAVITY
+        fields = ROBOT_STATE_DTYPE.fields
+        self._publishing = _PUBLISH.Publishing(
+            self.O_T_EE, self.O_T_EE_d, self.O_T_EE_c, self.elbow, self.elbow_d, self.elbow_c,
+            self.q_d, self.shadow, self.states, self.message_id,
+            (ROBOT_STATE_SIZE, _FLOAT_BEGIN, fields["message_id"][1],
+             fields["control_command_success_rate"][1]),
+        )  # fmt: skip
         for i in range(n):
             self.reset_configuration(i)
 
@@ -165,18 +170,21 @@ class StateWriter:
         # taken as +1).
         np.copysign(1.0, q[:, 3], out=self.elbow[:, 1])
 
+    def copy_for_publish(self, q: np.ndarray, in_motion: np.ndarray) -> None:
+        """docs/fci-behaviour.md "RobotState fields": the desired and commanded pose and
+        elbow are the measured ones (a Cartesian generator writes its own after this),
+        and between motions q_d is the measured ``q`` (n, 7) (``in_motion`` (n,) bool:
+        the robots it is not). One C call (fci/_publish.c)."""
+        self._publishing.copies(q, in_motion)
+
     def publish(self, success_rate: np.ndarray | None) -> None:
         """Make state k+1 the published one: new message id, floats cast to the wire.
 
         The history the next command is differenced against stays float64 (docs/fci-behaviour.md: a
         constant-acceleration stream is extrapolated onto its own waypoints exactly); the wire
-        carries it rounded to float32.
+        carries it rounded to float32 (fci/_publish.c, one call).
         """
-        self.message_id += 1
-        self._message_id[...] = self.message_id
-        self._wire[...] = self.shadow
-        if success_rate is not None:
-            self._success_rate[...] = success_rate
+        self._publishing.publish(success_rate)
 
     def write_modes(self, i, motion_generator_mode, controller_mode, robot_mode, errors, reflex):
         """Write one robot's mode bytes and error arrays (they change only at transitions)."""

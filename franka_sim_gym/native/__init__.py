@@ -35,6 +35,7 @@ REQUIRED = (
     "fci._accounting",
     "fci._frames",
     "fci._measured",
+    "fci._publish",
     "fci.limits._joint",
     "fci.contact._contact",
     "sim._ik",
