@@ -11,7 +11,17 @@
  *       arm by arm: the shared model's finger limit set to the arm's (finger_force (n,)
  *       float64, or None) where it differs from the one it holds, then mj_step2 and
  *       mj_step1 of the arm's world -- what n calls of each binding did, without their
- *       per-call cost (about 0.4 us each: 50 us of a 64-arm cycle).
+ *       per-call cost (about 0.4 us each: 50 us of a 64-arm cycle);
+ *   Steps.servo_run(finger_force, q_ref, dq_ref, kp, kd, compensation)
+ *       first the internal joint impedance servo, sim/arm.py ArmPhysics.step's law:
+ *       tau = (q_ref - q) kp + (dq_ref - dq) kd + coriolis (dq_ref None: - kd dq, a
+ *       reference at rest) + compensation (None: none), each arm's into its MjData's
+ *       ctrl rows, then run's steps. (n, 7) each; q, dq (what the servo reads: the true
+ *       joints, or a reality draw's measurement of them), coriolis and the ctrl rows
+ *       (a tuple of n writable 7-float buffers) are the plan's, given by
+ *       Steps.servo(q, dq, coriolis, ctrl) once;
+ *   Steps.torque(q_ref, dq_ref, kp, kd, compensation)
+ *       the servo's torque alone (the arms under another servo then write their own).
  *
  * The same library and the same calls in the same order: the same bits as the bindings'.
  * A MuJoCo error inside a step (mju_error: the bindings raise mujoco.FatalError) is caught
@@ -38,6 +48,10 @@ typedef struct {
     PyObject *keep; /* the models, datas and arrays, alive as long as the plan */
     F64 forcerange, applied;
     Py_ssize_t act; /* -1: no shared finger limit to set */
+    int servo;      /* servo_run's arrays are given */
+    F64 q, dq, coriolis;
+    Py_buffer *ctrl; /* n of them */
+    Py_ssize_t nctrl;
 } StepsObject;
 
 /* The error a step raised, read by run after the jump (one plan runs at a time: the GIL
@@ -51,8 +65,21 @@ static void on_error(const char *message)
     longjmp(error_jump, 1);
 }
 
+static void servo_release(StepsObject *self)
+{
+    f64_release(&self->q);
+    f64_release(&self->dq);
+    f64_release(&self->coriolis);
+    for (Py_ssize_t k = 0; k < self->nctrl; k++) PyBuffer_Release(&self->ctrl[k]);
+    PyMem_Free(self->ctrl);
+    self->ctrl = NULL;
+    self->nctrl = 0;
+    self->servo = 0;
+}
+
 static void Steps_dealloc(StepsObject *self)
 {
+    servo_release(self);
     f64_release(&self->forcerange);
     f64_release(&self->applied);
     PyMem_Free(self->models);
@@ -163,7 +190,110 @@ static PyObject *Steps_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
     return (PyObject *)self;
 }
 
+static PyObject *steps(StepsObject *self, PyObject *finger_force);
+
 static PyObject *Steps_run(StepsObject *self, PyObject *finger_force)
+{
+    return steps(self, finger_force);
+}
+
+/* Steps.servo(q, dq, coriolis, ctrl): servo_run's arrays, held (replacing any before). */
+static PyObject *Steps_servo(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 4, "servo") < 0) return NULL;
+    servo_release(self);
+    Py_ssize_t s7[2] = {self->n, 7};
+    PyObject *ctrl = args[3];
+    if (f64_get(args[0], &self->q, 2, s7, 0, "q") < 0 ||
+        f64_get(args[1], &self->dq, 2, s7, 0, "dq") < 0 ||
+        f64_get(args[2], &self->coriolis, 2, s7, 0, "coriolis") < 0)
+        goto fail;
+    if (!PyTuple_Check(ctrl) || PyTuple_GET_SIZE(ctrl) != self->n) {
+        PyErr_Format(PyExc_TypeError, "ctrl: expected a tuple of %zd buffers", self->n);
+        goto fail;
+    }
+    if (!(self->ctrl = PyMem_Calloc((size_t)self->n + 1, sizeof(Py_buffer)))) {
+        PyErr_NoMemory();
+        goto fail;
+    }
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        Py_buffer *view = &self->ctrl[i];
+        int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE;
+        if (PyObject_GetBuffer(PyTuple_GET_ITEM(ctrl, i), view, flags) < 0) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_ValueError,
+                         "ctrl[%zd]: expected a C-contiguous writable float64 array", i);
+            goto fail;
+        }
+        self->nctrl++;
+        const char *f = view->format;
+        if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
+        if (!f || strcmp(f, "d") != 0 || view->len != 7 * 8) {
+            PyErr_Format(PyExc_ValueError, "ctrl[%zd]: expected 7 float64 values", i);
+            goto fail;
+        }
+    }
+    self->servo = 1;
+    Py_RETURN_NONE;
+fail:
+    servo_release(self);
+    return NULL;
+}
+
+/* The joint servo's torque into every arm's ctrl rows, from args (q_ref, dq_ref, kp, kd,
+ * compensation); 0, or -1 with an exception naming ``name``. */
+static int servo_torque(StepsObject *self, PyObject *const *args, const char *name)
+{
+    if (!self->servo) {
+        PyErr_Format(PyExc_RuntimeError, "%s: no servo arrays (Steps.servo first)", name);
+        return -1;
+    }
+    enum { Q_REF, DQ_REF, KP, KD, COMPENSATION, COUNT };
+    F64 a[COUNT];
+    memset(a, 0, sizeof(a));
+    Py_ssize_t s7[2] = {self->n, 7};
+    int at_rest = args[1] == Py_None, compensated = args[4] != Py_None, status = -1;
+    if (f64_get(args[0], &a[Q_REF], 2, s7, 0, "q_ref") < 0 ||
+        (!at_rest && f64_get(args[1], &a[DQ_REF], 2, s7, 0, "dq_ref") < 0) ||
+        f64_get(args[2], &a[KP], 2, s7, 0, "kp") < 0 ||
+        f64_get(args[3], &a[KD], 2, s7, 0, "kd") < 0 ||
+        (compensated && f64_get(args[4], &a[COMPENSATION], 2, s7, 0, "compensation") < 0))
+        goto done;
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        double *ctrl = (double *)self->ctrl[i].buf;
+        for (int j = 0; j < 7; j++) {
+            /* the order numpy's in-place lines summed in: the same bits */
+            double tau = (AT2(a[Q_REF], i, j) - AT2(self->q, i, j)) * AT2(a[KP], i, j);
+            if (at_rest)
+                tau -= AT2(a[KD], i, j) * AT2(self->dq, i, j);
+            else
+                tau += (AT2(a[DQ_REF], i, j) - AT2(self->dq, i, j)) * AT2(a[KD], i, j);
+            tau += AT2(self->coriolis, i, j);
+            if (compensated) tau += AT2(a[COMPENSATION], i, j);
+            ctrl[j] = tau;
+        }
+    }
+    status = 0;
+done:
+    f64_release_all(a, COUNT);
+    return status;
+}
+
+static PyObject *Steps_torque(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 5, "torque") < 0 || servo_torque(self, args, "torque") < 0)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyObject *Steps_servo_run(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 6, "servo_run") < 0 || servo_torque(self, args + 1, "servo_run") < 0)
+        return NULL;
+    return steps(self, args[0]);
+}
+
+static PyObject *steps(StepsObject *self, PyObject *finger_force)
 {
     F64 force;
     memset(&force, 0, sizeof(force));
@@ -204,6 +334,14 @@ static PyMethodDef STEPS_METHODS[] = {
     {"run", (PyCFunction)Steps_run, METH_O,
      "run(finger_force): every arm's mj_step2 then mj_step1, the shared finger limit set "
      "to the arm's first (finger_force (n,) float64, or None)."},
+    {"servo", (PyCFunction)(void (*)(void))Steps_servo, METH_FASTCALL,
+     "servo(q, dq, coriolis, ctrl): the arrays servo_run's joint servo reads and writes."},
+    {"torque", (PyCFunction)(void (*)(void))Steps_torque, METH_FASTCALL,
+     "torque(q_ref, dq_ref, kp, kd, compensation): the joint servo's torque into every "
+     "arm's ctrl rows (no step)."},
+    {"servo_run", (PyCFunction)(void (*)(void))Steps_servo_run, METH_FASTCALL,
+     "servo_run(finger_force, q_ref, dq_ref, kp, kd, compensation): the joint servo's "
+     "torque into every arm's ctrl rows, then run(finger_force)."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -131,13 +131,17 @@ class ArmPhysics:
         # What the internal servos read of the joints: the true state, or the robot's
         # measurement of it under a reality draw (:meth:`sense_with`).
         self._servo_q, self._servo_dq = self.q, self.dq
+        # every arm's 7 ctrl rows as a contiguous float64 view of its MjData: the C servo
+        # writes them (sim/_stepping.c servo_run)
+        views = self._ctrl.views
+        if views is None or not all(v.flags.c_contiguous and v.shape == (7,) for v in views):
+            raise ValueError("the arm's 7 torque actuators must be adjacent in the model")
         self.kp = np.empty((n_arms, 7))
         self.kd = np.empty((n_arms, 7))
         self.coriolis = np.zeros((n_arms, 7))
         #: (n, 7) the weight torque of a payload nobody configured (zero without one)
         self.payload_weight = np.zeros((n_arms, 7))
         self._tau = np.zeros((n_arms, 7))
-        self._tmp = np.zeros((n_arms, 7))
         self._compensated = np.zeros((n_arms, 7))  # the servo's torque plus compensation
         #: the flange's position (n, 3) and its rotation transposed (n, 3, 3) -- the
         #: column-major wire layout of O_T_EE's block -- refreshed after every step
@@ -206,6 +210,7 @@ class ArmPhysics:
         """The internal servos read ``q``, ``dq`` (n, 7; arrays updated in place: the
         robot's measurements) instead of the true joint state."""
         self._servo_q, self._servo_dq = q, dq
+        self._steps = None  # the C plan reads the servo's arrays
 
     # -- state ---------------------------------------------------------------------------------
 
@@ -375,38 +380,40 @@ class ArmPhysics:
                 cycle instead of :meth:`set_stiffness`'s (the controller's idle hold
                 keeps the gains it was captured with).
         """
-        tau, tmp = self._tau, self._tmp
         kp, kd = (self.kp, self.kd) if gains is None else gains
-        q, dq = self._servo_q, self._servo_dq
-        # The internal joint impedance servo: K (q_ref - q) + D (dq_ref - dq) + Coriolis.
-        np.subtract(q_ref, q, out=tau)
-        tau *= kp
-        if dq_ref is None:
-            np.multiply(kd, dq, out=tmp)
-            tau -= tmp
-        else:
-            np.subtract(dq_ref, dq, out=tmp)
-            tmp *= kd
-            tau += tmp
-        if cartesian is not None:
-            tau = np.where(cartesian.mask[:, None], self._cartesian_servo(cartesian, q_ref), tau)
-        tau += self.coriolis
-        if external is True:
-            tau = tau_external
-        elif external is not None and external is not False:
-            tau = np.where(external[:, None], tau_external, tau)
-        if compensation is not None:
-            tau = np.add(tau, compensation, out=self._compensated)
-        self._ctrl.scatter(tau)
-        if self.truth is not None:
-            self.truth.before_step()
         steps = self._steps
         if steps is None:
             steps = self._steps = self._plan_steps()
+        finger_force = None if self._own_models else self.finger_force
+        if cartesian is None and (external is None or external is False):
+            # The internal joint impedance servo, its torque into every arm's ctrl rows and
+            # the step: one C call (sim/_stepping.c servo_run: the servo's one text)
+            if self.truth is not None:
+                self.truth.before_step()
+            steps.servo_run(finger_force, q_ref, dq_ref, kp, kd, compensation)
+            self._refresh()
+            return
+        # Every arm's joint servo into its ctrl rows (sim/_stepping.c, the law's one
+        # text), then the arms under the Cartesian servo or an external torque their own.
+        steps.torque(q_ref, dq_ref, kp, kd, compensation)
+        tau, own = self._tau, np.zeros(self.n, dtype=bool)
+        if cartesian is not None:
+            np.add(self._cartesian_servo(cartesian, q_ref), self.coriolis, out=tau)
+            own |= cartesian.mask
+        if external is not None and external is not False:
+            under = np.ones(self.n, dtype=bool) if external is True else external
+            tau = np.where(under[:, None], tau_external, tau)  # gravity: the actuators'
+            own |= under
+        if compensation is not None:
+            tau = np.add(tau, compensation, out=self._compensated)
+        arms = np.flatnonzero(own)
+        self._ctrl.scatter(tau[arms], arms)
+        if self.truth is not None:
+            self.truth.before_step()
         # mj_step2 then mj_step1 of every arm's world; on one shared model with a hand its
         # finger limit set to each arm's first (every arm's own model, a reality draw's,
         # holds its own)
-        steps.run(None if self._own_models else self.finger_force)
+        steps.run(finger_force)
         self._refresh()
 
     def _plan_steps(self):
@@ -423,7 +430,7 @@ class ArmPhysics:
                 f"(mj_step2, mj_step1, mju_user_error): found {functions}"
             )
         shared = self.finger_force is not None and not self._own_models
-        return STEPPING.Steps(
+        steps = STEPPING.Steps(
             functions,
             tuple(self.models),
             tuple(self.datas),
@@ -431,6 +438,8 @@ class ArmPhysics:
             self._finger_act if shared else -1,
             self._applied_force if shared else None,
         )
+        steps.servo(self._servo_q, self._servo_dq, self.coriolis, tuple(self._ctrl.views))
+        return steps
 
     def _cartesian_servo(self, target: CartesianTarget, q_ref: np.ndarray) -> np.ndarray:
         """(n, 7) the Cartesian impedance servo's torque (without Coriolis) of every arm."""

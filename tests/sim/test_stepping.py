@@ -68,7 +68,8 @@ def test_the_steps_give_the_bindings_bits():
     for _ in range(20):
         physics.step(q, None)
         # the same cycle through the bindings, arm by arm
-        twin._ctrl.scatter(physics._tau)
+        for a, b in zip(physics.datas, twin.datas, strict=True):
+            b.ctrl[:] = a.ctrl  # the servo's torque of this cycle
         for force, data in zip(twin.finger_force.tolist(), twin.datas, strict=True):
             twin.model.actuator_forcerange[act] = (-force, force)
             mujoco.mj_step2(twin.model, data)
@@ -124,3 +125,61 @@ def test_bad_arguments_are_refused_by_name():
     steps = STEPPING.Steps(FUNCTIONS, (model,), (data,), forcerange, 0, applied)
     with pytest.raises(ValueError, match="finger_force"):
         steps.run(np.zeros(3))
+
+
+@pytest.mark.parametrize("at_rest", [False, True])
+@pytest.mark.parametrize("compensated", [False, True])
+def test_the_joint_servo_writes_its_law_into_every_arms_ctrl_rows(at_rest, compensated):
+    physics = ArmPhysics(n_arms=2)
+    rng = np.random.default_rng(5)
+    for _ in range(3):  # moving, so that dq and the Coriolis terms are not zero
+        physics.step(physics.q + 0.01, None)
+    q, dq, coriolis = physics.q.copy(), physics.dq.copy(), physics.coriolis.copy()
+    q_ref = q + rng.normal(scale=0.01, size=q.shape)
+    dq_ref = None if at_rest else rng.normal(scale=0.1, size=q.shape)
+    kp, kd = rng.uniform(100, 3000, q.shape), rng.uniform(1, 50, q.shape)
+    extra = rng.normal(size=q.shape) if compensated else None
+    physics.step(q_ref, dq_ref, compensation=extra, gains=(kp, kd))
+    tau = (q_ref - q) * kp
+    tau = tau - kd * dq if at_rest else tau + (dq_ref - dq) * kd
+    tau = tau + coriolis
+    if compensated:
+        tau = tau + extra
+    for i, data in enumerate(physics.datas):
+        assert data.ctrl[physics.layout.actuator_ids[i]].tobytes() == tau[i].tobytes()
+
+
+def test_the_servo_needs_its_arrays_and_refuses_bad_ones_by_name():
+    model = _chain()
+    data = mujoco.MjData(model)
+    steps = STEPPING.Steps(FUNCTIONS, (model,), (data,), None, -1, None)
+    seven = np.zeros((1, 7))
+    with pytest.raises(RuntimeError, match="servo first"):
+        steps.servo_run(None, seven, None, seven, seven, None)
+    with pytest.raises(TypeError, match="ctrl: expected a tuple of 1"):
+        steps.servo(seven, seven, seven, (np.zeros(7), np.zeros(7)))
+    with pytest.raises(ValueError, match=r"ctrl\[0\]: expected 7"):
+        steps.servo(seven, seven, seven, (np.zeros(6),))
+    with pytest.raises(ValueError, match="coriolis"):
+        steps.servo(seven, seven, np.zeros((1, 6)), (np.zeros(7),))
+    ctrl = np.zeros(7)
+    steps.servo(seven, seven, seven, (ctrl,))
+    with pytest.raises(ValueError, match="kd"):
+        steps.servo_run(None, seven, None, seven, np.zeros((2, 7)), None)
+    with pytest.raises(ValueError, match="compensation"):
+        steps.servo_run(None, seven, None, seven, seven, np.zeros(7))
+    assert data.time == 0.0  # nothing stepped
+
+
+def test_an_arm_under_external_torque_gets_it_and_the_others_the_joint_servo():
+    physics = ArmPhysics(n_arms=2)
+    physics.step(physics.q + 0.01, None)
+    q, dq, coriolis = physics.q.copy(), physics.dq.copy(), physics.coriolis.copy()
+    q_ref, extra = q + 0.002, np.full((2, 7), 0.25)
+    tau_external = np.arange(14.0).reshape(2, 7)
+    physics.step(q_ref, None, tau_external, np.array([True, False]), compensation=extra)
+    ctrl = [d.ctrl[physics.layout.actuator_ids[i]] for i, d in enumerate(physics.datas)]
+    # arm 0: the commanded torque (gravity is the actuators'), plus the compensation
+    assert ctrl[0].tobytes() == (tau_external[0] + extra[0]).tobytes()
+    joint = (q_ref - q) * physics.kp - physics.kd * dq + coriolis + extra
+    assert ctrl[1].tobytes() == joint[1].tobytes()
