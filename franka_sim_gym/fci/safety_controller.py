@@ -47,22 +47,25 @@ class SafetyController:
         #: the measured EE position of the previous cycle (for the EE speed)
         self.ee_prev = np.zeros((physics.n, 3))
         self._planned = None  # errors 3 and 4 on these arrays, planned at the first check
+        self._ee = O_T_EE[:, 12:15]  # the measured EE position (a view of the pose)
 
     def remember_ee(self) -> None:
         """Keep the measured EE position before physics steps (the speed's other end)."""
-        self.ee_prev[...] = self.O_T_EE[:, 12:15]
+        np.copyto(self.ee_prev, self._ee)
 
     def check(self) -> None:
         """Errors 3, 4 and 2 of the robots in motion (call after the step's state is written)."""
         physics, table = self.physics, self.table
         margin = self.config.measured_velocity_margin
-        dq, q, ee = physics.dq, physics.q, self.O_T_EE[:, 12:15]
+        dq, q, ee = physics.dq, physics.q, self._ee
         # The measured EE speed at F_T_EE: the rule differences the measured O_T_EE
         # position over the 1 ms cycle (equal to J(q) dq to first order).
         planned = self._planned
         if planned is None:
             planned = self._planned = limits.PlannedSafety(dq, q, ee, self.ee_prev, table, margin)
         count = planned.run(self.modes.in_motion)
+        if not count and not physics.any_link_contact():
+            return  # the usual cycle: nothing over a limit, no link near another
         error, bad = planned.error, planned.bad
         distance = self.config.self_collision_distance
         close = close_link_pairs(physics, distance)
