@@ -25,8 +25,12 @@
  *
  * The same library and the same calls in the same order: the same bits as the bindings'.
  * A MuJoCo error inside a step (mju_error: the bindings raise mujoco.FatalError) is caught
- * through MuJoCo's public mju_user_error hook, set for the loop only, and raised as a
- * RuntimeError naming the arm; that arm's MjData is then as MuJoCo left it. */
+ * by a log handler installed with MuJoCo's mju_setLogHandler for the loop only (MuJoCo's
+ * documented way to recover from an error: the handler longjmps back), and raised as a
+ * RuntimeError naming the arm; that arm's MjData is then as MuJoCo left it. Every other
+ * message (warnings, another thread's) goes on to the handler the loop replaced. The
+ * recovery point is the calling thread's own; a step inside a step (a Python callback of
+ * MuJoCo stepping again) is refused. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <setjmp.h>
@@ -36,12 +40,23 @@
 #include "_arrays.h"
 
 typedef void (*StepFn)(const void *model, void *data);
-typedef void (*ErrorFn)(const char *message);
+
+/* MuJoCo 4's mjLogMessage, its leading fields as mjtype.h declares them (the handler only
+ * reads these), and mju_setLogHandler's types. */
+typedef struct {
+    int level; /* mjtLogLevel */
+    int topic;
+    char subject[1024];
+    const char *body;
+} LogMessage;
+typedef void (*LogHandler)(const LogMessage *message);
+typedef LogHandler (*SetLogHandler)(LogHandler handler);
+enum { LOG_ERROR = 3 }; /* mjLOG_ERROR */
 
 typedef struct {
     PyObject_HEAD
     StepFn step2, step1;
-    ErrorFn *user_error; /* MuJoCo's mju_user_error hook (a global of the library) */
+    SetLogHandler set_log_handler; /* MuJoCo's mju_setLogHandler */
     Py_ssize_t n;
     const void **models;
     void **datas;
@@ -54,15 +69,22 @@ typedef struct {
     Py_ssize_t nctrl;
 } StepsObject;
 
-/* The error a step raised, read by run after the jump (one plan runs at a time: the GIL
- * is held throughout). */
-static jmp_buf error_jump;
-static char error_text[512];
+/* The calling thread's recovery point while its loop runs (armed), the error a step
+ * raised, and the handler the loop replaced (set and restored with the GIL held). */
+static __thread jmp_buf error_jump;
+static __thread int armed;
+static __thread char error_text[1536];
+static LogHandler replaced;
 
-static void on_error(const char *message)
+static void on_log(const LogMessage *message)
 {
-    snprintf(error_text, sizeof(error_text), "%s", message ? message : "");
-    longjmp(error_jump, 1);
+    if (armed && message->level == LOG_ERROR) {
+        armed = 0;
+        snprintf(error_text, sizeof(error_text), "%s%s%s", message->subject,
+                 message->body ? "\n" : "", message->body ? message->body : "");
+        longjmp(error_jump, 1);
+    }
+    if (replaced) replaced(message);
 }
 
 static void servo_release(StepsObject *self)
@@ -125,7 +147,7 @@ static PyObject *Steps_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
              *act = PyTuple_GET_ITEM(args, 4), *applied = PyTuple_GET_ITEM(args, 5);
     if (!PyTuple_Check(functions) || PyTuple_GET_SIZE(functions) != 3) {
         PyErr_SetString(PyExc_TypeError,
-                        "functions: expected a tuple (mj_step2, mj_step1, &mju_user_error) "
+                        "functions: expected a tuple (mj_step2, mj_step1, mju_setLogHandler) "
                         "of addresses");
         return NULL;
     }
@@ -159,7 +181,7 @@ static PyObject *Steps_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
     }
     self->step2 = (StepFn)f[0];
     self->step1 = (StepFn)f[1];
-    self->user_error = (ErrorFn *)f[2];
+    self->set_log_handler = (SetLogHandler)f[2];
     for (Py_ssize_t i = 0; i < n; i++) {
         if (!(self->models[i] = struct_address(PyTuple_GET_ITEM(models, i), "MjModel", "models", i)) ||
             !(self->datas[i] = struct_address(PyTuple_GET_ITEM(datas, i), "MjData", "datas", i))) {
@@ -302,17 +324,23 @@ static PyObject *steps(StepsObject *self, PyObject *finger_force)
         Py_ssize_t sn[1] = {self->n};
         if (f64_get(finger_force, &force, 1, sn, 0, "finger_force") < 0) return NULL;
     }
-    ErrorFn previous = *self->user_error;
+    if (armed) {
+        f64_release(&force);
+        PyErr_SetString(PyExc_RuntimeError, "Steps: a step inside a step (from a callback)");
+        return NULL;
+    }
     /* volatile: read after the jump */
     volatile Py_ssize_t i = 0;
     if (setjmp(error_jump)) {
-        *self->user_error = previous;
+        self->set_log_handler(replaced);
+        replaced = NULL;
         f64_release(&force);
         PyErr_Format(PyExc_RuntimeError, "MuJoCo error in arm %zd's step: %s", (Py_ssize_t)i,
                      error_text);
         return NULL;
     }
-    *self->user_error = on_error;
+    replaced = self->set_log_handler(on_log);
+    armed = 1;
     for (; i < self->n; i++) {
         if (limits) {
             double want = AT1(force, i), *held = &AT1(self->applied, 0);
@@ -325,7 +353,9 @@ static PyObject *steps(StepsObject *self, PyObject *finger_force)
         self->step2(self->models[i], self->datas[i]);
         self->step1(self->models[i], self->datas[i]);
     }
-    *self->user_error = previous;
+    armed = 0;
+    self->set_log_handler(replaced);
+    replaced = NULL;
     f64_release(&force);
     Py_RETURN_NONE;
 }

@@ -27,7 +27,7 @@ from .. import native
 from .cartesian_servo import NULLSPACE_STIFFNESS, CartesianTarget, damping_for, impedance_torque
 from .dynamics import jacobian_at, weight_torque
 from .layout import ArmLayout, repeat_layout
-from .libmujoco import function_address, variable_address
+from .libmujoco import function_address
 from .truth import ArmTruth
 from .views import ArmRows, Gathering
 from .world import FINGER_OPEN, HOME_Q, build_world
@@ -422,12 +422,12 @@ class ArmPhysics:
         functions = (
             function_address("mj_step2"),
             function_address("mj_step1"),
-            variable_address("mju_user_error"),
+            function_address("mju_setLogHandler"),
         )
         if not all(functions):
             raise ImportError(
                 "franka_sim_gym needs the libmujoco the mujoco package ships "
-                f"(mj_step2, mj_step1, mju_user_error): found {functions}"
+                f"(mj_step2, mj_step1, mju_setLogHandler): found {functions}"
             )
         shared = self.finger_force is not None and not self._own_models
         steps = STEPPING.Steps(

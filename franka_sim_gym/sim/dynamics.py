@@ -50,7 +50,8 @@ def weight_torque(jacobian: np.ndarray, mass: np.ndarray, gravity: np.ndarray) -
 
 
 class ArmDynamics:
-    """M(q), C(q, dq) dq + g(q) and the Jacobian of n arms, at the current state.
+    """Where M(q) and C(q, dq) dq + g(q) of n arms are read after every step
+    (:meth:`model_rows`, for the contact sensing's C plan), and the Jacobian.
 
     Args:
         physics: the arms (after a step, mj_step1 has left M and the bias forces of
@@ -62,7 +63,6 @@ class ArmDynamics:
         model, lay = physics.model, physics.layout
         datas = physics.datas
         dofs = np.asarray(lay.dof_adr[0])
-        self._bias = np.zeros((physics.n, 7))
         self._payload = lay.payload_body
         self._qfrc_bias = ArmRows([d.qfrc_bias for d in datas], dofs)
         self._passive = ArmRows([d.qfrc_passive for d in datas], dofs)
@@ -83,33 +83,18 @@ class ArmDynamics:
     def model_rows(self) -> tuple:
         """What the model terms are read from after every step, for a C plan of them
         (fci/contact/_contact.c Sensing): the arm's stretch of MuJoCo's sparse inertia
-        (n, L) and where :meth:`mass_matrix`'s 7 x 7 entries sit in it ((49,) int64,
+        (n, L) and where the arm's 7 x 7 entries sit in it ((49,) int64,
         row-major), qfrc_bias and qfrc_passive (n, 7), and the weight of a payload the
-        robot is not told of (n, 7; None without one): :meth:`bias` is the bias minus the
-        passive forces minus that weight."""
+        robot is not told of (n, 7; None without one). M(q) is the block; the bias
+        C dq + g + friction is qfrc_bias minus the passive forces (the model's viscous
+        joint damping, which the robot's model compensates like its real joint friction:
+        left out, it would read as an external torque of 0.1 Nm per rad/s) minus that
+        weight (a payload fixed to the flange without the robot being told is not its
+        model; its inertia stays in M, a small error in fast motions). Their one text is
+        the plan's (fci/contact/_contact.c)."""
         payload = None if self._payload is None else self.physics.payload_weight
         block = np.ascontiguousarray(self._block.reshape(-1), dtype=np.int64)
         return self._qM.out, block, self._qfrc_bias.out, self._passive.out, payload
-
-    def mass_matrix(self) -> np.ndarray:
-        """(n, 7, 7) each arm's own block of MuJoCo's joint-space inertia (armature
-        included), gathered from every arm's MjData after the last step."""
-        return self._qM.out[:, self._block]
-
-    def bias(self) -> np.ndarray:
-        """(n, 7) C(q, dq) dq + g(q) + the joint friction: what the drives must supply
-        besides M ddq.
-
-        The friction is the model's viscous joint damping (models/fr3.xml), which the
-        robot's model compensates like its real joint friction: left out, it would read
-        as an external torque of 0.1 Nm per rad/s. A payload fixed to the flange without
-        the robot being told (``ArmPhysics(payload=...)``) is not in the robot's model:
-        its weight is left out (its inertia stays in M, a small error in fast motions).
-        """
-        bias = np.subtract(self._qfrc_bias.out, self._passive.out, out=self._bias)
-        if self._payload is not None:  # a payload the robot is not told of: not its model
-            bias -= self.physics.payload_weight
-        return bias
 
     def jacobian(self, point: np.ndarray) -> np.ndarray:
         """(n, 6, 7) Jacobian of ``point`` (n, 3, base frame) on each arm's last link."""

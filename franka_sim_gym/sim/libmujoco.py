@@ -15,7 +15,7 @@ from pathlib import Path
 
 import mujoco
 
-__all__ = ["function_address", "library", "variable_address"]
+__all__ = ["function_address", "library"]
 
 
 @functools.cache
@@ -45,13 +45,3 @@ def function_address(name: str) -> int | None:
     except AttributeError:
         return None
     return None if function is None else ctypes.cast(function, ctypes.c_void_p).value
-
-
-def variable_address(name: str) -> int | None:
-    """The address of MuJoCo's global ``name`` (a hook such as ``mju_user_error``, a
-    function pointer); None where it cannot be had."""
-    lib = library()
-    try:
-        return None if lib is None else ctypes.addressof(ctypes.c_void_p.in_dll(lib, name))
-    except ValueError:
-        return None

@@ -7,6 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
+from franka_sim_gym.fci.config import ControllerConfig
+from franka_sim_gym.fci.controller import FciController
 from franka_sim_gym.sim import views
 from franka_sim_gym.sim.arm import ArmPhysics
 from franka_sim_gym.sim.dynamics import ArmDynamics
@@ -59,8 +61,8 @@ def test_gathering_refreshes_every_slice_of_every_robot(as_views, monkeypatch):
 
 
 def test_the_model_terms_are_those_of_the_state_just_reached():
-    """ArmDynamics reads the rows the arms gather after each step: M, the bias forces and
-    the Jacobian of the new state, as read from every arm's own MjData."""
+    """The rows the arms gather after each step (sim/dynamics.py model_rows): M, the bias
+    forces and the Jacobian of the new state, as read from every arm's own MjData."""
     physics = ArmPhysics(n_arms=2)
     dynamics = ArmDynamics(physics)
     q = physics.q.copy()
@@ -69,11 +71,17 @@ def test_the_model_terms_are_those_of_the_state_just_reached():
         physics.step(q, None)
     lay = physics.layout
     dofs = np.asarray(lay.dof_adr[0])
+    # the contact sensing's plan reads them (fci/contact/_contact.c Sensing): restarted
+    # at this state, the estimate's model terms are these
+    sensing = FciController(physics, ControllerConfig()).contact
+    sensing.reset([0, 1])
     for i, d in enumerate(physics.datas):
         full = np.zeros((physics.model.nv, physics.model.nv))
         mujoco.mj_fullM(physics.model, d, full)
-        np.testing.assert_array_equal(dynamics.mass_matrix()[i], full[np.ix_(dofs, dofs)])
-        np.testing.assert_array_equal(dynamics.bias()[i], d.qfrc_bias[dofs] - d.qfrc_passive[dofs])
+        np.testing.assert_array_equal(sensing.estimator.mass[i], full[np.ix_(dofs, dofs)])
+        np.testing.assert_array_equal(
+            sensing.estimator.bias[i], d.qfrc_bias[dofs] - d.qfrc_passive[dofs]
+        )
         joints = physics.model.dof_jntid[dofs]
         axes = dynamics.jacobian(physics.flange_pose()[0])[i, 3:]
         np.testing.assert_array_equal(axes, d.xaxis[joints].T)

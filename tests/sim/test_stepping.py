@@ -16,13 +16,22 @@ import numpy as np
 import pytest
 
 from franka_sim_gym.sim.arm import STEPPING, ArmPhysics
-from franka_sim_gym.sim.libmujoco import function_address, variable_address
+from franka_sim_gym.sim.libmujoco import function_address, library
 
 FUNCTIONS = (
     function_address("mj_step2"),
     function_address("mj_step1"),
-    variable_address("mju_user_error"),
+    function_address("mju_setLogHandler"),
 )
+
+
+def _log_handler() -> int | None:
+    """The address of MuJoCo's installed log handler (read by swapping it out and back)."""
+    swap = library().mju_setLogHandler
+    swap.restype, swap.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+    current = swap(None)
+    swap(current)
+    return current
 
 
 def _squeezing(n: int = 3) -> ArmPhysics:
@@ -44,7 +53,7 @@ def test_each_arm_squeezes_at_its_own_finger_limit_on_one_shared_model():
     alone.step(alone.q.copy(), None)
     physics = _squeezing()
     physics.set_finger_force([0, 1, 2], [10.0, default, 15.0])
-    hook = ctypes.c_void_p.from_address(FUNCTIONS[2]).value
+    hook = _log_handler()
     physics.step(physics.q.copy(), None)
     # The shared model's range is set to each arm's limit before its world steps: the
     # servo, saturated in its first cycle (open to shut asks ~40 N), pushes with exactly
@@ -55,8 +64,8 @@ def test_each_arm_squeezes_at_its_own_finger_limit_on_one_shared_model():
     assert force[1] == _finger_force(alone)[0] < -15.0
     # ... and holds the last arm's when the cycle ends (what forward compares against).
     assert physics.model.actuator_forcerange[physics._finger_act, 1] == 15.0
-    # MuJoCo's error hook is as the cycle found it
-    assert ctypes.c_void_p.from_address(FUNCTIONS[2]).value == hook
+    # MuJoCo's log handler is as the cycle found it
+    assert _log_handler() == hook
 
 
 def test_the_steps_give_the_bindings_bits():
@@ -94,12 +103,12 @@ def test_a_mujoco_error_in_a_step_is_an_exception_naming_the_arm():
     good, bad = _chain(), _chain("8K")
     datas = (mujoco.MjData(good), mujoco.MjData(bad))
     steps = STEPPING.Steps(FUNCTIONS, (good, bad), datas, None, -1, None)
-    hook = ctypes.c_void_p.from_address(FUNCTIONS[2]).value
+    hook = _log_handler()
     with pytest.raises(RuntimeError, match=r"MuJoCo error in arm 1's step: mj_stackAlloc"):
         steps.run(None)
     assert datas[0].time == good.opt.timestep  # the arm before it stepped
-    # MuJoCo's hook is given back (a later error elsewhere must not jump into this call)
-    assert ctypes.c_void_p.from_address(FUNCTIONS[2]).value == hook
+    # MuJoCo's log handler is given back (a later error elsewhere must not jump here)
+    assert _log_handler() == hook
     with pytest.raises(mujoco.FatalError):
         mujoco.mj_step1(bad, datas[1])
 

@@ -384,7 +384,8 @@ done:
  *     weight, or None); then dq_prev, mass and bias become the new state's;
  *   - K's frame (point, rotation) from O_T_EE and EE_T_K (n, 16) and the Jacobian at K
  *     (axes, anchors (n, 7, 3): native/_jacobian.h);
- *   - sense's rules on them (sense_row), in_motion (n,) bool this cycle's.
+ *   - sense's rules on them (sense_row), in_motion (n,) bool this cycle's;
+ * reset(robots) restarts their estimate at the state their arms are at.
  * constants: (alpha, damping, decimals, acceleration_phase, cycle). */
 enum {
     S_QM, S_BLOCK, S_QFRC_BIAS, S_PASSIVE, S_PAYLOAD, S_DQ, S_DQ_PREV, S_MASS, S_BIAS,
@@ -495,6 +496,54 @@ fail:
     return NULL;
 }
 
+/* Robot i's model terms of the state its arm is at: M gathered out of its stretch of the
+ * sparse inertia into mass[i], the bias qfrc_bias - passive (- payload) into bias[i]. */
+static inline void model_terms_row(SensingObject *self, Py_ssize_t i)
+{
+    F64 *a = self->a;
+    for (int k = 0; k < 49; k++) AT3(a[S_MASS], i, k / 7, k % 7) = AT2(a[S_QM], i, self->block[k]);
+    for (int j = 0; j < 7; j++) {
+        double bias = AT2(a[S_QFRC_BIAS], i, j) - AT2(a[S_PASSIVE], i, j);
+        AT2(a[S_BIAS], i, j) = self->payload ? bias - AT2(a[S_PAYLOAD], i, j) : bias;
+    }
+}
+
+/* Sensing.reset(robots): the estimate of ``robots`` ((k,) int64) restarts from zero at the
+ * state their arms are at (a teleport: a velocity jump is no acceleration). */
+static PyObject *Sensing_reset(SensingObject *self, PyObject *robots)
+{
+    Py_buffer view;
+    if (PyObject_GetBuffer(robots, &view, PyBUF_RECORDS_RO) < 0) return NULL;
+    const char *f = view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
+    if (view.ndim != 1 || view.itemsize != 8 || !f || !f[0] || !strchr("qlQL", f[0]) || f[1]) {
+        PyBuffer_Release(&view);
+        PyErr_SetString(PyExc_ValueError, "robots: expected a 1-D int64 array");
+        return NULL;
+    }
+    Py_ssize_t count = view.shape[0], stride = view.strides ? view.strides[0] : 8;
+    for (Py_ssize_t k = 0; k < count; k++) {
+        long long r = *(long long *)((char *)view.buf + k * stride);
+        if (r < 0 || r >= self->n) {
+            PyBuffer_Release(&view);
+            PyErr_Format(PyExc_ValueError, "robots: %lld is not one of the %zd robots", r,
+                         self->n);
+            return NULL;
+        }
+    }
+    F64 *a = self->a;
+    for (Py_ssize_t k = 0; k < count; k++) {
+        Py_ssize_t i = (Py_ssize_t) * (long long *)((char *)view.buf + k * stride);
+        for (int j = 0; j < 7; j++) {
+            AT2(a[S_DQ_PREV], i, j) = AT2(a[S_DQ], i, j);
+            AT2(a[S_TAU_EXT], i, j) = 0.0;
+        }
+        model_terms_row(self, i);
+    }
+    PyBuffer_Release(&view);
+    Py_RETURN_NONE;
+}
+
 static PyObject *Sensing_run(SensingObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     if (check_nargs(nargs, 2, "run") < 0) return NULL;
@@ -530,12 +579,7 @@ static PyObject *Sensing_run(SensingObject *self, PyObject *const *args, Py_ssiz
             double bias = AT2(a[S_BIAS], i, row);
             AT2(a[S_LOADED], i, row) = loaded ? bias + AT2(load, i, row) : bias;
         }
-        /* the new state's model terms, kept for the next cycle */
-        for (int k = 0; k < 49; k++) AT3(a[S_MASS], i, k / 7, k % 7) = AT2(a[S_QM], i, self->block[k]);
-        for (int j = 0; j < 7; j++) {
-            double bias = AT2(a[S_QFRC_BIAS], i, j) - AT2(a[S_PASSIVE], i, j);
-            AT2(a[S_BIAS], i, j) = self->payload ? bias - AT2(a[S_PAYLOAD], i, j) : bias;
-        }
+        model_terms_row(self, i); /* the new state's, kept for the next cycle */
         k_frame_row(&a[S_O_T_EE], &a[S_EE_T_K], i, &a[S_POINT], &a[S_ROT]);
         jacobian_row(&a[S_AXES], &a[S_ANCHORS], &a[S_POINT], i, &a[S_JAC]);
         over += sense_row(&r, i);
@@ -548,6 +592,8 @@ static PyObject *Sensing_run(SensingObject *self, PyObject *const *args, Py_ssiz
 static PyMethodDef SENSING_METHODS[] = {
     {"run", (PyCFunction)(void (*)(void))Sensing_run, METH_FASTCALL,
      "run(in_motion, load) -> the robots over an upper threshold: the cycle's sensing."},
+    {"reset", (PyCFunction)Sensing_reset, METH_O,
+     "reset(robots): their estimate restarts from zero at the state their arms are at."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -107,10 +107,10 @@ class ExternalTorqueEstimator:
     it measures (``qfrc_actuator``, gravity compensation included) is the one of state k.
     So the estimator keeps the model terms of the last state it saw for the next cycle.
 
-    The cycle's arithmetic (ddq, M ddq, the filter step) is fci/contact/_contact.c's
-    ``Sensing``, which fci/contact/sensing.py runs once per cycle after physics stepped
-    on these arrays; :meth:`reset` where a robot is teleported (a velocity jump is no
-    acceleration).
+    The cycle's arithmetic (the model terms, ddq, M ddq, the filter step) is
+    fci/contact/_contact.c's ``Sensing``, which fci/contact/sensing.py runs once per cycle
+    after physics stepped on these arrays; its ``reset`` restarts a teleported robot's
+    estimate (a velocity jump is no acceleration).
     """
 
     def __init__(self, n: int) -> None:
@@ -122,11 +122,3 @@ class ExternalTorqueEstimator:
         #: starts from
         self.mass = np.zeros((n, 7, 7))
         self.bias = np.zeros((n, 7))
-
-    def reset(self, robots, dq: np.ndarray, mass: np.ndarray, bias: np.ndarray) -> None:
-        """Forget ``robots``' history: their estimate restarts at zero from the state
-        with velocity ``dq`` and model terms ``mass``, ``bias`` (rows of ``robots``)."""
-        self.dq_prev[robots] = dq
-        self.tau_ext[robots] = 0.0
-        self.mass[robots] = mass
-        self.bias[robots] = bias

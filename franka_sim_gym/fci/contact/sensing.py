@@ -62,8 +62,6 @@ class ContactSensing:
         self.tau_J = physics.tau_J
         self.dynamics = ArmDynamics(physics)
         self.estimator = ExternalTorqueEstimator(n)
-        every = np.arange(n)
-        self.estimator.reset(every, physics.dq, self.dynamics.mass_matrix(), self.dynamics.bias())
         #: SetCollisionBehavior's thresholds per robot
         self.behavior = CollisionBehavior(n)
         self.engine = engine
@@ -83,6 +81,7 @@ class ContactSensing:
         self.m_ddq = np.zeros((n, 7))
         self.loaded_bias = np.zeros((n, 7))
         self.jacobian = np.zeros((n, 6, 7))
+        self._planned().reset(np.arange(n, dtype=np.int64))  # the estimate starts at rest
 
     @property
     def tau_J(self) -> np.ndarray:
@@ -100,10 +99,8 @@ class ContactSensing:
     def reset(self, robots) -> None:
         """Teleported or reconfigured ``robots``: estimate from zero, flags clear,
         thresholds back to the defaults."""
-        robots = np.atleast_1d(np.asarray(robots, dtype=np.intp))
-        dynamics = self.dynamics
-        mass, bias = dynamics.mass_matrix()[robots], dynamics.bias()[robots]
-        self.estimator.reset(robots, self.physics.dq[robots], mass, bias)
+        robots = np.atleast_1d(np.asarray(robots, dtype=np.int64))
+        self._planned().reset(robots)
         for name in ("tau_ext_hat_filtered", "O_F_ext_hat_K", "K_F_ext_hat_K"):
             self.field[name][robots] = 0.0
         for name in ("joint_contact", "cartesian_contact"):
@@ -157,10 +154,7 @@ class ContactSensing:
         (estimate.py, ExternalTorqueEstimator); the load's weight is of that state too (the
         controller computes it before the step). One C call: the model terms, the
         estimate, the wrench at K and in K's axes, the collision levels."""
-        plan = self._plan
-        if plan is None:
-            plan = self._plan = self._plan_sensing()
-        if plan.run(in_motion, load_weight):
+        if self._planned().run(in_motion, load_weight):
             f = self.field
             self._collide(
                 in_motion & self.engine.live(in_motion),
@@ -168,9 +162,12 @@ class ContactSensing:
                 f["O_F_ext_hat_K"],
             )
 
-    def _plan_sensing(self):
-        """The C plan of a cycle's sensing (fci/contact/_contact.c Sensing)."""
-        return contact.RULES.Sensing(*self.plan_arrays())
+    def _planned(self):
+        """The C plan of a cycle's sensing (fci/contact/_contact.c Sensing), made where
+        the arrays it holds changed."""
+        if self._plan is None:
+            self._plan = contact.RULES.Sensing(*self.plan_arrays())
+        return self._plan
 
     def plan_arrays(self) -> tuple:
         """What the C plan of a cycle's sensing holds, in its order: the arrays it reads

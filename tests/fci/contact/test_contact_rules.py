@@ -238,3 +238,29 @@ def test_the_sensing_plan_refuses_a_bad_cycle_by_name():
     with pytest.raises(TypeError, match="run"):
         plan.run(np.zeros(1, bool))
     assert plan.run(np.zeros(1, bool), None) == 0  # and it still runs
+    with pytest.raises(ValueError, match="robots: 1 is not one of the 1"):
+        plan.reset(np.array([1]))
+    with pytest.raises(ValueError, match="robots: expected"):
+        plan.reset(np.zeros(1, np.int32))
+
+
+def test_a_reset_restarts_the_estimate_at_the_state_the_arm_is_at():
+    from franka_sim_gym.fci.config import ControllerConfig
+    from franka_sim_gym.fci.controller import FciController
+    from franka_sim_gym.sim.arm import ArmPhysics
+
+    physics = ArmPhysics(2)
+    ctrl = FciController(physics, ControllerConfig())
+    sensing, est = ctrl.contact, ctrl.contact.estimator
+    for _ in range(20):  # a push: joint velocities, an estimate off zero
+        physics.step(physics.q + 0.05, None)
+        ctrl.writer.write_measured(physics)
+        sensing.sense(ctrl.modes.in_motion, None)
+    assert np.abs(est.tau_ext).max() > 1e-3 and np.abs(physics.dq).max() > 0.1
+    before = est.tau_ext[1].copy(), est.dq_prev[1].copy()
+    physics.reset_arms([0], physics.q[:1] + 0.1)  # a teleport: robot 0 at rest elsewhere
+    sensing.reset([0])
+    assert est.tau_ext[0].tolist() == [0.0] * 7
+    assert est.dq_prev[0].tolist() == physics.dq[0].tolist() == [0.0] * 7  # no jump
+    np.testing.assert_array_equal(est.tau_ext[1], before[0])  # the other robot untouched
+    np.testing.assert_array_equal(est.dq_prev[1], before[1])
