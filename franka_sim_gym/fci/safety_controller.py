@@ -4,7 +4,8 @@ bound (25), judged every cycle of a motion after physics stepped.
 docs/fci-behaviour.md "joint_velocity_violation (3)", "cartesian_velocity_violation (4)",
 "self_collision_avoidance_violation (2)" and "Enabling the violation" (25). Not in any
 generator's precedence chain: every control mode, 4 outranks 3, 2 is independent of
-both. The rules are ``limits.check_safety`` (3 and 4, one C text) and its
+both. The rules are 3 and 4's one C text, run every cycle through
+``limits.PlannedSafety`` (the same text as ``limits.check_safety``), with
 ``limits.describe_safety`` for the log line; the self-collision distances come from the
 simulation (``sim.self_collision``).
 """
@@ -47,6 +48,7 @@ class SafetyController:
         #: the measured EE position of the previous cycle (for the EE speed)
         self.ee_prev = np.zeros((physics.n, 3))
         self._planned = None  # errors 3 and 4 on these arrays, planned at the first check
+        self._planned_margin = None
         self._ee = O_T_EE[:, 12:15]  # the measured EE position (a view of the pose)
 
     def remember_ee(self) -> None:
@@ -61,8 +63,9 @@ class SafetyController:
         # The measured EE speed at F_T_EE: the rule differences the measured O_T_EE
         # position over the 1 ms cycle (equal to J(q) dq to first order).
         planned = self._planned
-        if planned is None:
+        if planned is None or self._planned_margin != margin:  # the margin is the config's
             planned = self._planned = limits.PlannedSafety(dq, q, ee, self.ee_prev, table, margin)
+            self._planned_margin = margin
         count = planned.run(self.modes.in_motion)
         if not count and not physics.any_link_contact():
             return  # the usual cycle: nothing over a limit, no link near another

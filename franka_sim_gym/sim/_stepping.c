@@ -20,6 +20,9 @@
  *       joints, or a reality draw's measurement of them), coriolis and the ctrl rows
  *       (a tuple of n writable 7-float buffers) are the plan's, given by
  *       Steps.servo(q, dq, coriolis, ctrl) once;
+ *   Steps.limit(i, finger_force)
+ *       the shared model's finger limit set to arm i's alone (before a forward of its
+ *       world);
  *   Steps.torque(q_ref, dq_ref, kp, kd, compensation)
  *       the servo's torque alone (the arms under another servo then write their own).
  *
@@ -214,6 +217,38 @@ static PyObject *Steps_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
 
 static PyObject *steps(StepsObject *self, PyObject *finger_force);
 
+/* The shared model's finger limit set to arm i's (force (n,)), where it differs from the
+ * one it holds (as numpy's !=: a NaN limit is set every time). */
+static inline void apply_limit(StepsObject *self, const F64 *force, Py_ssize_t i)
+{
+    double want = AT1(*force, i), *held = &AT1(self->applied, 0);
+    if (want != *held) {
+        AT2(self->forcerange, self->act, 0) = -want;
+        AT2(self->forcerange, self->act, 1) = want;
+        *held = want;
+    }
+}
+
+/* Steps.limit(i, finger_force): arm i's finger limit on the shared model before anything
+ * else computes arm i's world (a forward after a reset); nothing without a shared one. */
+static PyObject *Steps_limit(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 2, "limit") < 0) return NULL;
+    Py_ssize_t i = PyLong_AsSsize_t(args[0]);
+    if (i == -1 && PyErr_Occurred()) return NULL;
+    if (i < 0 || i >= self->n) {
+        PyErr_Format(PyExc_ValueError, "limit: arm %zd is not one of the %zd arms", i, self->n);
+        return NULL;
+    }
+    if (self->act < 0 || args[1] == Py_None) Py_RETURN_NONE;
+    F64 force;
+    Py_ssize_t sn[1] = {self->n};
+    if (f64_get(args[1], &force, 1, sn, 0, "finger_force") < 0) return NULL;
+    apply_limit(self, &force, i);
+    f64_release(&force);
+    Py_RETURN_NONE;
+}
+
 static PyObject *Steps_run(StepsObject *self, PyObject *finger_force)
 {
     return steps(self, finger_force);
@@ -342,14 +377,7 @@ static PyObject *steps(StepsObject *self, PyObject *finger_force)
     replaced = self->set_log_handler(on_log);
     armed = 1;
     for (; i < self->n; i++) {
-        if (limits) {
-            double want = AT1(force, i), *held = &AT1(self->applied, 0);
-            if (want != *held) { /* as numpy's != : a NaN limit is set every time */
-                AT2(self->forcerange, self->act, 0) = -want;
-                AT2(self->forcerange, self->act, 1) = want;
-                *held = want;
-            }
-        }
+        if (limits) apply_limit(self, &force, i);
         self->step2(self->models[i], self->datas[i]);
         self->step1(self->models[i], self->datas[i]);
     }
@@ -364,6 +392,8 @@ static PyMethodDef STEPS_METHODS[] = {
     {"run", (PyCFunction)Steps_run, METH_O,
      "run(finger_force): every arm's mj_step2 then mj_step1, the shared finger limit set "
      "to the arm's first (finger_force (n,) float64, or None)."},
+    {"limit", (PyCFunction)(void (*)(void))Steps_limit, METH_FASTCALL,
+     "limit(i, finger_force): the shared model's finger limit set to arm i's."},
     {"servo", (PyCFunction)(void (*)(void))Steps_servo, METH_FASTCALL,
      "servo(q, dq, coriolis, ctrl): the arrays servo_run's joint servo reads and writes."},
     {"torque", (PyCFunction)(void (*)(void))Steps_torque, METH_FASTCALL,

@@ -32,13 +32,14 @@ from .truth import ArmTruth
 from .views import ArmRows, Gathering
 from .world import FINGER_OPEN, HOME_Q, build_world
 
+#: The joint servo and a cycle's physics of every arm, one C call (sim/_stepping.c: their
+#: one text).
+STEPPING = native.require("sim._stepping", "Steps")
+
 #: Default stiffness [Nm/rad] of the internal joint servo: the joint impedance
 #: libfranka's examples set (setJointImpedance({{3000, 3000, 3000, 2500, 2500,
 #: 2000, 2000}}), e.g. examples/joint_impedance_control.cpp callers); the
 #: robot's own factory value is not published.
-#: A cycle's physics of every arm, one C call (sim/_stepping.c: its one text).
-STEPPING = native.require("sim._stepping", "Steps")
-
 DEFAULT_STIFFNESS = (3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 
 
@@ -266,12 +267,11 @@ class ArmPhysics:
         self.models[i].actuator_forcerange[self._finger_act] = (-force, force)
 
     def _apply_finger_force(self, i: int) -> None:
-        """The shared model's finger force range set to arm i's (only when it differs)."""
-        if self._own_models:
+        """The shared model's finger force range set to arm i's (only when it differs:
+        sim/_stepping.c, the rule's one text)."""
+        if self._own_models or self.finger_force is None:
             return
-        if self.finger_force is not None and self.finger_force[i] != self._applied_force[0]:
-            force = self._applied_force[0] = float(self.finger_force[i])
-            self.model.actuator_forcerange[self._finger_act] = (-force, force)
+        self._planned_steps().limit(i, self.finger_force)
 
     def gather_also(self, *rows: ArmRows) -> None:
         """Refresh ``rows`` (slices of these arms' MjData, e.g. sim/dynamics.py's model
@@ -365,8 +365,9 @@ class ArmPhysics:
         """Advance the world by one 1 ms cycle.
 
         Args:
-            q_ref, dq_ref: (n, 7) joint reference of the internal joint impedance
-                servo; ``dq_ref=None`` holds at rest (zero reference velocity).
+            q_ref, dq_ref: (n, 7) float64 joint reference of the internal joint impedance
+                servo; ``dq_ref=None`` holds at rest (zero reference velocity). Every
+                array here is (n, 7) float64 (the servo's C text takes no broadcast).
             tau_external: (n, 7) commanded torque *without gravity*, applied where
                 ``external`` says; gravity is added by the actuators.
             external: None or False (no arm under external torque), True (every
@@ -381,10 +382,11 @@ class ArmPhysics:
                 keeps the gains it was captured with).
         """
         kp, kd = (self.kp, self.kd) if gains is None else gains
-        steps = self._steps
-        if steps is None:
-            steps = self._steps = self._plan_steps()
+        steps = self._planned_steps()
         finger_force = None if self._own_models else self.finger_force
+        if external is not None and external is not True and external is not False:
+            if not np.count_nonzero(external):
+                external = None  # a mask of no arm: no arm under external torque
         if cartesian is None and (external is None or external is False):
             # The internal joint impedance servo, its torque into every arm's ctrl rows and
             # the step: one C call (sim/_stepping.c servo_run: the servo's one text)
@@ -415,6 +417,12 @@ class ArmPhysics:
         # holds its own)
         steps.run(finger_force)
         self._refresh()
+
+    def _planned_steps(self):
+        """The C plan of a cycle's physics, made where what it holds changed."""
+        if self._steps is None:
+            self._steps = self._plan_steps()
+        return self._steps
 
     def _plan_steps(self):
         """The C plan of a cycle's physics (sim/_stepping.c) over :attr:`models` and

@@ -192,3 +192,15 @@ def test_an_arm_under_external_torque_gets_it_and_the_others_the_joint_servo():
     assert ctrl[0].tobytes() == (tau_external[0] + extra[0]).tobytes()
     joint = (q_ref - q) * physics.kp - physics.kd * dq + coriolis + extra
     assert ctrl[1].tobytes() == joint[1].tobytes()
+
+
+def test_a_forward_of_one_arms_world_sets_the_shared_finger_limit_to_that_arms():
+    physics = _squeezing(2)
+    physics.set_finger_force([0, 1], [12.0, 33.0])
+    act = physics._finger_act
+    physics.forward([1])
+    np.testing.assert_array_equal(physics.model.actuator_forcerange[act], [-33.0, 33.0])
+    physics.forward([0])
+    np.testing.assert_array_equal(physics.model.actuator_forcerange[act], [-12.0, 12.0])
+    with pytest.raises(ValueError, match="arm 2 is not one of the 2"):
+        physics._planned_steps().limit(2, physics.finger_force)
