@@ -9,6 +9,12 @@
  *       (states), the (n,) uint64 ids of the last published states (message_id) and the
  *       wire layout: (size, floats, id, success) -- a state's bytes, the first float's
  *       offset, the message id's and the success rate's;
+ *   Publishing.pose(position, rotation, q)
+ *       the measured pose and elbow: O_T_EE's translation from position (n, 3) and its
+ *       rotation block (row r, column c of the wire's column-major 4 x 4 read as
+ *       row-major) from rotation (n, 3, 3), the flange's rotation transposed (the bases
+ *       at their worlds' origins); elbow = (q_3, the sign of q_4, sign(0) taken as +1 as
+ *       copysign does: docs/fci-behaviour.md "RobotState fields") from q (n, 7);
  *   Publishing.copies(q, in_motion)
  *       docs/fci-behaviour.md "RobotState fields": O_T_EE_d = O_T_EE_c = O_T_EE and
  *       elbow_d = elbow_c = elbow for every robot (a Cartesian generator then writes its
@@ -22,6 +28,7 @@
  * numpy's "<f4" view did). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -67,7 +74,7 @@ static PyObject *Publishing_new(PyTypeObject *type, PyObject *args, PyObject *kw
     Py_ssize_t s16[2] = {n, 16}, s2[2] = {n, 2}, s7[2] = {n, 7}, sf[2] = {n, -1};
     const Py_ssize_t *shapes[P_F64] = {s16, s16, s16, s2, s2, s2, s7, sf};
     for (int k = 0; k < P_F64; k++) {
-        int writable = k != P_POSE && k != P_ELBOW && k != P_SHADOW;
+        int writable = k != P_SHADOW;
         if (f64_get(v[k], &self->a[k], 2, shapes[k], writable, NAMES[k]) < 0) goto fail;
     }
     self->floats = self->a[P_SHADOW].shape[1];
@@ -113,6 +120,37 @@ static PyObject *Publishing_new(PyTypeObject *type, PyObject *args, PyObject *kw
 fail:
     Py_DECREF(self);
     return NULL;
+}
+
+static PyObject *Publishing_pose(PublishingObject *self, PyObject *const *args,
+                                 Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 3, "pose") < 0) return NULL;
+    Py_ssize_t n = self->n, s3[2] = {n, 3}, s33[3] = {n, 3, 3}, s7[2] = {n, 7};
+    F64 position, rotation, q;
+    memset(&position, 0, sizeof(position));
+    memset(&rotation, 0, sizeof(rotation));
+    memset(&q, 0, sizeof(q));
+    PyObject *result = NULL;
+    if (f64_get(args[0], &position, 2, s3, 0, "position") < 0 ||
+        f64_get(args[1], &rotation, 3, s33, 0, "rotation") < 0 ||
+        f64_get(args[2], &q, 2, s7, 0, "q") < 0)
+        goto done;
+    F64 *a = self->a;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        for (int r = 0; r < 3; r++) {
+            AT2(a[P_POSE], i, 12 + r) = AT2(position, i, r);
+            for (int c = 0; c < 3; c++) AT2(a[P_POSE], i, 4 * r + c) = AT3(rotation, i, r, c);
+        }
+        AT2(a[P_ELBOW], i, 0) = AT2(q, i, 2);
+        AT2(a[P_ELBOW], i, 1) = copysign(1.0, AT2(q, i, 3));
+    }
+    result = Py_NewRef(Py_None);
+done:
+    f64_release(&position);
+    f64_release(&rotation);
+    f64_release(&q);
+    return result;
 }
 
 static PyObject *Publishing_copies(PublishingObject *self, PyObject *const *args,
@@ -178,6 +216,8 @@ static PyObject *Publishing_publish(PublishingObject *self, PyObject *success_ra
 }
 
 static PyMethodDef PUBLISHING_METHODS[] = {
+    {"pose", (PyCFunction)(void (*)(void))Publishing_pose, METH_FASTCALL,
+     "pose(position, rotation, q): the measured O_T_EE and elbow."},
     {"copies", (PyCFunction)(void (*)(void))Publishing_copies, METH_FASTCALL,
      "copies(q, in_motion): the desired and commanded pose and elbow, q_d between motions."},
     {"publish", (PyCFunction)Publishing_publish, METH_O,

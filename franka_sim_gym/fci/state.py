@@ -30,9 +30,6 @@ _PUBLISH = native.require("fci._publish", "Publishing")
 _RATE = 1.0 / DELTA_T
 
 _FLOAT_BEGIN, _FLOAT_END = 8, 1288  # docs/wire-protocol.md §7: O_T_EE ... dtheta, all float32
-#: column-major wire index <- row-major xmat index, for the rotation block
-_ROT_WIRE = np.array([0, 1, 2, 4, 5, 6, 8, 9, 10])
-_ROT_XMAT = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
 
 
 class StateWriter:
@@ -73,10 +70,6 @@ class StateWriter:
         self.F_T_EE = np.tile(np.eye(4), (n, 1, 1))
         self._custom_ee = np.zeros(n, dtype=bool)
         self.any_custom_ee = False
-        # O_T_EE's position and rotation block as views (column-major: the block is R^T).
-        self._O_T_EE_position = self.O_T_EE[:, 12:15]
-        self._O_T_EE_rotation = self.O_T_EE.reshape(n, 4, 4)[:, :3, :3]
-        assert np.shares_memory(self._O_T_EE_rotation, self.shadow)
         # O_T_EE's constant entries (bottom row 0 0 0 1 in column-major).
         self.O_T_EE[:, 15] = 1.0
         # libfranka docs fix O_ddP_O at (0, 0, -9.81), and Model::gravity(state)
@@ -154,21 +147,14 @@ class StateWriter:
 
     def write_pose(self, physics: ArmPhysics, q: np.ndarray) -> None:
         """O_T_EE from the physics' flange (and F_T_EE), the elbow from the joints ``q``."""
-        pose = self.O_T_EE
-        views = physics.flange_views
-        if views is not None:  # straight from MjData's arrays, no gathers
-            self._O_T_EE_position[...] = views[0]  # bases at their worlds' origins
-            self._O_T_EE_rotation[...] = views[1]
-        else:
-            pos, xmat = physics.flange_pose_raw()
-            pose[:, _ROT_WIRE] = xmat[:, _ROT_XMAT]
-            pose[:, 12:15] = pos
+        # Straight from MjData's arrays (the flange's position and rotation transposed:
+        # bases at their worlds' origins), the elbow (q_3, the sign of q_4: docs/
+        # fci-behaviour.md "RobotState fields"), one C call (fci/_publish.c).
+        position, rotation = physics.flange_views
+        self._publishing.pose(position, rotation, q)
         if self.any_custom_ee:
+            pose = self.O_T_EE
             pose[...] = frames.to_wire(frames.from_wire(pose) @ self.F_T_EE)
-        self.elbow[:, 0] = q[:, 2]
-        # docs/fci-behaviour.md "RobotState fields": the elbow flag is the sign of joint 4 (sign(0)
-        # taken as +1).
-        np.copysign(1.0, q[:, 3], out=self.elbow[:, 1])
 
     def copy_for_publish(self, q: np.ndarray, in_motion: np.ndarray) -> None:
         """docs/fci-behaviour.md "RobotState fields": the desired and commanded pose and

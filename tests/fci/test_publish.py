@@ -103,3 +103,21 @@ def test_bad_arrays_are_refused_by_name():
     with pytest.raises(ValueError, match="success_rate"):
         plan.publish(np.zeros(3))
     assert w.states["message_id"].tolist() == [0, 0]  # nothing was published
+
+
+def test_the_measured_pose_is_the_flanges_and_the_elbow_joint_3_and_the_sign_of_joint_4():
+    writer = StateWriter(3)
+    rng = np.random.default_rng(11)
+    position = rng.normal(size=(3, 3))
+    rotation = rng.normal(size=(3, 3, 3))
+    q = rng.normal(size=(3, 7))
+    q[:, 3] = [0.0, -0.0, -2.1]  # sign(0) is +1, a negative zero's -1 (copysign)
+    writer._publishing.pose(position, rotation, q)
+    pose = writer.O_T_EE.reshape(3, 4, 4)  # the column-major wire read row-major: R^T
+    np.testing.assert_array_equal(pose[:, 3, :3], position)
+    np.testing.assert_array_equal(pose[:, :3, :3], rotation)
+    np.testing.assert_array_equal(pose[:, 3, 3], 1.0)  # the constant entry untouched
+    np.testing.assert_array_equal(writer.elbow[:, 0], q[:, 2])
+    assert writer.elbow[:, 1].tolist() == [1.0, -1.0, -1.0]
+    with pytest.raises(ValueError, match="rotation"):
+        writer._publishing.pose(position, rotation[:, :2], q)
