@@ -464,12 +464,7 @@ class ArmPhysics:
 
     # -- kinematics ----------------------------------------------------------------------------
 
-    def flange_pose_raw(self) -> tuple[np.ndarray, np.ndarray]:
-        """Flange (link8) position (n, 3) in each arm's base frame, and its rotation as
-        MuJoCo's row-major (n, 9) xmat (arm bases are not rotated)."""
-        return self._flange_pos.out.copy(), self._flange_mat.out.copy()
-
     def flange_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Flange (link8) position (n, 3) and rotation (n, 3, 3) in each arm's base frame."""
-        pos, xmat = self.flange_pose_raw()
-        return pos, xmat.reshape(self.n, 3, 3)
+        """Flange (link8) position (n, 3) and rotation (n, 3, 3) in each arm's base frame
+        (copies; arm bases are not rotated)."""
+        return self._flange_pos.out.copy(), self._flange_mat.out.reshape(self.n, 3, 3).copy()
