@@ -13,7 +13,8 @@ normalisation, when rl-zoo3 saved one beside the model, is applied; an ensemble 
 ``train_bc.py --ensemble K``, listed in train_config.json, loads as one policy acting on
 its members' combined action (their mean, or ``--combine upward``'s rule), acting in
 the object's line frame when train_bc.py was given ``--features line``, behind the
-elbow governor when train_bc.py was given ``--elbow-governor``; a run of
+elbow governor when train_bc.py was given ``--elbow-governor``, holding still at the
+goal when it was given ``--goal-hold``; a run of
 ``train_sb3.py --imitation`` with the imitation policy it names). ``--model`` takes a
 model.zip or its run folder. Reports the success rate,
 the reflex terminations by the robot's error name, and the link's
@@ -109,6 +110,11 @@ def load_model(
         from franka_sim_gym.training.governor import ElbowGovernor
 
         model = ElbowGovernor(model)
+    goal_hold = config.get("goal_hold")  # train_bc.py --goal-hold's
+    if goal_hold is not None:
+        from franka_sim_gym.training.goal_hold import GoalHold
+
+        model = GoalHold(model, **goal_hold)
     if imitation is not None:
         model.imitation, _ = load_model(Path(imitation))
     return model, {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs}

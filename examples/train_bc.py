@@ -33,6 +33,10 @@ saved in train_config.json as ``combine``).
 ``--elbow-governor`` (Cartesian-velocity ids) caps the policy's velocity toward the base
 as joint 4 nears its stop (franka_sim_gym.training.governor; saved as ``governor``).
 
+``--goal-hold RADIUS`` (Cartesian-velocity ids) holds the hand still while the object is
+within RADIUS metres of its goal (franka_sim_gym.training.goal_hold; saved as
+``goal_hold``): the policy's velocity zeroed, its width kept.
+
 ``--curve EVERY`` also evaluates the policy after every EVERY fitting steps (each member
 at that step; the same 100 episodes) and writes the learning curve to curve.csv in
 --out: fitting steps, the fitting's wall time to that step (all members), the success
@@ -62,6 +66,7 @@ import argparse
 import copy
 import csv
 import json
+import math
 import time
 from pathlib import Path
 
@@ -101,6 +106,14 @@ def main() -> None:
         action="store_true",
         help="(Cartesian velocity) cap the policy's velocity toward the base as joint 4 "
         "nears its stop (franka_sim_gym.training.governor)",
+    )
+    parser.add_argument(
+        "--goal-hold",
+        type=float,
+        default=None,
+        metavar="RADIUS",
+        help="(Cartesian velocity) hold the hand still while the object is within RADIUS "
+        "metres of its goal (franka_sim_gym.training.goal_hold)",
     )
     parser.add_argument("--threads", type=int, default=1, help="torch threads")
     parser.add_argument(
@@ -152,6 +165,7 @@ def main() -> None:
     import franka_sim_gym  # noqa: F401  (registers the ids)
     from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
+    from franka_sim_gym.training.goal_hold import GoalHold
     from franka_sim_gym.training.governor import ElbowGovernor
     from franka_sim_gym.training.line_frame import LineFrame, line_observations, to_line_frame
     from franka_sim_gym.training.sb3_demos import (
@@ -170,6 +184,7 @@ def main() -> None:
     for flag, used in (
         ("--combine upward", args.combine == "upward"),
         ("--elbow-governor", args.elbow_governor),
+        ("--goal-hold", args.goal_hold is not None),
         ("--features line", args.features == "line"),
     ):
         if used and interface != "cartesian_velocity":
@@ -177,6 +192,13 @@ def main() -> None:
                 f"{flag} acts on a Cartesian velocity's entries: {spec.id} has "
                 f"action_interface {interface!r}"
             )
+    goal_hold = None
+    if args.goal_hold is not None:
+        if not (math.isfinite(args.goal_hold) and args.goal_hold > 0):
+            parser.error(f"--goal-hold {args.goal_hold}: a radius is a positive distance [m]")
+        # the velocity entries the hold zeroes: the env's cartesian_dof (FrankaFCIEnv's 6)
+        dims = int(spec.kwargs.get("cartesian_dof", 6))
+        goal_hold = {"radius": args.goal_hold, "velocity_dims": dims}
     # DAgger's labeller, its rounds' datasets and their episode seeds, all checked now
     # (before minutes of fitting): the task's solver, ids that do not exist yet, seeds
     # short of the evaluation's
@@ -282,7 +304,8 @@ def main() -> None:
         policy = models[0] if len(models) == 1 else Ensemble(models, args.combine)
         policy = policy if normalize is None else NormalizedPolicy(policy, venv)
         policy = LineFrame(policy) if features == "line" else policy
-        return ElbowGovernor(policy) if args.elbow_governor else policy
+        policy = ElbowGovernor(policy) if args.elbow_governor else policy
+        return policy if goal_hold is None else GoalHold(policy, **goal_hold)
 
     def evaluated(policy) -> dict:
         return evaluate(policy, spec.id, env_kwargs, args.eval_episodes, seed=EVALUATION_SEED)
@@ -365,6 +388,8 @@ def main() -> None:
         config["frame"] = "line"
     if args.elbow_governor:
         config["governor"] = "elbow"
+    if goal_hold is not None:
+        config["goal_hold"] = goal_hold
     (args.out / "train_config.json").write_text(json.dumps(config, indent=2))
     for table, rows in (("curve.csv", curve if args.curve else []), ("dagger.csv", rounds)):
         if rows:

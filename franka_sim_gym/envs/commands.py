@@ -13,7 +13,15 @@ the robot. Filters (``action_filter``):
   default) against the state's reference;
 * ``"limit_rate"`` — the low-pass followed by libfranka's rate limiter
   (Robot::control with ``limit_rate = true``), which keeps every command inside
-  the robot's velocity, acceleration and jerk limits.
+  the robot's velocity, acceleration and jerk limits;
+* ``"interpolate_limit_rate"`` — the interpolation's per-cycle target, then the
+  low-pass and the rate limiter as ``"limit_rate"``: a robot programmer's first-order
+  hold between policy outputs in front of libfranka's filters. The limiter alone meets
+  a step of the target with its whole jerk (a change of dv is crossed at an
+  acceleration near ``sqrt(dv * jerk)``: 0.6 m/s^2 for 2 mm/s at 200 m/s^3); the hold
+  spreads it over the step (``dv / step``: 0.05 m/s^2 for 2 mm/s at 25 Hz), which is
+  what an arm near a singularity needs (docs/demonstrations.md, "The hold"), and the
+  limiter still bounds whatever the hold asks.
 
 ``"joint_position_async"`` is libfranka's asynchronous joint-position control
 (pylibfranka's ``AsyncPositionControlHandler``): the action's target is sent as is,
@@ -74,7 +82,11 @@ CARTESIAN = ("cartesian_pose", "cartesian_velocity")
 #: 1/dt^3, up to ~120 rad/s^3. libfranka's 1e-3 margins cannot absorb that
 #: (a comparison at the very threshold can go either way); our client keeps ~6 % inside.
 LIMITER_MARGIN = {"ddq": 0.3, "dddq": 300.0, "dq": 0.01, "dtau": 2.0}
-FILTERS = ("none", "interpolate", "lowpass", "limit_rate")
+FILTERS = ("none", "interpolate", "lowpass", "limit_rate", "interpolate_limit_rate")
+#: The filters that interpolate the step's target across its cycles.
+INTERPOLATING = ("interpolate", "interpolate_limit_rate")
+#: The filters that end in libfranka's rate limiter.
+RATE_LIMITED = ("limit_rate", "interpolate_limit_rate")
 
 #: The Cartesian rate limiter's targets: translation velocity [m/s], acceleration [m/s^2],
 #: jerk [m/s^3], then rotation [rad/s, rad/s^2, rad/s^3].
@@ -175,7 +187,8 @@ class CommandGenerator:
             at ``cartesian_filters.BOX_DECELERATION`` to a stop at the wall (the
             measured O_T_EE under the twist interface, whose O_T_EE_c the robot does
             not update; the commanded O_T_EE_c under the pose interface). Cartesian
-            interfaces with the ``"lowpass"`` or ``"limit_rate"`` filter only.
+            interfaces with the ``"lowpass"``, ``"limit_rate"`` or
+            ``"interpolate_limit_rate"`` filter only.
     """
 
     def __init__(
@@ -275,7 +288,7 @@ class CommandGenerator:
         else:
             self._start = state["tau_J_d"].astype(np.float64)
             self._target = a * np.asarray(self.scale.torque)
-        if self.action_filter == "interpolate":
+        if self.action_filter in INTERPOLATING:
             # The step's ends, checked once as interpolate checks them (a non-finite
             # state raises its error here); every cycle then takes interpolate_core.
             if self.interface == "cartesian_pose":
@@ -298,7 +311,7 @@ class CommandGenerator:
         elif self.action_filter == "interpolate":  # (its ends checked in begin_step)
             out = cf.interpolate_core(self._start, self._target, (k + 1) / self.cycles_per_step)
         else:
-            out = self._filtered(state)
+            out = self._filtered(state, k)
         if self._n_first:
             if sent is None:
                 self._first[...] = False
@@ -320,7 +333,7 @@ class CommandGenerator:
         target[:, :3, 3] += six[:, :3] * sc.translation
         target[:, :3, :3] = rotation_exp(six[:, 3:] * sc.rotation) @ T[:, :3, :3]
         self._start, self._target = T, target
-        if self.action_filter == "interpolate":  # the step's rotation, interpolated per cycle
+        if self.action_filter in INTERPOLATING:  # the step's rotation, interpolated per cycle
             self._turn = rotation_log(target[:, :3, :3] @ T[:, :3, :3].transpose(0, 2, 1))
 
     def _pose_wire(self, state: np.ndarray, k: int) -> np.ndarray:
@@ -332,12 +345,13 @@ class CommandGenerator:
         start, target = self._start, self._target
         if self.action_filter == "none":
             return target
-        if self.action_filter == "interpolate":
+        if self.action_filter in INTERPOLATING:
             s = (k + 1) / self.cycles_per_step
-            out = target.copy()
-            out[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], target[:, :3, 3], s)
-            out[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
-            return out
+            target = target.copy()
+            target[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], self._target[:, :3, 3], s)
+            target[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
+            if self.action_filter == "interpolate":
+                return target
         ref = RULES.reference_pose(state["O_T_EE_c"], self._ref_pose)
         out = RULES.cartesian_lowpass(target, ref, self._pose_gain, self._pose_lowpassed)
         if self.safety_box is not None:  # the step from the commanded pose, as a velocity
@@ -345,7 +359,7 @@ class CommandGenerator:
             v_last = state["O_dP_EE_c"][:, :3]
             v = box_velocity_core((t - t_ref) / DELTA_T, t_ref, v_last, *self.safety_box)
             t[...] = t_ref + v * DELTA_T
-        if self.action_filter != "limit_rate":
+        if self.action_filter not in RATE_LIMITED:
             return out
         twist = (state["O_dP_EE_c"], state["O_ddP_EE_c"])
         return RULES.limit_pose(out, ref, *twist, self._limits, self._pose_out)
@@ -359,10 +373,13 @@ class CommandGenerator:
             self._fields_of = state
         return self._field_views
 
-    def _filtered(self, state: np.ndarray) -> np.ndarray:
+    def _filtered(self, state: np.ndarray, k: int) -> np.ndarray:
         """Cycle k's joint, torque or twist command: libfranka's low-pass filter against
-        the state's reference, then (``"limit_rate"``) its rate limiter."""
+        the state's reference, then (``"limit_rate"``) its rate limiter; with
+        ``"interpolate_limit_rate"``, of the interpolation's target for cycle k."""
         target, interface = self._target, self.interface
+        if self.action_filter == "interpolate_limit_rate":
+            target = cf.interpolate_core(self._start, target, (k + 1) / self.cycles_per_step)
         fields = self._fields(state)
         ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
@@ -373,7 +390,7 @@ class CommandGenerator:
             p = state["O_T_EE"][:, 12:15]  # measured: O_T_EE_c stays at the motion's start
             v_last = fields["O_dP_EE_c"][:, :3]
             box_velocity_core(x[:, :3], p, v_last, *self.safety_box, out=x[:, :3])
-        if self.action_filter != "limit_rate":
+        if self.action_filter not in RATE_LIMITED:
             return x
         out = self._out
         if interface == "cartesian_velocity":
@@ -414,9 +431,10 @@ def check_safety_box(box, interface: str, action_filter: str):
         raise ValueError(f"safety_box: each lower corner value must be below the upper: {box!r}")
     if interface not in CARTESIAN:
         raise ValueError(f"safety_box bounds the Cartesian interfaces, not {interface!r}")
-    if action_filter not in ("lowpass", "limit_rate"):
+    if action_filter not in ("lowpass", *RATE_LIMITED):
         raise ValueError(
-            "safety_box needs action_filter 'limit_rate' (or 'lowpass'): it bounds the "
+            "safety_box needs action_filter 'limit_rate' (or 'lowpass', "
+            "'interpolate_limit_rate'): it bounds the "
             f"per-cycle velocity, which {action_filter!r} does not shape"
         )
     return lower, upper, BOX_DECELERATION

@@ -48,7 +48,9 @@ class FrankaFCIEnv(gym.Env):
             "cartesian_pose", "cartesian_velocity" or "torque".
         action_filter: how the action becomes per-cycle commands: "limit_rate"
             (default: libfranka's low-pass + rate limiter), "lowpass",
-            "interpolate" or "none" (the target held: a naive client).
+            "interpolate", "interpolate_limit_rate" (the interpolation, then the
+            low-pass and rate limiter: docs/env.md) or "none" (the target held: a naive
+            client).
         policy_hz: policy rate; 1000 / policy_hz cycles per step (default 25 Hz,
             40 cycles).
         max_episode_steps: steps before truncation, and the length the reflex charge

@@ -309,6 +309,48 @@ def test_train_bc_combine_upward_is_saved_and_loaded_back(
     np.testing.assert_array_equal(seen[0], [-3.0])  # the raw angle, not a normalised one
 
 
+def test_train_bc_goal_hold_is_saved_loaded_back_outermost_and_refused_by_name(
+    small_demos, tmp_path, monkeypatch, capsys
+):
+    from franka_sim_gym.training import evaluation
+    from franka_sim_gym.training.goal_hold import GoalHold
+    from franka_sim_gym.training.governor import ElbowGovernor
+
+    out = tmp_path / "held"
+    argv = ["train_bc.py", "--steps", "20", "--net", "16", "--eval-episodes", "2"]
+    argv += ["--out", str(out)]
+    for bad, message in (
+        (
+            ["--demos", "tests/reachd-v0", "--goal-hold", "0.03"],
+            "--goal-hold acts on a Cartesian velocity's entries: FrankaFCI-v0 has "
+            "action_interface 'joint_position'",
+        ),
+        (["--demos", "tests/pushd-v0", "--goal-hold", "0"], "--goal-hold 0.0: a radius is a"),
+        (["--demos", "tests/pushd-v0", "--goal-hold", "nan"], "--goal-hold nan: a radius is a"),
+    ):
+        monkeypatch.setattr("sys.argv", [*argv, *bad])
+        with pytest.raises(SystemExit):
+            load_example("train_bc").main()
+        assert message in capsys.readouterr().err
+    evaluated = []
+    real = evaluation.evaluate
+    monkeypatch.setattr(
+        evaluation,
+        "evaluate",
+        lambda policy, *a, **k: evaluated.append(policy) or real(policy, *a, **k),
+    )
+    monkeypatch.setattr(
+        "sys.argv",
+        [*argv, "--demos", "tests/pushd-v0", "--elbow-governor", "--goal-hold", "0.03"],
+    )
+    load_example("train_bc").main()
+    config = json.loads((out / "train_config.json").read_text())
+    assert config["goal_hold"] == {"radius": 0.03, "velocity_dims": 3}  # Push's 3-D twist
+    for policy in (evaluated[0], load_example("evaluate").load_model(out / "model.zip")[0]):
+        assert isinstance(policy, GoalHold) and isinstance(policy.policy, ElbowGovernor)
+        assert (policy.radius, policy.velocity_dims) == (0.03, 3)
+
+
 def test_train_bc_features_line_fits_in_the_line_frame_and_acts_through_it(
     small_demos, tmp_path, monkeypatch, capsys
 ):
