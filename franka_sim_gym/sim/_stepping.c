@@ -24,7 +24,15 @@
  *       the shared model's finger limit set to arm i's alone (before a forward of its
  *       world);
  *   Steps.torque(q_ref, dq_ref, kp, kd, compensation)
- *       the servo's torque alone (the arms under another servo then write their own).
+ *       the servo's torque alone (the arms under another servo then write their own);
+ *   Steps.own(servo_tau, servo_arms, external_tau, external_arms, compensation)
+ *       the arms with a torque of their own, into their ctrl rows: under an external
+ *       controller (external_arms) the client's torque, gravity being the actuators'
+ *       (tau = external_tau + compensation); under the Cartesian impedance servo
+ *       (servo_arms, sim/cartesian_servo.py) its torque and the same Coriolis the joint
+ *       servo adds (tau = servo_tau + coriolis + compensation); an arm in both is
+ *       external's. (n, 7) torques and (n,) bool masks, each pair None for none, and
+ *       compensation None for none; the other arms' rows are left as they are.
  *
  * The same library and the same calls in the same order: the same bits as the bindings'.
  * A MuJoCo error inside a step (mju_error: the bindings raise mujoco.FatalError) is caught
@@ -343,6 +351,55 @@ static PyObject *Steps_torque(StepsObject *self, PyObject *const *args, Py_ssize
     Py_RETURN_NONE;
 }
 
+static PyObject *Steps_own(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 5, "own") < 0) return NULL;
+    if (!self->servo) {
+        PyErr_SetString(PyExc_RuntimeError, "own: no servo arrays (Steps.servo first)");
+        return NULL;
+    }
+    enum { SERVO, EXTERNAL, COMPENSATION, COUNT };
+    F64 a[COUNT];
+    Bytes servo_arms, external_arms;
+    memset(a, 0, sizeof(a));
+    memset(&servo_arms, 0, sizeof(servo_arms));
+    memset(&external_arms, 0, sizeof(external_arms));
+    Py_ssize_t s7[2] = {self->n, 7};
+    int servo = args[0] != Py_None, external = args[2] != Py_None;
+    int compensated = args[4] != Py_None;
+    PyObject *result = NULL;
+    if ((servo != (args[1] != Py_None)) || (external != (args[3] != Py_None))) {
+        PyErr_SetString(PyExc_ValueError,
+                        "own: a torque and its arms come together (both None for none)");
+        goto done;
+    }
+    if ((servo && (f64_get(args[0], &a[SERVO], 2, s7, 0, "servo_tau") < 0 ||
+                   bytes_get(args[1], &servo_arms, self->n, 0, "servo_arms") < 0)) ||
+        (external && (f64_get(args[2], &a[EXTERNAL], 2, s7, 0, "external_tau") < 0 ||
+                      bytes_get(args[3], &external_arms, self->n, 0, "external_arms") < 0)) ||
+        (compensated && f64_get(args[4], &a[COMPENSATION], 2, s7, 0, "compensation") < 0))
+        goto done;
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        int under = external && BYTE1(external_arms, i);
+        if (!under && !(servo && BYTE1(servo_arms, i))) continue;
+        double *ctrl = (double *)self->ctrl[i].buf;
+        for (int j = 0; j < 7; j++) {
+            /* numpy's order before: (servo_tau + coriolis), then + compensation */
+            double tau = under ? AT2(a[EXTERNAL], i, j)
+                               : AT2(a[SERVO], i, j) + AT2(self->coriolis, i, j);
+            if (compensated) tau += AT2(a[COMPENSATION], i, j);
+            ctrl[j] = tau;
+        }
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    f64_release_all(a, COUNT);
+    bytes_release(&servo_arms);
+    bytes_release(&external_arms);
+    return result;
+}
+
 static PyObject *Steps_servo_run(StepsObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     if (check_nargs(nargs, 6, "servo_run") < 0 || servo_torque(self, args + 1, "servo_run") < 0)
@@ -399,6 +456,9 @@ static PyMethodDef STEPS_METHODS[] = {
     {"torque", (PyCFunction)(void (*)(void))Steps_torque, METH_FASTCALL,
      "torque(q_ref, dq_ref, kp, kd, compensation): the joint servo's torque into every "
      "arm's ctrl rows (no step)."},
+    {"own", (PyCFunction)(void (*)(void))Steps_own, METH_FASTCALL,
+     "own(servo_tau, servo_arms, external_tau, external_arms, compensation): the arms "
+     "with a torque of their own into their ctrl rows (see the module's text)."},
     {"servo_run", (PyCFunction)(void (*)(void))Steps_servo_run, METH_FASTCALL,
      "servo_run(finger_force, q_ref, dq_ref, kp, kd, compensation): the joint servo's "
      "torque into every arm's ctrl rows, then run(finger_force)."},

@@ -142,8 +142,7 @@ class ArmPhysics:
         self.coriolis = np.zeros((n_arms, 7))
         #: (n, 7) the weight torque of a payload nobody configured (zero without one)
         self.payload_weight = np.zeros((n_arms, 7))
-        self._tau = np.zeros((n_arms, 7))
-        self._compensated = np.zeros((n_arms, 7))  # the servo's torque plus compensation
+        self._all_arms = np.ones(n_arms, dtype=bool)  # external=True's mask
         #: the flange's position (n, 3) and its rotation transposed (n, 3, 3) -- the
         #: column-major wire layout of O_T_EE's block -- refreshed after every step
         self.flange_views: tuple[np.ndarray, np.ndarray] = (
@@ -395,21 +394,18 @@ class ArmPhysics:
             steps.servo_run(finger_force, q_ref, dq_ref, kp, kd, compensation)
             self._refresh()
             return
-        # Every arm's joint servo into its ctrl rows (sim/_stepping.c, the law's one
-        # text), then the arms under the Cartesian servo or an external torque their own.
+        # Every arm's joint servo into its ctrl rows, then the arms under the Cartesian
+        # servo or an external torque their own (sim/_stepping.c torque and own: the
+        # composition's one text, Coriolis and compensation as the joint servo's).
         steps.torque(q_ref, dq_ref, kp, kd, compensation)
-        tau, own = self._tau, np.zeros(self.n, dtype=bool)
+        servo_tau = servo_arms = under = None
         if cartesian is not None:
-            np.add(self._cartesian_servo(cartesian, q_ref), self.coriolis, out=tau)
-            own |= cartesian.mask
+            servo_tau, servo_arms = self._cartesian_servo(cartesian, q_ref), cartesian.mask
         if external is not None and external is not False:
-            under = np.ones(self.n, dtype=bool) if external is True else external
-            tau = np.where(under[:, None], tau_external, tau)  # gravity: the actuators'
-            own |= under
-        if compensation is not None:
-            tau = np.add(tau, compensation, out=self._compensated)
-        arms = np.flatnonzero(own)
-        self._ctrl.scatter(tau[arms], arms)
+            under = self._all_arms if external is True else external
+        steps.own(
+            servo_tau, servo_arms, tau_external if under is not None else None, under, compensation
+        )
         if self.truth is not None:
             self.truth.before_step()
         # mj_step2 then mj_step1 of every arm's world; on one shared model with a hand its

@@ -194,6 +194,47 @@ def test_an_arm_under_external_torque_gets_it_and_the_others_the_joint_servo():
     assert ctrl[1].tobytes() == joint[1].tobytes()
 
 
+def test_the_cartesian_servos_arms_get_its_torque_with_coriolis_and_compensation():
+    """Three arms in one step: arm 0 under the Cartesian impedance servo (its torque plus
+    the joint servo's Coriolis and the compensation), arm 1 under an external torque
+    (the client's plus the compensation: no Coriolis), arm 2 under the joint servo; an
+    arm in both masks is the external torque's."""
+    from franka_sim_gym.sim.cartesian_servo import CartesianTarget
+
+    physics = ArmPhysics(n_arms=3)
+    for _ in range(3):  # moving: Coriolis is not zero
+        physics.step(physics.q + 0.01, None)
+    q, dq, coriolis = physics.q.copy(), physics.dq.copy(), physics.coriolis.copy()
+    p, R = physics.flange_pose()
+    target = CartesianTarget(
+        np.array([True, True, False]), p + [0.0, 0.0, 0.01], R, np.tile(np.eye(4), (3, 1, 1)),
+        np.tile([2000.0, 2000.0, 2000.0, 100.0, 100.0, 100.0], (3, 1)),
+    )  # fmt: skip
+    q_ref, extra = q + 0.002, np.full((3, 7), 0.25)
+    servo_tau = physics._cartesian_servo(target, q_ref)  # what the step computes from here
+    assert np.abs(coriolis[0]).max() > 1e-6 and np.abs(servo_tau[0]).max() > 0.1
+    tau_external = np.arange(21.0).reshape(3, 7)
+    under = np.array([False, True, False])
+    physics.step(q_ref, None, tau_external, under, cartesian=target, compensation=extra)
+    ctrl = [d.ctrl[physics.layout.actuator_ids[i]] for i, d in enumerate(physics.datas)]
+    assert ctrl[0].tobytes() == (servo_tau[0] + coriolis[0] + extra[0]).tobytes()
+    assert ctrl[1].tobytes() == (tau_external[1] + extra[1]).tobytes()
+    joint = (q_ref - q) * physics.kp - physics.kd * dq + coriolis + extra
+    assert ctrl[2].tobytes() == joint[2].tobytes()
+
+
+def test_own_refuses_a_torque_without_its_arms_by_name():
+    physics = ArmPhysics(n_arms=2)
+    steps = physics._planned_steps()
+    seven = np.zeros((2, 7))
+    with pytest.raises(ValueError, match="a torque and its arms come together"):
+        steps.own(seven, None, None, None, None)
+    with pytest.raises(ValueError, match="external_arms"):
+        steps.own(None, None, seven, np.zeros(3, bool), None)
+    with pytest.raises(ValueError, match="servo_tau"):
+        steps.own(np.zeros((2, 6)), np.ones(2, bool), None, None, None)
+
+
 def test_a_forward_of_one_arms_world_sets_the_shared_finger_limit_to_that_arms():
     physics = _squeezing(2)
     physics.set_finger_force([0, 1], [12.0, 33.0])
