@@ -66,7 +66,6 @@ import argparse
 import copy
 import csv
 import json
-import math
 import time
 from pathlib import Path
 
@@ -194,11 +193,13 @@ def main() -> None:
             )
     goal_hold = None
     if args.goal_hold is not None:
-        if not (math.isfinite(args.goal_hold) and args.goal_hold > 0):
-            parser.error(f"--goal-hold {args.goal_hold}: a radius is a positive distance [m]")
         # the velocity entries the hold zeroes: the env's cartesian_dof (FrankaFCIEnv's 6)
         dims = int(spec.kwargs.get("cartesian_dof", 6))
         goal_hold = {"radius": args.goal_hold, "velocity_dims": dims}
+        try:  # its arguments judged once, by GoalHold itself, before minutes of fitting
+            GoalHold(None, **goal_hold)
+        except ValueError as error:
+            parser.error(f"--goal-hold {args.goal_hold}: {error}")
     # DAgger's labeller, its rounds' datasets and their episode seeds, all checked now
     # (before minutes of fitting): the task's solver, ids that do not exist yet, seeds
     # short of the evaluation's

@@ -14,14 +14,11 @@ the robot. Filters (``action_filter``):
 * ``"limit_rate"`` — the low-pass followed by libfranka's rate limiter
   (Robot::control with ``limit_rate = true``), which keeps every command inside
   the robot's velocity, acceleration and jerk limits;
-* ``"interpolate_limit_rate"`` — the interpolation's per-cycle target, then the
-  low-pass and the rate limiter as ``"limit_rate"``: a robot programmer's first-order
-  hold between policy outputs in front of libfranka's filters. The limiter alone meets
-  a step of the target with its whole jerk (a change of dv is crossed at an
-  acceleration near ``sqrt(dv * jerk)``: 0.6 m/s^2 for 2 mm/s at 200 m/s^3); the hold
-  spreads it over the step (``dv / step``: 0.05 m/s^2 for 2 mm/s at 25 Hz), which is
-  what an arm near a singularity needs (docs/demonstrations.md, "The hold"), and the
-  limiter still bounds whatever the hold asks.
+* ``"interpolate_limit_rate"`` — the interpolation's per-cycle target (a ramp from the
+  step's starting reference), then the low-pass and the rate limiter as
+  ``"limit_rate"``: the limiter alone crosses even a small change at its whole jerk,
+  the ramp over the step, and the limiter still bounds what the ramp asks (docs/env.md,
+  "Why the ramp").
 
 ``"joint_position_async"`` is libfranka's asynchronous joint-position control
 (pylibfranka's ``AsyncPositionControlHandler``): the action's target is sent as is,
@@ -309,7 +306,7 @@ class CommandGenerator:
         elif self.action_filter == "none" or self.interface == "joint_position_async":
             out = self._target
         elif self.action_filter == "interpolate":  # (its ends checked in begin_step)
-            out = cf.interpolate_core(self._start, self._target, (k + 1) / self.cycles_per_step)
+            out = cf.interpolate_core(self._start, self._target, self._phase(k))
         else:
             out = self._filtered(state, k)
         if self._n_first:
@@ -319,6 +316,11 @@ class CommandGenerator:
                 self._first &= ~sent
             self._n_first = int(np.count_nonzero(self._first))
         return out
+
+    def _phase(self, k: int) -> float:
+        """Cycle k's (0-based) fraction of the step: the interpolation reaches the target
+        at the step's last cycle."""
+        return (k + 1) / self.cycles_per_step
 
     def _begin_cartesian(self, a: np.ndarray, state: np.ndarray) -> None:
         six = np.zeros((len(a), 6))
@@ -346,12 +348,13 @@ class CommandGenerator:
         if self.action_filter == "none":
             return target
         if self.action_filter in INTERPOLATING:
-            s = (k + 1) / self.cycles_per_step
-            target = target.copy()
-            target[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], self._target[:, :3, 3], s)
-            target[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
+            s = self._phase(k)
+            ramp = target.copy()
+            ramp[:, :3, 3] = cf.interpolate_core(start[:, :3, 3], target[:, :3, 3], s)
+            ramp[:, :3, :3] = rotation_exp(s * self._turn) @ start[:, :3, :3]
             if self.action_filter == "interpolate":
-                return target
+                return ramp
+            target = ramp
         ref = RULES.reference_pose(state["O_T_EE_c"], self._ref_pose)
         out = RULES.cartesian_lowpass(target, ref, self._pose_gain, self._pose_lowpassed)
         if self.safety_box is not None:  # the step from the commanded pose, as a velocity
@@ -379,7 +382,7 @@ class CommandGenerator:
         ``"interpolate_limit_rate"``, of the interpolation's target for cycle k."""
         target, interface = self._target, self.interface
         if self.action_filter == "interpolate_limit_rate":
-            target = cf.interpolate_core(self._start, target, (k + 1) / self.cycles_per_step)
+            target = cf.interpolate_core(self._start, target, self._phase(k))
         fields = self._fields(state)
         ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:

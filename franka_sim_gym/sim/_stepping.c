@@ -305,6 +305,16 @@ fail:
     return NULL;
 }
 
+/* What the drives add to a servo's torque tau of arm i, joint j: the Coriolis (joint and
+ * Cartesian servo alike) and a configured load's compensation (``comp`` NULL: none), in
+ * the order numpy's in-place lines summed them (the same bits). */
+static inline double with_drive_terms(double tau, const F64 *coriolis, const F64 *comp,
+                                      Py_ssize_t i, int j)
+{
+    tau += AT2(*coriolis, i, j);
+    return comp ? tau + AT2(*comp, i, j) : tau;
+}
+
 /* The joint servo's torque into every arm's ctrl rows, from args (q_ref, dq_ref, kp, kd,
  * compensation); 0, or -1 with an exception naming ``name``. */
 static int servo_torque(StepsObject *self, PyObject *const *args, const char *name)
@@ -333,9 +343,8 @@ static int servo_torque(StepsObject *self, PyObject *const *args, const char *na
                 tau -= AT2(a[KD], i, j) * AT2(self->dq, i, j);
             else
                 tau += (AT2(a[DQ_REF], i, j) - AT2(self->dq, i, j)) * AT2(a[KD], i, j);
-            tau += AT2(self->coriolis, i, j);
-            if (compensated) tau += AT2(a[COMPENSATION], i, j);
-            ctrl[j] = tau;
+            ctrl[j] = with_drive_terms(tau, &self->coriolis,
+                                       compensated ? &a[COMPENSATION] : NULL, i, j);
         }
     }
     status = 0;
@@ -384,11 +393,11 @@ static PyObject *Steps_own(StepsObject *self, PyObject *const *args, Py_ssize_t 
         if (!under && !(servo && BYTE1(servo_arms, i))) continue;
         double *ctrl = (double *)self->ctrl[i].buf;
         for (int j = 0; j < 7; j++) {
-            /* numpy's order before: (servo_tau + coriolis), then + compensation */
-            double tau = under ? AT2(a[EXTERNAL], i, j)
-                               : AT2(a[SERVO], i, j) + AT2(self->coriolis, i, j);
-            if (compensated) tau += AT2(a[COMPENSATION], i, j);
-            ctrl[j] = tau;
+            const F64 *comp = compensated ? &a[COMPENSATION] : NULL;
+            /* the client's torque has no Coriolis added (libfranka's torque control) */
+            ctrl[j] = under ? (comp ? AT2(a[EXTERNAL], i, j) + AT2(*comp, i, j)
+                                    : AT2(a[EXTERNAL], i, j))
+                            : with_drive_terms(AT2(a[SERVO], i, j), &self->coriolis, comp, i, j);
         }
     }
     result = Py_None;

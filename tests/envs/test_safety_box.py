@@ -41,7 +41,9 @@ def test_while_braking_is_due_the_other_axes_hold_their_last_velocity():
     np.testing.assert_allclose(calm, [[0.3, 0.3, -0.1]])  # not past: the others are free
 
 
-def press_into_the_table(env_id: str, box, n: int = 8, steps: int = 30, seed: int = 0):
+def press_into_the_table(
+    env_id: str, box, n: int = 8, steps: int = 30, seed: int = 0, action_filter="limit_rate"
+):
     """A policy that moves the hand away from the block for 0.4 s, then drives it down
     into the table at full speed while it drifts on sideways with seeded jitter (10 Hz,
     3 s: into the side walls too). Returns the reflex reasons and the lowest and highest
@@ -53,6 +55,7 @@ def press_into_the_table(env_id: str, box, n: int = 8, steps: int = 30, seed: in
         policy_hz=10,
         max_episode_steps=steps,
         safety_box=box,
+        action_filter=action_filter,
     )
     obs, _ = envs.reset(seed=seed)
     rng = np.random.default_rng(seed)
@@ -76,10 +79,13 @@ def press_into_the_table(env_id: str, box, n: int = 8, steps: int = 30, seed: in
     return reasons, low, high
 
 
+@pytest.mark.parametrize("action_filter", ["limit_rate", "interpolate_limit_rate"])
 @pytest.mark.parametrize("env_id", ["FrankaFCIPush-v0", "FrankaFCIPushCartesianPose-v0"])
-def test_a_policy_pressing_into_the_table_stops_at_the_floor_without_a_reflex(env_id):
+def test_a_policy_pressing_into_the_table_stops_at_the_floor_without_a_reflex(
+    env_id, action_filter
+):
     lower, upper = (np.array(c) for c in Push.safety_box)
-    reasons, low, high = press_into_the_table(env_id, "task")
+    reasons, low, high = press_into_the_table(env_id, "task", action_filter=action_filter)
     assert reasons == []
     # The measured TCP (the twist interface brakes on it; the pose one on the commanded
     # pose, which the arm follows within its tracking error): within 1 mm of the walls.

@@ -325,8 +325,8 @@ def test_train_bc_goal_hold_is_saved_loaded_back_outermost_and_refused_by_name(
             "--goal-hold acts on a Cartesian velocity's entries: FrankaFCI-v0 has "
             "action_interface 'joint_position'",
         ),
-        (["--demos", "tests/pushd-v0", "--goal-hold", "0"], "--goal-hold 0.0: a radius is a"),
-        (["--demos", "tests/pushd-v0", "--goal-hold", "nan"], "--goal-hold nan: a radius is a"),
+        (["--demos", "tests/pushd-v0", "--goal-hold", "0"], "--goal-hold 0.0: radius must be a"),
+        (["--demos", "tests/pushd-v0", "--goal-hold", "nan"], "--goal-hold nan: radius must be a"),
     ):
         monkeypatch.setattr("sys.argv", [*argv, *bad])
         with pytest.raises(SystemExit):
