@@ -9,6 +9,8 @@
  *   lowpass(x, x_ref, gain, out)                               franka::lowpassFilter
  *   limit_velocities(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_positions(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
+ *   joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, positional,
+ *                        shift, a_max, j_max, out)   the three above in one call (below)
  *   limit_torques(tau_c, tau_last, d_max, out)                 franka::limitRate (joints)
  *   limit_twist(twist_c, twist_last, dtwist_last, limits, out)
  *   limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out)   (Cartesian)
@@ -29,6 +31,7 @@
 #include <math.h>
 
 #include "_arrays.h"
+#include "_envelope.h"
 #include "_kernel.h"
 #include "_rotation.h"
 
@@ -57,21 +60,44 @@ static PyObject *configure(PyObject *self, PyObject *const *args, Py_ssize_t nar
 
 /* ---- the low-pass filter -------------------------------------------------------------- */
 
+/* franka::lowpassFilter of one value. */
+static ALWAYS_INLINE double lowpass_value(double x, double x_ref, double gain)
+{
+    return gain * x + (1.0 - gain) * x_ref;
+}
+
 /* lowpass(x, x_ref, gain, out): (n, k) each (x_ref float32 or float64; gain one per
  * element, a broadcast view for one gain): gain * x + (1 - gain) * x_ref. */
 static void lowpass_rows(const F64 *a, Py_ssize_t n)
 {
     enum { X, REF, GAIN, RESULT };
     for (Py_ssize_t i = 0; i < n; i++)
-        for (Py_ssize_t j = 0; j < a[X].shape[1]; j++) {
-            const double gain = AT2(a[GAIN], i, j);
-            put2(&a[RESULT], i, j, gain * AT2(a[X], i, j) + (1.0 - gain) * num2(&a[REF], i, j));
-        }
+        for (Py_ssize_t j = 0; j < a[X].shape[1]; j++)
+            put2(&a[RESULT], i, j,
+                 lowpass_value(AT2(a[X], i, j), num2(&a[REF], i, j), AT2(a[GAIN], i, j)));
 }
 KERNEL(lowpass, 0, ARRAY(F64_IN, "x", 2, ROWS, COLS), ARRAY(NUM_IN, "x_ref", 2, ROWS, COLS),
        ARRAY(F64_IN, "gain", 2, ROWS, COLS), ARRAY(OUT, "out", 2, ROWS, COLS))
 
 /* ---- joints and torques -------------------------------------------------------------- */
+
+/* franka::limitRate's joint law for one joint: the command c (a position with ``positions``,
+ * its velocity then (c - q_last) / dt) against the last velocity and acceleration, inside
+ * the band [lower, upper], at most A and J. */
+static ALWAYS_INLINE double limit_joint(double c, double q_last, double v_last, double a_last,
+                                        double upper, double lower, double a_max, double j_max,
+                                        int positions)
+{
+    const double dt = DT;
+    double v_c = positions ? (c - q_last) / dt : c;
+    double jerk = (((v_c - v_last) / dt) - a_last) / dt;
+    double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
+    double ratio = j_max / a_max;
+    double safe_max = np_minimum(ratio * (upper - v_last), a_max);
+    double safe_min = np_maximum(ratio * (lower - v_last), -a_max);
+    double v = v_last + np_maximum(np_minimum(acc, safe_max), safe_min) * dt;
+    return positions ? q_last + v * dt : v;
+}
 
 /* limit_velocities / limit_positions: (n, 7) commands, history, bounds, A and J (a
  * broadcast view for one A and J per joint). ``positions``: q_last leads the arguments. */
@@ -80,20 +106,13 @@ static void joint_rows(const F64 *a, Py_ssize_t n, int positions)
     enum { C, QLAST };
     enum { VLAST, ALAST, UPPER, LOWER, AMAX, JMAX, RESULT };
     const F64 *r = a + (positions ? 2 : 1); /* v_last onwards */
-    const double dt = DT;
     for (Py_ssize_t i = 0; i < n; i++)
         for (int j = 0; j < 7; j++) {
             double q_last = positions ? num2(&a[QLAST], i, j) : 0.0;
-            double v_last = num2(&r[VLAST], i, j), a_last = num2(&r[ALAST], i, j);
-            double a_max = AT2(r[AMAX], i, j), j_max = AT2(r[JMAX], i, j);
-            double v_c = positions ? (AT2(a[C], i, j) - q_last) / dt : AT2(a[C], i, j);
-            double jerk = (((v_c - v_last) / dt) - a_last) / dt;
-            double acc = a_last + np_maximum(np_minimum(jerk, j_max), -j_max) * dt;
-            double ratio = j_max / a_max;
-            double safe_max = np_minimum(ratio * (AT2(r[UPPER], i, j) - v_last), a_max);
-            double safe_min = np_maximum(ratio * (AT2(r[LOWER], i, j) - v_last), -a_max);
-            double v = v_last + np_maximum(np_minimum(acc, safe_max), safe_min) * dt;
-            put2(&r[RESULT], i, j, positions ? q_last + v * dt : v);
+            put2(&r[RESULT], i, j,
+                 limit_joint(AT2(a[C], i, j), q_last, num2(&r[VLAST], i, j),
+                             num2(&r[ALAST], i, j), AT2(r[UPPER], i, j), AT2(r[LOWER], i, j),
+                             AT2(r[AMAX], i, j), AT2(r[JMAX], i, j), positions));
         }
 }
 
@@ -115,6 +134,68 @@ static void limit_positions_rows(const F64 *a, Py_ssize_t n)
 }
 KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
        ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
+
+/* joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, positional,
+ *                      shift, a_max, j_max, out): one cycle of the env client's joint
+ * position command under ``limit_rate`` (envs/commands.py CommandGenerator), one call:
+ * libfranka's low-pass of the target against q_d (against the target itself where
+ * ``first``, a motion's first command), then its limiter inside the velocity band at q_d
+ * (native/_envelope.h, the robot's law, with the client's ``shift`` for its tolerance).
+ * (n, 7) arrays (q_d, dq_d, ddq_d float32 or float64; gain, a_max and j_max broadcast
+ * views for one value), ``first`` an (n,) bool or None, ``constants`` and ``positional``
+ * RobotTable.joint_constants. The same rows as lowpass, envelope_halves and
+ * limit_positions one after the other: the same bits. */
+static PyObject *joint_position_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (check_nargs(nargs, 12, "joint_position_cycle") < 0) return NULL;
+    if (!CONFIGURED) {
+        PyErr_SetString(PyExc_RuntimeError, "joint_position_cycle: configure(...) first");
+        return NULL;
+    }
+    enum { TARGET, Q_D, DQ_D, DDQ_D, GAIN, CONSTANTS, A_MAX, J_MAX, OUT_, COUNT };
+    F64 a[COUNT];
+    Bytes first;
+    memset(a, 0, sizeof(a));
+    memset(&first, 0, sizeof(first));
+    PyObject *result = NULL;
+    Py_ssize_t n = leading(args[0], "target");
+    if (n < 0) return NULL;
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    int firsts = args[5] != Py_None;
+    double positional = PyFloat_AsDouble(args[7]), shift = PyFloat_AsDouble(args[8]);
+    if (PyErr_Occurred()) goto done;
+    if (f64_get(args[0], &a[TARGET], 2, s7, 0, "target") < 0 ||
+        num_get(args[1], &a[Q_D], 2, s7, 0, "q_d") < 0 ||
+        num_get(args[2], &a[DQ_D], 2, s7, 0, "dq_d") < 0 ||
+        num_get(args[3], &a[DDQ_D], 2, s7, 0, "ddq_d") < 0 ||
+        f64_get(args[4], &a[GAIN], 2, s7, 0, "gain") < 0 ||
+        (firsts && bytes_get(args[5], &first, n, 0, "first") < 0) ||
+        f64_get(args[6], &a[CONSTANTS], 2, sc, 0, "constants") < 0 ||
+        f64_get(args[9], &a[A_MAX], 2, s7, 0, "a_max") < 0 ||
+        f64_get(args[10], &a[J_MAX], 2, s7, 0, "j_max") < 0 ||
+        f64_get(args[11], &a[OUT_], 2, s7, 1, "out") < 0)
+        goto done;
+    const int pos = positional != 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const int own = firsts && BYTE1(first, i);
+        for (int j = 0; j < 7; j++) {
+            const double target = AT2(a[TARGET], i, j), q_d = num2(&a[Q_D], i, j);
+            const double x = lowpass_value(target, own ? target : q_d, AT2(a[GAIN], i, j));
+            double upper, lower;
+            envelope(&a[CONSTANTS], j, q_d, pos, shift, &upper, &lower);
+            AT2(a[OUT_], i, j) =
+                limit_joint(x, q_d, num2(&a[DQ_D], i, j), num2(&a[DDQ_D], i, j), upper, lower,
+                            AT2(a[A_MAX], i, j), AT2(a[J_MAX], i, j), 1);
+        }
+    }
+    result = args[11];
+    Py_INCREF(result);
+done:
+    f64_release_all(a, COUNT);
+    bytes_release(&first);
+    return result;
+}
 
 /* limit_torques(tau_c, tau_last, d_max, out): (n, 7) each (d_max a broadcast view for
  * one rate). */
@@ -321,6 +402,10 @@ static PyMethodDef METHODS[] = {
                              "j_max, out): franka::limitRate for joint velocities."),
     METHOD(limit_positions, "limit_positions(q_c, q_last, v_last, a_last, upper, lower, "
                             "a_max, j_max, out): franka::limitRate for joint positions."),
+    METHOD(joint_position_cycle,
+           "joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, "
+           "positional, shift, a_max, j_max, out): a joint position command's low-pass, "
+           "band and limiter, one call."),
     METHOD(limit_torques, "limit_torques(tau_c, tau_last, d_max, out): franka::limitRate "
                           "for torques."),
     METHOD(limit_twist, "limit_twist(twist_c, twist_last, dtwist_last, limits, out): "

@@ -384,6 +384,22 @@ class CommandGenerator:
         if self.action_filter == "interpolate_limit_rate":
             target = cf.interpolate_core(self._start, target, self._phase(k))
         fields = self._fields(state)
+        if interface == "joint_position" and self.action_filter in RATE_LIMITED:
+            # the low-pass, the velocity band at q_d and the limiter: one C call
+            # (envs/_client_filters.c joint_position_cycle: the same rows as below)
+            return RULES.joint_position_cycle(
+                target,
+                fields["q_d"],
+                fields["dq_d"],
+                fields["ddq_d"],
+                self._gain,
+                self._first if self._n_first else None,
+                *self.table.joint_constants,
+                self._band_shift,
+                self._ddq_max,
+                self._dddq_max,
+                self._out,
+            )
         ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).

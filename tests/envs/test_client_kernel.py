@@ -140,3 +140,66 @@ def test_the_joint_rules_take_any_shapes_that_broadcast():
     full = cf.limit_rate_joint_velocities(tau_c, tau_last, 0.0, 2.0, -2.0, 10.0, 5e3)
     assert v.shape == (2, 3) and _same(v, np.ascontiguousarray(full[:, :3]))
     assert cf.lowpass_filter(np.zeros((2, 0)), np.zeros((2, 0))).shape == (2, 0)
+
+
+def _joint_cycle_inputs(n: int = 5, seed: int = 2):
+    """A joint-position cycle of n robots as the env's client meets it: float32 state
+    fields, some joints near their stops (the band binds), a target 0.02 rad ahead."""
+    rng = np.random.default_rng(seed)
+    state = np.zeros(n, dtype=ROBOT_STATE_DTYPE)
+    q = rng.uniform(FR3.q_lower + 0.3, FR3.q_upper - 0.3, (n, 7))
+    q[0] = FR3.q_upper - 1e-3  # at the upper stops: the band shuts
+    state["q_d"], state["dq_d"] = q, rng.normal(scale=0.3, size=(n, 7))
+    state["ddq_d"] = rng.normal(scale=2.0, size=(n, 7))
+    state["dq_d"][0], state["ddq_d"][0] = 0.0, 0.0  # at rest there
+    target = state["q_d"].astype(np.float64) + 0.02
+    state["dq_d"][1], state["ddq_d"][1] = 0.0, 0.0  # at rest, 1 urad behind its target:
+    target[1] = state["q_d"][1] + 1e-6  # the limiter passes what the low-pass gives it
+    return state, target
+
+
+def _joint_cycle(state, target, first):
+    from franka_sim_gym.envs.commands import LIMITER_MARGIN
+    from franka_sim_gym.fci.tables import JOINT_VELOCITY_LIMIT_TOLERANCE
+
+    n = len(state)
+    gain = np.broadcast_to(cf.lowpass_gain(cf.LOWPASS_DEFAULT_CUTOFF), (n, 7))
+    a_max = np.broadcast_to(FR3.ddq_max - LIMITER_MARGIN["ddq"], (n, 7))
+    j_max = np.broadcast_to(FR3.dddq_max - LIMITER_MARGIN["dddq"], (n, 7))
+    shift = JOINT_VELOCITY_LIMIT_TOLERANCE + LIMITER_MARGIN["dq"]
+    out = np.zeros((n, 7))
+    fields = state["q_d"], state["dq_d"], state["ddq_d"]
+    constants, positional = FR3.joint_constants
+    args = (gain, first, constants, positional, shift, a_max, j_max, out)
+    return RULES.joint_position_cycle(target, *fields, *args), (gain, a_max, j_max, shift)
+
+
+def test_the_joint_position_cycle_is_the_low_pass_band_and_limiter_in_one_call():
+    """The env's one call a cycle gives the bits of libfranka's steps one after the other
+    (the low-pass against q_d, or against the target itself on a motion's first command;
+    the band at q_d; the limiter), and the band binds: a robot at rest at its stops,
+    its target beyond them, is turned back."""
+    state, target = _joint_cycle_inputs()
+    first = np.array([False, True, False, False, True])
+    fused, (gain, a_max, j_max, shift) = _joint_cycle(state, target, first)
+    q_d = state["q_d"]
+    ref = np.where(first[:, None], target, q_d)
+    x = RULES.lowpass(target, ref, gain, np.zeros((5, 7)))
+    band = FR3.velocity_envelope_halves(q_d.astype(np.float64), shift)
+    upper, lower = band[:, :7], -band[:, 7:]
+    alone = RULES.limit_positions(
+        x, q_d, state["dq_d"], state["ddq_d"], upper, lower, a_max, j_max, np.zeros((5, 7))
+    )
+    assert _same(fused, alone)
+    assert (upper[0] < 0).all() and (target[0] > q_d[0]).all()  # shut; the target beyond
+    assert (fused[0] < q_d[0]).all()
+    unshut, _ = _joint_cycle(state, target, None)  # robot 1 now filtered against q_d
+    assert not _same(unshut[1], fused[1]) and _same(unshut[2], fused[2])
+
+
+def test_the_joint_position_cycle_names_a_bad_argument():
+    state, target = _joint_cycle_inputs()
+    with pytest.raises(ValueError, match="first"):
+        _joint_cycle(state, target, np.zeros(4, dtype=bool))
+    with pytest.raises(ValueError, match="q_d"):
+        _joint_cycle(state[:4], target, None)

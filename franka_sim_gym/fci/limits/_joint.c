@@ -37,39 +37,7 @@
 
 #include "_arrays.h"
 
-enum { Q_LOWER, Q_UPPER, DDQ_MAX, DDDQ_MAX, TWO_A, OFFSET, VMAX, N_CONSTANTS };
-
-/* numpy's np.maximum / np.minimum of two doubles: a NaN in either is the result. */
-static inline double nan_max(double a, double b)
-{
-    return (a >= b || isnan(a)) ? a : b;
-}
-static inline double nan_min(double a, double b)
-{
-    return (a <= b || isnan(a)) ? a : b;
-}
-
-/* One half of the envelope in RobotTable.velocity_envelope_halves' order: ``distance``
- * to the stop (q_upper - q, or -q_lower - (-q) for the mirrored lower half). */
-static inline double envelope_half(const F64 *c, int j, double distance, int positional,
-                                   double shift)
-{
-    if (!positional) return AT2(*c, VMAX, j) - shift;
-    double r = distance * AT2(*c, TWO_A, j);
-    r = sqrt(nan_max(r, 0.0));
-    r = nan_max(r, AT2(*c, OFFSET, j));
-    r -= AT2(*c, OFFSET, j);
-    r = nan_min(r, AT2(*c, VMAX, j));
-    return r - shift;
-}
-
-/* (upper, lower) of the envelope at q for joint j. */
-static ALWAYS_INLINE void envelope(const F64 *c, int j, double q, int positional, double shift,
-                            double *upper, double *lower)
-{
-    *upper = envelope_half(c, j, AT2(*c, Q_UPPER, j) - q * 1.0, positional, shift);
-    *lower = -envelope_half(c, j, (-AT2(*c, Q_LOWER, j)) - q * -1.0, positional, shift);
-}
+#include "_envelope.h"
 
 /* ---- arguments and results ------------------------------------------------------------ */
 
