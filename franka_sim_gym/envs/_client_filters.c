@@ -9,8 +9,8 @@
  *   lowpass(x, x_ref, gain, out)                               franka::lowpassFilter
  *   limit_velocities(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_positions(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
- *   joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, positional,
- *                        shift, a_max, j_max, out)   the three above in one call (below)
+ *   joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, positional,
+ *               shift, a_max, j_max, out)   lowpass, the band, a joint limiter: one call
  *   limit_torques(tau_c, tau_last, d_max, out)                 franka::limitRate (joints)
  *   limit_twist(twist_c, twist_last, dtwist_last, limits, out)
  *   limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out)   (Cartesian)
@@ -135,24 +135,28 @@ static void limit_positions_rows(const F64 *a, Py_ssize_t n)
 KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
        ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
-/* joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, positional,
- *                      shift, a_max, j_max, out): one cycle of the env client's joint
- * position command under ``limit_rate`` (envs/commands.py CommandGenerator), one call:
- * libfranka's low-pass of the target against q_d (against the target itself where
- * ``first``, a motion's first command), then its limiter inside the velocity band at q_d
- * (native/_envelope.h, the robot's law, with the client's ``shift`` for its tolerance).
- * (n, 7) arrays (q_d, dq_d, ddq_d float32 or float64; gain, a_max and j_max broadcast
- * views for one value), ``first`` an (n,) bool or None, ``constants`` and ``positional``
- * RobotTable.joint_constants. The same rows as lowpass, envelope_halves and
- * limit_positions one after the other: the same bits. */
-static PyObject *joint_position_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, positional,
+ *             shift, a_max, j_max, out): one cycle of the env client's joint position
+ * (``positions`` true) or joint velocity command under ``limit_rate``
+ * (envs/commands.py CommandGenerator), one call: libfranka's low-pass of the target
+ * against its reference (q_d, or dq_d for a velocity; a position motion's first command,
+ * where ``first``, against the target itself), then its limiter inside the velocity band
+ * at q_d (native/_envelope.h, the robot's law, with the client's ``shift`` for its
+ * tolerance). (n, 7) arrays (q_d, dq_d, ddq_d float32 or float64; gain, a_max and j_max
+ * broadcast views for one value), ``first`` an (n,) bool or None, ``constants`` and
+ * ``positional`` RobotTable.joint_constants. The same rows as lowpass, envelope_halves
+ * and limit_positions / limit_velocities one after the other: the same bits. */
+static PyObject *joint_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 12, "joint_position_cycle") < 0) return NULL;
+    if (check_nargs(nargs, 13, "joint_cycle") < 0) return NULL;
     if (!CONFIGURED) {
-        PyErr_SetString(PyExc_RuntimeError, "joint_position_cycle: configure(...) first");
+        PyErr_SetString(PyExc_RuntimeError, "joint_cycle: configure(...) first");
         return NULL;
     }
+    const int positions = PyObject_IsTrue(args[0]);
+    if (positions < 0) return NULL;
+    args++; /* the arrays, as the position overload had them */
     enum { TARGET, Q_D, DQ_D, DDQ_D, GAIN, CONSTANTS, A_MAX, J_MAX, OUT_, COUNT };
     F64 a[COUNT];
     Bytes first;
@@ -178,15 +182,17 @@ static PyObject *joint_position_cycle(PyObject *self, PyObject *const *args, Py_
         goto done;
     const int pos = positional != 0.0;
     for (Py_ssize_t i = 0; i < n; i++) {
-        const int own = firsts && BYTE1(first, i);
+        const int own = positions && firsts && BYTE1(first, i);
         for (int j = 0; j < 7; j++) {
             const double target = AT2(a[TARGET], i, j), q_d = num2(&a[Q_D], i, j);
-            const double x = lowpass_value(target, own ? target : q_d, AT2(a[GAIN], i, j));
+            const double dq_d = num2(&a[DQ_D], i, j);
+            const double ref = own ? target : positions ? q_d : dq_d;
+            const double x = lowpass_value(target, ref, AT2(a[GAIN], i, j));
             double upper, lower;
             envelope(&a[CONSTANTS], j, q_d, pos, shift, &upper, &lower);
             AT2(a[OUT_], i, j) =
-                limit_joint(x, q_d, num2(&a[DQ_D], i, j), num2(&a[DDQ_D], i, j), upper, lower,
-                            AT2(a[A_MAX], i, j), AT2(a[J_MAX], i, j), 1);
+                limit_joint(x, q_d, dq_d, num2(&a[DDQ_D], i, j), upper, lower,
+                            AT2(a[A_MAX], i, j), AT2(a[J_MAX], i, j), positions);
         }
     }
     result = args[11];
@@ -402,10 +408,10 @@ static PyMethodDef METHODS[] = {
                              "j_max, out): franka::limitRate for joint velocities."),
     METHOD(limit_positions, "limit_positions(q_c, q_last, v_last, a_last, upper, lower, "
                             "a_max, j_max, out): franka::limitRate for joint positions."),
-    METHOD(joint_position_cycle,
-           "joint_position_cycle(target, q_d, dq_d, ddq_d, gain, first, constants, "
-           "positional, shift, a_max, j_max, out): a joint position command's low-pass, "
-           "band and limiter, one call."),
+    METHOD(joint_cycle,
+           "joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, "
+           "positional, shift, a_max, j_max, out): a joint position (or velocity) "
+           "command's low-pass, band and limiter, one call."),
     METHOD(limit_torques, "limit_torques(tau_c, tau_last, d_max, out): franka::limitRate "
                           "for torques."),
     METHOD(limit_twist, "limit_twist(twist_c, twist_last, dtwist_last, limits, out): "

@@ -384,10 +384,11 @@ class CommandGenerator:
         if self.action_filter == "interpolate_limit_rate":
             target = cf.interpolate_core(self._start, target, self._phase(k))
         fields = self._fields(state)
-        if interface == "joint_position" and self.action_filter in RATE_LIMITED:
+        if interface in ("joint_position", "joint_velocity") and self.action_filter in RATE_LIMITED:
             # the low-pass, the velocity band at q_d and the limiter: one C call
-            # (envs/_client_filters.c joint_position_cycle: the same rows as below)
-            return RULES.joint_position_cycle(
+            # (envs/_client_filters.c joint_cycle: the same rows as the steps below)
+            return RULES.joint_cycle(
+                interface == "joint_position",
                 target,
                 fields["q_d"],
                 fields["dq_d"],

@@ -2,7 +2,7 @@
  * src/joint_velocity_limits.cpp (docs/limits.md section 4; fci/tables.py
  * RobotTable.velocity_envelope): the law's one text, read by the robot's rules
  * (fci/limits/_joint.c) and by the env's client, whose rate limiter runs inside the band
- * at its last commanded position (envs/_client_filters.c joint_position_cycle).
+ * at its last commanded position (envs/_client_filters.c joint_cycle).
  *
  * ``constants`` (7, 7) rows: RobotTable.joint_constants' q_lower, q_upper, ddq_max,
  * dddq_max, 2 ddq_decel, dq_offset, dq_max; ``positional`` 0 for a robot whose envelope is

@@ -158,7 +158,7 @@ def _joint_cycle_inputs(n: int = 5, seed: int = 2):
     return state, target
 
 
-def _joint_cycle(state, target, first):
+def _joint_cycle(state, target, first, positions=True):
     from franka_sim_gym.envs.commands import LIMITER_MARGIN
     from franka_sim_gym.fci.tables import JOINT_VELOCITY_LIMIT_TOLERANCE
 
@@ -171,7 +171,7 @@ def _joint_cycle(state, target, first):
     fields = state["q_d"], state["dq_d"], state["ddq_d"]
     constants, positional = FR3.joint_constants
     args = (gain, first, constants, positional, shift, a_max, j_max, out)
-    return RULES.joint_position_cycle(target, *fields, *args), (gain, a_max, j_max, shift)
+    return RULES.joint_cycle(positions, target, *fields, *args), (gain, a_max, j_max, shift)
 
 
 def test_the_joint_position_cycle_is_the_low_pass_band_and_limiter_in_one_call():
@@ -195,6 +195,25 @@ def test_the_joint_position_cycle_is_the_low_pass_band_and_limiter_in_one_call()
     assert (fused[0] < q_d[0]).all()
     unshut, _ = _joint_cycle(state, target, None)  # robot 1 now filtered against q_d
     assert not _same(unshut[1], fused[1]) and _same(unshut[2], fused[2])
+
+
+def test_the_joint_velocity_cycle_is_its_low_pass_band_and_limiter_in_one_call():
+    """A velocity command: low-passed against dq_d (a velocity motion has no first-command
+    rule: ``first`` is not read), limited inside the band at q_d; the same bits as the
+    steps one after the other."""
+    state, _ = _joint_cycle_inputs()
+    rng = np.random.default_rng(8)
+    target = rng.uniform(-1.0, 1.0, (5, 7))
+    first = np.array([True, True, False, False, True])
+    fused, (gain, a_max, j_max, shift) = _joint_cycle(state, target, first, positions=False)
+    x = RULES.lowpass(target, state["dq_d"], gain, np.zeros((5, 7)))
+    band = FR3.velocity_envelope_halves(state["q_d"].astype(np.float64), shift)
+    alone = RULES.limit_velocities(
+        x, state["dq_d"], state["ddq_d"], band[:, :7], -band[:, 7:], a_max, j_max,
+        np.zeros((5, 7)),
+    )  # fmt: skip
+    assert _same(fused, alone)
+    assert _same(fused, _joint_cycle(state, target, None, positions=False)[0])
 
 
 def test_the_joint_position_cycle_names_a_bad_argument():
