@@ -244,8 +244,6 @@ class CommandGenerator:
         self._band_shift = JOINT_VELOCITY_LIMIT_TOLERANCE + m["dq"]
         self._lowpassed = np.zeros((n, cols))
         self._out = np.zeros_like(self._lowpassed)
-        self._doubled = np.zeros((n, 14))  # [q_d | q_d], then the velocity band in place
-        self._lower = np.zeros((n, 7))
         self._fields_of = None
         self._field_views: dict[str, np.ndarray] = {}
         self._ref_pose = np.zeros((n, 4, 4))
@@ -385,8 +383,11 @@ class CommandGenerator:
             target = cf.interpolate_core(self._start, target, self._phase(k))
         fields = self._fields(state)
         if interface in ("joint_position", "joint_velocity") and self.action_filter in RATE_LIMITED:
-            # the low-pass, the velocity band at q_d and the limiter: one C call
-            # (envs/_client_filters.c joint_cycle: the same rows as the steps below)
+            # libfranka's low-pass, then its limiter inside the velocity band at the last
+            # commanded position (libfranka evaluates it at the reference) with the
+            # client's margin inside libfranka's tolerance: one C call (envs/
+            # _client_filters.c joint_cycle; a position motion's first command is its
+            # own reference there, as below)
             return RULES.joint_cycle(
                 interface == "joint_position",
                 target,
@@ -401,6 +402,7 @@ class CommandGenerator:
                 self._dddq_max,
                 self._out,
             )
+        # Below: the low-pass alone ("lowpass"), and the twist's and the torque's limiters.
         ref = fields[_REFERENCE[interface]]
         if interface == "joint_position" and self._n_first:
             # A position motion's first command is its own reference (no q_d to filter to).
@@ -416,20 +418,7 @@ class CommandGenerator:
         if interface == "cartesian_velocity":
             twist = (fields["O_dP_EE_c"], fields["O_ddP_EE_c"])
             return RULES.limit_twist(x, *twist, self._limits, out)
-        if interface == "torque":
-            return RULES.limit_torques(x, fields["tau_J_d"], self._dtau_max, out)
-        # The velocity band at the last commanded position (libfranka evaluates it at the
-        # reference), the client's margin inside libfranka's tolerance: [upper | -lower],
-        # computed in place from [q_d | q_d] (float32 widened exactly).
-        q_d, doubled = fields["q_d"], self._doubled
-        np.copyto(doubled.reshape(-1, 2, 7), q_d[:, None])
-        band = self.table.velocity_envelope_halves(doubled, self._band_shift)
-        upper, lower = band[:, :7], np.negative(band[:, 7:], out=self._lower)
-        a_max, j_max = self._ddq_max, self._dddq_max
-        history = (fields["dq_d"], fields["ddq_d"], upper, lower, a_max, j_max, out)
-        if interface == "joint_position":
-            return RULES.limit_positions(x, q_d, *history)
-        return RULES.limit_velocities(x, *history)
+        return RULES.limit_torques(x, fields["tau_J_d"], self._dtau_max, out)
 
 
 def check_safety_box(box, interface: str, action_filter: str):
