@@ -13,8 +13,10 @@ from setuptools import Extension, setup
 
 # -ffp-contract=off: no fused multiply-adds, so that each rule's elementwise arithmetic
 # rounds as written (and as the numpy texts it replaced did: the published states kept
-# their bits).
-FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math", "-std=c99"]
+# their bits). -O3 rather than -O2: its vectorised loops keep every sum's order (no
+# -ffast-math), the same bits, and the contact sensing's plan runs ~30 % faster (10.8 to
+# 7.5 us a 16-arm cycle, measured alone).
+FLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-std=c99"]
 HEADERS = sorted(p.as_posix() for p in Path("franka_sim_gym").glob("*/_*.h"))
 KERNELS = [
     Extension(
