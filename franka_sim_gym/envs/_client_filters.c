@@ -9,8 +9,8 @@
  *   lowpass(x, x_ref, gain, out)                               franka::lowpassFilter
  *   limit_velocities(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_positions(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
- *   joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, positional,
- *               shift, a_max, j_max, out)   lowpass, the band, a joint limiter: one call
+ *   joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, constants,
+ *               positional, shift, a_max, j_max, out)   lowpass (+ band, limiter): one call
  *   limit_torques(tau_c, tau_last, d_max, out)                 franka::limitRate (joints)
  *   limit_twist(twist_c, twist_last, dtwist_last, limits, out)
  *   limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out)   (Cartesian)
@@ -135,28 +135,28 @@ static void limit_positions_rows(const F64 *a, Py_ssize_t n)
 KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
        ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
-/* joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, positional,
- *             shift, a_max, j_max, out): one cycle of the env client's joint position
- * (``positions`` true) or joint velocity command under ``limit_rate``
- * (envs/commands.py CommandGenerator), one call: libfranka's low-pass of the target
+/* joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, constants,
+ *             positional, shift, a_max, j_max, out): one cycle of the env client's joint
+ * position (``positions`` true) or joint velocity command (envs/commands.py
+ * CommandGenerator), one call: libfranka's low-pass of the target
  * against its reference (q_d, or dq_d for a velocity; a position motion's first command,
  * where ``first``, against the target itself), then its limiter inside the velocity band
  * at q_d (native/_envelope.h, the robot's law, with the client's ``shift`` for its
- * tolerance). (n, 7) arrays (q_d, dq_d, ddq_d float32 or float64; gain, a_max and j_max
+ * tolerance) where ``limited`` (``limit_rate``; the low-pass alone otherwise). (n, 7) arrays (q_d, dq_d, ddq_d float32 or float64; gain, a_max and j_max
  * broadcast views for one value), ``first`` an (n,) bool or None, ``constants`` and
  * ``positional`` RobotTable.joint_constants. The same rows as lowpass, envelope_halves
  * and limit_positions / limit_velocities one after the other: the same bits. */
 static PyObject *joint_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     (void)self;
-    if (check_nargs(nargs, 13, "joint_cycle") < 0) return NULL;
+    if (check_nargs(nargs, 14, "joint_cycle") < 0) return NULL;
     if (!CONFIGURED) {
         PyErr_SetString(PyExc_RuntimeError, "joint_cycle: configure(...) first");
         return NULL;
     }
-    const int positions = PyObject_IsTrue(args[0]);
-    if (positions < 0) return NULL;
-    args++; /* the arrays, as the position overload had them */
+    const int positions = PyObject_IsTrue(args[0]), limited = PyObject_IsTrue(args[1]);
+    if (positions < 0 || limited < 0) return NULL;
+    args += 2; /* the arrays */
     enum { TARGET, Q_D, DQ_D, DDQ_D, GAIN, CONSTANTS, A_MAX, J_MAX, OUT_, COUNT };
     F64 a[COUNT];
     Bytes first;
@@ -188,6 +188,10 @@ static PyObject *joint_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
             const double dq_d = num2(&a[DQ_D], i, j);
             const double ref = own ? target : positions ? q_d : dq_d;
             const double x = lowpass_value(target, ref, AT2(a[GAIN], i, j));
+            if (!limited) {
+                AT2(a[OUT_], i, j) = x;
+                continue;
+            }
             double upper, lower;
             envelope(&a[CONSTANTS], j, q_d, pos, shift, &upper, &lower);
             AT2(a[OUT_], i, j) =
@@ -409,9 +413,9 @@ static PyMethodDef METHODS[] = {
     METHOD(limit_positions, "limit_positions(q_c, q_last, v_last, a_last, upper, lower, "
                             "a_max, j_max, out): franka::limitRate for joint positions."),
     METHOD(joint_cycle,
-           "joint_cycle(positions, target, q_d, dq_d, ddq_d, gain, first, constants, "
-           "positional, shift, a_max, j_max, out): a joint position (or velocity) "
-           "command's low-pass, band and limiter, one call."),
+           "joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, "
+           "constants, positional, shift, a_max, j_max, out): a joint position (or "
+           "velocity) command's low-pass (then, limited, its band and limiter), one call."),
     METHOD(limit_torques, "limit_torques(tau_c, tau_last, d_max, out): franka::limitRate "
                           "for torques."),
     METHOD(limit_twist, "limit_twist(twist_c, twist_last, dtwist_last, limits, out): "

@@ -382,14 +382,15 @@ class CommandGenerator:
         if self.action_filter == "interpolate_limit_rate":
             target = cf.interpolate_core(self._start, target, self._phase(k))
         fields = self._fields(state)
-        if interface in ("joint_position", "joint_velocity") and self.action_filter in RATE_LIMITED:
-            # libfranka's low-pass, then its limiter inside the velocity band at the last
-            # commanded position (libfranka evaluates it at the reference) with the
-            # client's margin inside libfranka's tolerance: one C call (envs/
-            # _client_filters.c joint_cycle; a position motion's first command is its
-            # own reference there, as below)
+        if interface in ("joint_position", "joint_velocity"):
+            # libfranka's low-pass (a position motion's first command its own reference:
+            # no q_d to filter to), then ("limit_rate") its limiter inside the velocity
+            # band at the last commanded position (libfranka evaluates it at the
+            # reference) with the client's margin inside libfranka's tolerance: one C
+            # call (envs/_client_filters.c joint_cycle)
             return RULES.joint_cycle(
                 interface == "joint_position",
+                self.action_filter in RATE_LIMITED,
                 target,
                 fields["q_d"],
                 fields["dq_d"],
@@ -402,12 +403,8 @@ class CommandGenerator:
                 self._dddq_max,
                 self._out,
             )
-        # Below: the low-pass alone ("lowpass"), and the twist's and the torque's limiters.
-        ref = fields[_REFERENCE[interface]]
-        if interface == "joint_position" and self._n_first:
-            # A position motion's first command is its own reference (no q_d to filter to).
-            ref = np.where(self._first[:, None], target, ref)
-        x = RULES.lowpass(target, ref, self._gain, self._lowpassed)
+        # The twist's and the torque's: the low-pass, then ("limit_rate") their limiters.
+        x = RULES.lowpass(target, fields[_REFERENCE[interface]], self._gain, self._lowpassed)
         if self.safety_box is not None:  # (the twist interface: box set, see __init__)
             p = state["O_T_EE"][:, 12:15]  # measured: O_T_EE_c stays at the motion's start
             v_last = fields["O_dP_EE_c"][:, :3]
@@ -451,8 +448,6 @@ def check_safety_box(box, interface: str, action_filter: str):
 
 #: The state field each interface's filters run against (libfranka's ControlLoop).
 _REFERENCE = {
-    "joint_position": "q_d",
-    "joint_velocity": "dq_d",
     "torque": "tau_J_d",
     "cartesian_velocity": "O_dP_EE_c",
 }

@@ -397,7 +397,8 @@ class ArmPhysics:
         # Every arm's joint servo into its ctrl rows, then the arms under the Cartesian
         # servo or an external torque their own (sim/_stepping.c torque and own: the
         # composition's one text, Coriolis and compensation as the joint servo's).
-        steps.torque(q_ref, dq_ref, kp, kd, compensation)
+        if external is not True:  # (every arm under external torque: no joint servo's)
+            steps.torque(q_ref, dq_ref, kp, kd, compensation)
         servo_tau = servo_arms = under = None
         if cartesian is not None:
             servo_tau, servo_arms = self._cartesian_servo(cartesian, q_ref), cartesian.mask

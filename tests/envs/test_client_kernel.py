@@ -158,7 +158,7 @@ def _joint_cycle_inputs(n: int = 5, seed: int = 2):
     return state, target
 
 
-def _joint_cycle(state, target, first, positions=True):
+def _joint_cycle(state, target, first, positions=True, limited=True):
     from franka_sim_gym.envs.commands import LIMITER_MARGIN
     from franka_sim_gym.fci.tables import JOINT_VELOCITY_LIMIT_TOLERANCE
 
@@ -171,7 +171,8 @@ def _joint_cycle(state, target, first, positions=True):
     fields = state["q_d"], state["dq_d"], state["ddq_d"]
     constants, positional = FR3.joint_constants
     args = (gain, first, constants, positional, shift, a_max, j_max, out)
-    return RULES.joint_cycle(positions, target, *fields, *args), (gain, a_max, j_max, shift)
+    result = RULES.joint_cycle(positions, limited, target, *fields, *args)
+    return result, (gain, a_max, j_max, shift)
 
 
 def test_the_joint_position_cycle_is_the_low_pass_band_and_limiter_in_one_call():
@@ -214,6 +215,20 @@ def test_the_joint_velocity_cycle_is_its_low_pass_band_and_limiter_in_one_call()
     )  # fmt: skip
     assert _same(fused, alone)
     assert _same(fused, _joint_cycle(state, target, None, positions=False)[0])
+
+
+def test_unlimited_the_joint_cycle_is_the_low_pass_alone():
+    """The "lowpass" filter's cycle: a position against q_d (against the target itself on
+    a motion's first command), a velocity against dq_d, and nothing after."""
+    state, target = _joint_cycle_inputs()
+    first = np.array([False, True, False, False, True])
+    gain = _joint_cycle(state, target, first)[1][0]
+    fused = _joint_cycle(state, target, first, limited=False)[0]
+    ref = np.where(first[:, None], target, state["q_d"])
+    assert _same(fused, RULES.lowpass(target, ref, gain, np.zeros((5, 7))))
+    assert not _same(fused, _joint_cycle(state, target, first)[0])  # the limiter binds
+    velocity = _joint_cycle(state, target, first, positions=False, limited=False)[0]
+    assert _same(velocity, RULES.lowpass(target, state["dq_d"], gain, np.zeros((5, 7))))
 
 
 def test_the_joint_position_cycle_names_a_bad_argument():

@@ -98,8 +98,10 @@ def test_bad_arrays_are_refused_by_name():
     plan = _PUBLISH.Publishing(*ok)
     with pytest.raises(ValueError, match="in_motion"):
         plan.copies(np.zeros((2, 7)), np.zeros(3, bool))
-    with pytest.raises(ValueError, match="q"):
+    before = w.q_d.copy()
+    with pytest.raises(ValueError, match="q: axis 1 has length 6, expected 7"):
         plan.copies(np.zeros((2, 6)), np.zeros(2, bool))
+    assert np.array_equal(w.q_d, before)  # nothing copied
     with pytest.raises(ValueError, match="success_rate"):
         plan.publish(np.zeros(3))
     assert w.states["message_id"].tolist() == [0, 0]  # nothing was published

@@ -65,15 +65,15 @@ def test_the_model_terms_are_those_of_the_state_just_reached():
     forces and the Jacobian of the new state, as read from every arm's own MjData."""
     physics = ArmPhysics(n_arms=2)
     dynamics = ArmDynamics(physics)
+    # the contact sensing's plan reads them (fci/contact/_contact.c Sensing): built at the
+    # home state, then restarted at the state the steps reach, its model terms are these
+    sensing = FciController(physics, ControllerConfig()).contact
     q = physics.q.copy()
     q[:, 3] += 0.05
     for _ in range(3):
         physics.step(q, None)
     lay = physics.layout
     dofs = np.asarray(lay.dof_adr[0])
-    # the contact sensing's plan reads them (fci/contact/_contact.c Sensing): restarted
-    # at this state, the estimate's model terms are these
-    sensing = FciController(physics, ControllerConfig()).contact
     sensing.reset([0, 1])
     for i, d in enumerate(physics.datas):
         full = np.zeros((physics.model.nv, physics.model.nv))

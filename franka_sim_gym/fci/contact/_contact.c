@@ -512,20 +512,13 @@ static inline void model_terms_row(SensingObject *self, Py_ssize_t i)
  * state their arms are at (a teleport: a velocity jump is no acceleration). */
 static PyObject *Sensing_reset(SensingObject *self, PyObject *robots)
 {
-    Py_buffer view;
-    if (PyObject_GetBuffer(robots, &view, PyBUF_RECORDS_RO) < 0) return NULL;
-    const char *f = view.format;
-    if (f && (*f == '<' || *f == '=' || *f == '@')) f++;
-    if (view.ndim != 1 || view.itemsize != 8 || !f || !f[0] || !strchr("qlQL", f[0]) || f[1]) {
-        PyBuffer_Release(&view);
-        PyErr_SetString(PyExc_ValueError, "robots: expected a 1-D int64 array");
-        return NULL;
-    }
-    Py_ssize_t count = view.shape[0], stride = view.strides ? view.strides[0] : 8;
+    Int64s view;
+    Py_ssize_t count = leading(robots, "robots");
+    if (count < 0 || int64s_get(robots, &view, count, 0, "robots") < 0) return NULL;
     for (Py_ssize_t k = 0; k < count; k++) {
-        long long r = *(long long *)((char *)view.buf + k * stride);
+        long long r = INT64_AT(view, k);
         if (r < 0 || r >= self->n) {
-            PyBuffer_Release(&view);
+            int64s_release(&view);
             PyErr_Format(PyExc_ValueError, "robots: %lld is not one of the %zd robots", r,
                          self->n);
             return NULL;
@@ -533,14 +526,14 @@ static PyObject *Sensing_reset(SensingObject *self, PyObject *robots)
     }
     F64 *a = self->a;
     for (Py_ssize_t k = 0; k < count; k++) {
-        Py_ssize_t i = (Py_ssize_t) * (long long *)((char *)view.buf + k * stride);
+        Py_ssize_t i = (Py_ssize_t)INT64_AT(view, k);
         for (int j = 0; j < 7; j++) {
             AT2(a[S_DQ_PREV], i, j) = AT2(a[S_DQ], i, j);
             AT2(a[S_TAU_EXT], i, j) = 0.0;
         }
         model_terms_row(self, i);
     }
-    PyBuffer_Release(&view);
+    int64s_release(&view);
     Py_RETURN_NONE;
 }
 
