@@ -1,21 +1,17 @@
-/* libfranka's isHomogeneousTransformation (docs/libfranka-client.md §9): the robot's check
- * of every pose command, and the client's before it sends one. Its only text;
- * fci/frames.py loads it (native.require) and puts the wire layout in front:
+/* libfranka's isHomogeneousTransformation (native/_homogeneous.h, its only text) on a
+ * batch of poses; fci/frames.py loads it (native.require) and puts the wire layout in
+ * front:
  *
  *   homogeneous(T (n, 4, 4) row-major, any strides, tol, out (n,) uint8) -> passed
  *
- * A pose passes when its bottom row is exactly [0, 0, 0, 1], every row and every column
- * of its rotation block has a norm within tol of 1 (no determinant check, as libfranka),
- * and all 16 entries are finite. ``out[i]`` is 1 where pose i passes; the return value
+ * ``out[i]`` is 1 where pose i passes; the return value
  * counts them (the caller's "every pose passed" without a reduce). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
 
 #include "_arrays.h"
-
-/* |sqrt(norm2) - 1| <= tol. */
-static inline int unit_norm(double norm2, double tol) { return fabs(sqrt(norm2) - 1.0) <= tol; }
+#include "_homogeneous.h"
 
 static int pose_passes(const F64 *T, Py_ssize_t i, double tol)
 {
@@ -25,18 +21,7 @@ static int pose_passes(const F64 *T, Py_ssize_t i, double tol)
         for (int c = 0; c < 4; c++)
             memcpy(&m[4 * r + c], T->data + i * T->strides[0] + r * T->strides[1] + c * T->strides[2],
                    sizeof(double));
-    for (int k = 0; k < 16; k++)
-        if (!isfinite(m[k])) return 0;
-    if (!(m[12] == 0.0 && m[13] == 0.0 && m[14] == 0.0 && m[15] == 1.0)) return 0;
-    /* The squares summed as numpy's einsum summed them: a row's as (x0 + x2) + x1, a
-     * column's in order (the verdicts of the numpy text this replaced, to the last bit). */
-    for (int k = 0; k < 3; k++) {
-        const double *row = m + 4 * k;
-        double r2 = (row[0] * row[0] + row[2] * row[2]) + row[1] * row[1];
-        double c2 = (m[k] * m[k] + m[4 + k] * m[4 + k]) + m[8 + k] * m[8 + k];
-        if (!unit_norm(r2, tol) || !unit_norm(c2, tol)) return 0;
-    }
-    return 1;
+    return homogeneous_passes(m, tol);
 }
 
 static PyObject *homogeneous(PyObject *self, PyObject *const *args, Py_ssize_t nargs)

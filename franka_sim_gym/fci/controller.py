@@ -117,6 +117,16 @@ class FciController(ControllerRequests):
         self.cartesian = CartesianGenerators(
             physics, w, self.modes, self.accounting, self.config, self.engine, self.late
         )
+        #: the arrival's rules: fresh, late or answering nothing; refused or taken
+        self.arrival = arrival.Arrival(
+            self.modes,
+            w.message_id,
+            self.accounting.motion_first_id,
+            self.accounting.answered,
+            self.accounting.started,
+            self.cycle_input,
+            self.cartesian.candidates,
+        )
         self.safety = SafetyController(
             physics, w.O_T_EE, self.modes, self.accounting, self.config, self.engine
         )
@@ -180,9 +190,6 @@ class FciController(ControllerRequests):
         m = self.modes
         if m.n_motion == 0:
             return
-        n = self.n
-        if m.n_motion < n:
-            mask = mask & m.in_motion
         cycle = self.cycle_input
         if self.asynchronous.count:
             targets = mask & self.asynchronous.active
@@ -195,22 +202,23 @@ class FciController(ControllerRequests):
                 )
                 self._apply_verdicts()
                 mask = mask & ~targets
-        k = np.count_nonzero(mask)
-        if k == 0:
+        code = self.arrival.arrive(commands, mask)
+        if code:
+            self._arrival_found(commands, code)
+
+    def _arrival_found(self, commands: np.ndarray, code: int) -> None:
+        """What ``arrive`` left to the controller (fci/arrival.py): log the commands that
+        answered nothing or were refused; hand late ones to their generators, then take
+        the rest."""
+        a = self.arrival
+        if code & arrival.LOG:
+            a.log(commands, self.writer.message_id, self.warnings)
+        if not code & arrival.LATE:
             return
+        m, cycle = self.modes, self.cycle_input
         ids = commands["message_id"]
-        fresh, late, accepted = arrival.classify(
-            commands,
-            mask,
-            k,
-            m,
-            self.writer.message_id,
-            self.accounting.motion_first_id,
-            cycle,
-            self.warnings,
-        )
-        self.accounting.answered |= fresh
-        if late is not None and m.n_cartesian:
+        late, accepted = a.late, a.accepted
+        if m.n_cartesian:
             late_cartesian = late & m.cartesian & accepted
             if np.count_nonzero(late_cartesian):
                 # docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood
@@ -218,19 +226,16 @@ class FciController(ControllerRequests):
                 # the Cartesian history, the others are judged and drive the servo only.
                 self.cartesian.late_datagrams(cycle, commands, late_cartesian, ids)
                 self._apply_verdicts()
-                accepted = accepted & ~late_cartesian
-        if late is not None and m.n_tracking:
+                accepted &= ~late_cartesian
+        if m.n_tracking:
             late_joint = late & m.tracking & accepted
             if np.count_nonzero(late_joint):
                 # Late datagrams of joint motions are handled on arrival: the one
                 # the extrapolated run is missing rewinds it, the others are judged.
                 self.joint.late_datagrams(cycle, commands, late_joint, ids)
                 self._apply_verdicts()
-                accepted = accepted & ~late_joint
-        if m.n_cartesian:
-            self.cartesian.take(commands, accepted)
-        cycle.take(commands, accepted, m)
-        self.accounting.started |= accepted
+                accepted &= ~late_joint
+        a.take(commands)
 
     def step(self) -> list[Event]:
         """Run one 1 ms cycle and publish state k+1; returns the events it produced."""

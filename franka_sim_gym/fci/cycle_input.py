@@ -1,7 +1,7 @@
 """What one cycle hands the generators: the commands that arrived and who is where.
 
-The controller fills a :class:`CycleInput` as datagrams arrive (``receive``) and
-hands it to the joint, torque and Cartesian generators when it closes the cycle;
+The controller fills a :class:`CycleInput` as datagrams arrive (``receive``: the
+X
 each generator reads what it needs and clears ``first`` for the robots whose opening
 command it judged. Nothing else of the controller is visible to them.
 """
@@ -9,9 +9,6 @@ command it judged. Nothing else of the controller is visible to them.
 from __future__ import annotations
 
 import numpy as np
-
-from .modes import Modes
-from .rows import put_rows
 
 
 class CycleInput:
@@ -36,30 +33,6 @@ class CycleInput:
         self.refused_torque = np.zeros(n, dtype=bool)
         #: (n,) the command that arrived ends the motion (motion_generation_finished)
         self.finish = np.zeros(n, dtype=bool)
-
-    def take(self, commands: np.ndarray, accepted: np.ndarray, m: Modes) -> None:
-        """Keep the joint and torque fields of the ``accepted`` commands (each interface
-        reads its own field only) and whether each ends its motion."""
-        every = np.count_nonzero(accepted) == self.n
-        if m.n_joint_position:
-            put_rows(self.q_c, commands["q_c"], accepted, every)
-        if m.n_joint_velocity:
-            put_rows(self.dq_c, commands["dq_c"], accepted, every)
-        if m.n_external:
-            put_rows(self.tau_c, commands["tau_J_d"], accepted, every)
-        self.have |= accepted
-        if m.n_torque_only == 0:
-            finished = commands["motion_generation_finished"]
-        elif m.n_torque_only == self.n:
-            finished = commands["torque_command_finished"]
-        else:
-            finished = np.where(
-                m.torque_only,
-                commands["torque_command_finished"],
-                commands["motion_generation_finished"],
-            )
-        if np.count_nonzero(finished):  # (the last command of a motion only)
-            self.finish |= accepted & finished
 
     def start(self, i: int) -> None:
         """Robot i opens a motion: nothing arrived yet, its first command is pending."""

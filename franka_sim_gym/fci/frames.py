@@ -9,8 +9,13 @@ from .. import native
 IDENTITY16 = np.eye(4).reshape(16)
 IDENTITY16.setflags(write=False)
 
-#: libfranka's isHomogeneousTransformation, its one text (fci/_frames.c).
+#: libfranka's isHomogeneousTransformation, its one text (native/_homogeneous.h, called
+#: on a batch by fci/_frames.c).
 _C = native.require("fci._frames", "homogeneous")
+
+#: isHomogeneousTransformation's tolerance on the rotation's row and column norms
+#: (libfranka control_tools.h: kOrthonormalThreshold = 1e-5).
+HOMOGENEOUS_TOL = 1e-5
 
 
 def to_wire(T: np.ndarray) -> np.ndarray:
@@ -33,7 +38,7 @@ def _verdict(T: np.ndarray, tol: float) -> tuple[np.ndarray, int]:
     return out.view(bool), passed
 
 
-def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
+def is_homogeneous(T: np.ndarray, tol: float = HOMOGENEOUS_TOL) -> np.ndarray:
     """(n,) libfranka's isHomogeneousTransformation on (n, 4, 4) row-major poses
     (docs/libfranka-client.md §9).
 
@@ -43,13 +48,6 @@ def is_homogeneous(T: np.ndarray, tol: float = 1e-5) -> np.ndarray:
     return _verdict(T, tol)[0]
 
 
-def is_homogeneous_wire(values: np.ndarray, tol: float = 1e-5) -> np.ndarray | None:
-    """:func:`is_homogeneous` of (n, 16) column-major wire poses: None when every pose
-    passes (the common case, so the caller needs no mask), else the (n,) verdict."""
-    verdict, passed = _verdict(from_wire(values), tol)
-    return None if passed == len(verdict) else verdict
-
-
-def is_homogeneous_transformation(values: np.ndarray, tol: float = 1e-5) -> bool:
+def is_homogeneous_transformation(values: np.ndarray, tol: float = HOMOGENEOUS_TOL) -> bool:
     """:func:`is_homogeneous` of one column-major wire transform (16 values)."""
     return bool(_verdict(from_wire(values)[None], tol)[0][0])

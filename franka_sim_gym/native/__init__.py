@@ -1,7 +1,9 @@
 """The loader of the C extensions of the 1 kHz hot path (no rule lives here).
 
 Every extension holds rules whose only text is C (issue 38: one text per rule, no numpy
-twin, no switch): ``fci/_frames.c`` (libfranka's isHomogeneousTransformation),
+twin, no switch): ``fci/_arrival.c`` (which arriving commands a cycle takes, refuses
+or counts as lost, and what it keeps of them), ``fci/_frames.c`` (libfranka's
+isHomogeneousTransformation on a batch),
 ``fci/_measured.c`` (the RobotState's measured joint fields, with the sensors' noise),
 ``fci/_accounting.c`` (the close of a cycle: success-rate window, lost-cycle runs),
 ``fci/limits/_joint.c`` (the joint and Cartesian generators' precedence tables, the
@@ -19,7 +21,8 @@ They are built at install time (``pip install .`` compiles every
 ``franka_sim_gym/<layer>/_<name>.c``; setup.py). Where no C compiler is available the
 install fails. The package holds what they share: :func:`require` and the C headers
 ``_arrays.h`` (checked array arguments, float64 and one-byte flags), ``_kernel.h`` (a
-rule's call from Python), ``_rotation.h`` (one rotation at a time), ``_solve6.h`` and
+rule's call from Python), ``_rotation.h`` (one rotation at a time), ``_homogeneous.h``
+(isHomogeneousTransformation's one text), ``_envelope.h``, ``_solve6.h`` and
 ``_ik_core.h``. Every constant a rule needs (the cycle
 ``fci/tables.py`` DELTA_T among them) is passed in by its caller, never compiled in.
 """
@@ -33,6 +36,7 @@ from types import ModuleType
 #: The C extensions setup.py builds (one per ``<layer>/_<name>.c``), all required.
 REQUIRED = (
     "fci._accounting",
+    "fci._arrival",
     "fci._frames",
     "fci._measured",
     "fci._publish",

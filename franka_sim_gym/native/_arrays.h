@@ -2,7 +2,7 @@
  * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
  * state fields and of stacked scratch rows are fine), with their shape checked before a
  * single element is read or written; (n,) one-byte flags (uint8, or numpy's bool read only);
- * the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
+ * writable (n,) bool masks; the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 
@@ -136,6 +136,31 @@ static inline int bytes_get(PyObject *obj, Bytes *b, Py_ssize_t n, int writable,
     if (b->view.ndim != 1 || b->view.itemsize != 1 || !kind_ok || b->view.shape[0] != n) {
         PyErr_Format(PyExc_ValueError, "%s: expected a uint8%s array of shape (%zd,)", name,
                      writable ? "" : " or bool", n);
+        PyBuffer_Release(&b->view);
+        b->view.obj = NULL;
+        return -1;
+    }
+    b->data = (char *)b->view.buf;
+    b->stride = b->view.strides ? b->view.strides[0] : 1;
+    return 0;
+}
+
+/* Borrow ``obj`` as (n,) writable one-byte flags: numpy's bool (or uint8), written as 0 / 1
+ * (the controller's per-robot masks). Returns 0, or -1 with a ValueError naming ``name``. */
+static inline int bools_get(PyObject *obj, Bytes *b, Py_ssize_t n, const char *name)
+{
+    memset(b, 0, sizeof(*b));
+    if (PyObject_GetBuffer(obj, &b->view, PyBUF_RECORDS) < 0) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: expected a writable bool array", name);
+        return -1;
+    }
+    const char *f = b->view.format;
+    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
+    int kind_ok = f && (strcmp(f, "?") == 0 || strcmp(f, "B") == 0);
+    if (b->view.ndim != 1 || b->view.itemsize != 1 || !kind_ok || b->view.shape[0] != n) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a writable bool array of shape (%zd,)",
+                     name, n);
         PyBuffer_Release(&b->view);
         b->view.obj = NULL;
         return -1;

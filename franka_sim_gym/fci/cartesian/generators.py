@@ -84,10 +84,10 @@ class CartesianGenerators:
         self.twist_cmd = np.zeros((n, 6))
         self.elbow_cmd = np.zeros((n, 2))
         self.elbow_valid = np.zeros(n, dtype=bool)
-        self._candidates = Candidates(self.T_cmd, self.twist_cmd, self.elbow_cmd, self.elbow_valid)
+        #: the candidates' arrays, written by the arrival's rules (fci/arrival.py)
+        self.candidates = (self.T_cmd, self.twist_cmd, self.elbow_cmd, self.elbow_valid)
+        self._candidates = Candidates(*self.candidates)
         self._none = self.stepper.none
-        # The transpose of T_cmd: the wire's column-major layout, as a view to copy into.
-        self._T_cmd_wire = self.T_cmd.transpose(0, 2, 1)
 
     @property
     def q_ik(self) -> np.ndarray:
@@ -109,30 +109,6 @@ class CartesianGenerators:
         # A datagram echoing the state the Move was accepted in answers this history.
         h.remember_robot(i, echo)
         self.stepper.ik_failed_logged[i] = False
-
-    def take(self, commands: np.ndarray, accepted: np.ndarray) -> None:
-        """Keep the Cartesian fields of the accepted commands as the cycle's candidates."""
-        m = self.modes
-        rows = accepted & m.cartesian
-        k = np.count_nonzero(rows)
-        if not k:
-            return
-        r = rows[:, None]
-        # Each generator reads its own field only (the other is not looked at).
-        if k == self.n:  # every robot: plain copies (the wire pose is T_cmd transposed)
-            if m.n_cartesian_position:
-                self._T_cmd_wire[...] = commands["O_T_EE_c"].reshape(k, 4, 4)
-            if m.n_cartesian_velocity:
-                self.twist_cmd[...] = commands["O_dP_EE_c"]
-        else:
-            if m.n_cartesian_position:
-                np.copyto(self.T_cmd, from_wire(commands["O_T_EE_c"]), where=r[:, :, None])
-            if m.n_cartesian_velocity:
-                np.copyto(self.twist_cmd, commands["O_dP_EE_c"], where=r)
-        valid = commands["valid_elbow"]
-        if np.count_nonzero(valid) or np.count_nonzero(self.elbow_valid):
-            np.copyto(self.elbow_cmd, commands["elbow_c"], where=r)
-            np.copyto(self.elbow_valid, valid.astype(bool), where=rows)
 
     # -- the cycle ----------------------------------------------------------------------------
 
