@@ -3,7 +3,7 @@
  * CycleAccounting.close_cycle calls it once a cycle for every robot:
  *
  *   close_cycle(answered, started, ring, pos, answered_sum, counted, lost_total, lost_run,
- *               longest_lost_run, rate, window)
+ *               longest_lost_run, rate, window, bound) -> at_bound
  *
  * For a robot whose accounting is open (``started``): the cycle enters its window (ring
  * column ``pos``, the oldest entry leaving) as answered or not, a cycle not answered is
@@ -11,7 +11,9 @@
  * run; control_command_success_rate is the answered cycles over the cycles the window
  * holds (what it holds while it fills). A robot whose accounting is not open keeps its
  * cleared window, rate 0.0, and its run as it is (AutomaticErrorRecovery re-arms it).
- * ``answered`` is cleared for the next cycle.
+ * ``answered`` is cleared for the next cycle. Returns how many robots' runs are at ``bound``
+ * or past it (the 20-cycle bound, docs/fci-behaviour.md: the caller's "none", its usual
+ * answer, without a reduce).
  *
  *   lost_runs(sending, answered, robot_answers, lost, lost_run, longest_lost_run) -> bool
  *
@@ -51,11 +53,12 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
     memset(counters, 0, sizeof(counters));
     memset(&rate, 0, sizeof(rate));
     PyObject *result = NULL;
-    if (check_nargs(nargs, 11, "close_cycle") < 0) return NULL;
+    if (check_nargs(nargs, 12, "close_cycle") < 0) return NULL;
     Py_ssize_t n = leading(args[1], "started");
     if (n < 0) return NULL;
     Py_ssize_t pos = PyLong_AsSsize_t(args[3]), window = PyLong_AsSsize_t(args[10]);
-    if ((pos == -1 || window == -1) && PyErr_Occurred()) return NULL;
+    long long bound = PyLong_AsLongLong(args[11]);
+    if ((pos == -1 || window == -1 || bound == -1) && PyErr_Occurred()) return NULL;
     if (window < 1 || pos < 0 || pos >= window) {
         PyErr_Format(PyExc_ValueError, "close_cycle: pos %zd outside a window of %zd", pos,
                      window);
@@ -82,10 +85,14 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
     for (int k = 0; k < COUNTERS; k++)
         if (int64s_get(args[4 + k], &counters[k], n, 1, names[k]) < 0) goto done;
     if (f64_get(args[9], &rate, 1, s1, 1, "rate") < 0) goto done;
+    Py_ssize_t at_bound = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
         const int is_answered = BYTE1(answered, i) != 0;
         BYTE1(answered, i) = 0;
-        if (!BYTE1(started, i)) continue; /* a cleared window, rate 0.0 */
+        if (!BYTE1(started, i)) { /* a cleared window, rate 0.0; the run as it is */
+            at_bound += INT64_AT(counters[LOST_RUN], i) >= bound;
+            continue;
+        }
         unsigned char *slot = (unsigned char *)ring.buf + i * ring.strides[0] + pos * ring.strides[1];
         const long long sum = INT64_AT(counters[SUM], i) + is_answered - (*slot != 0);
         *slot = (unsigned char)is_answered;
@@ -96,8 +103,9 @@ static PyObject *close_cycle(PyObject *self, PyObject *const *args, Py_ssize_t n
         /* while the window fills the divisor is what it holds (never 0 here) */
         const long long held = counted < window ? counted : window;
         AT1(rate, i) = (double)sum / (double)held;
+        at_bound += INT64_AT(counters[LOST_RUN], i) >= bound;
     }
-    result = Py_NewRef(Py_None);
+    result = PyLong_FromSsize_t(at_bound);
 done:
     if (answered.view.obj) PyBuffer_Release(&answered.view);
     bytes_release(&started);

@@ -41,7 +41,10 @@
  *       field only), the Cartesian fields of the robots in Cartesian motion, the elbow
  *       while some command or candidate has one; marks them ``have`` and ``started``,
  *       and ``finish`` where the command ends its motion (torque_command_finished under
- *       an external controller alone, motion_generation_finished otherwise).
+ *       an external controller alone, motion_generation_finished otherwise);
+ *   Arrival.close() -> finishing
+ *       the cycle closes: nothing has arrived for the next (``have`` cleared); returns how
+ *       many robots' commands end their motion (``finish``, which the caller clears).
  *
  * A wire record is packed: its fields are read with memcpy at any alignment, little-endian
  * as the wire (the build targets little-endian hosts only). */
@@ -395,12 +398,25 @@ static PyObject *Arrival_take(ArrivalObject *self, PyObject *commands)
     Py_RETURN_NONE;
 }
 
+static PyObject *Arrival_close(ArrivalObject *self, PyObject *unused)
+{
+    (void)unused;
+    Py_ssize_t finishing = 0;
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        BYTE1(self->flags[F_HAVE], i) = 0;
+        finishing += BYTE1(self->flags[F_FINISH], i) != 0;
+    }
+    return PyLong_FromSsize_t(finishing);
+}
+
 static PyMethodDef Arrival_methods[] = {
     {"arrive", (PyCFunction)(void (*)(void))Arrival_arrive, METH_FASTCALL,
      "arrive(commands, mask) -> code: classify the delivered commands, refuse those that "
      "fail, take the others (unless code bit 2: late ones for the generators first)."},
     {"take", (PyCFunction)Arrival_take, METH_O,
      "take(commands): keep the accepted commands as the cycle's candidates."},
+    {"close", (PyCFunction)Arrival_close, METH_NOARGS,
+     "close() -> finishing: clear have for the next cycle; how many commands finished."},
     {NULL, NULL, 0, NULL},
 };
 

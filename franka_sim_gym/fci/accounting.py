@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import native
-from .tables import SUCCESS_RATE_WINDOW
+from .tables import MAX_LOST_CYCLES, SUCCESS_RATE_WINDOW
 
 #: the close of a cycle's one text (fci/_accounting.c)
 _RULES = native.require("fci._accounting", "close_cycle")
@@ -77,15 +77,16 @@ class CycleAccounting:
         """AutomaticErrorRecovery re-arms the lost-cycle bound."""
         self.lost_run[i] = 0
 
-    def close_cycle(self) -> None:
+    def close_cycle(self) -> int:
         """Close the open cycle for every robot whose accounting is open: one C call
-        (fci/_accounting.c, the rule's only text)."""
+        (fci/_accounting.c, the rule's only text). Returns how many robots have lost
+        MAX_LOST_CYCLES in a row or more (the communication constraints' bound)."""
         pos = self._pos
         self._pos = (pos + 1) % self.window
-        _RULES.close_cycle(
+        return _RULES.close_cycle(
             self.answered, self.started, self._ring, pos, self._answered_sum, self._counted,
             self.lost_total, self.lost_run, self.longest_lost_run, self._rate,
-            self.window,
+            self.window, MAX_LOST_CYCLES,
         )  # fmt: skip
 
     def success_rate(self) -> np.ndarray:

@@ -116,6 +116,7 @@ class Arrival:
         #: fci/_arrival.c's two entries (see its header)
         self.arrive = self._plan.arrive
         self.take = self._plan.take
+        self.close = self._plan.close
 
     def log(self, commands: np.ndarray, published: np.ndarray, warnings: CycleLogLimit) -> None:
         """Log the last ``arrive``'s commands that answered nothing or were refused."""

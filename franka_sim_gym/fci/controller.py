@@ -53,7 +53,6 @@ from .reference import JointReference
 from .requests import ControllerRequests
 from .safety_controller import SafetyController
 from .state import StateWriter
-from .tables import MAX_LOST_CYCLES
 from .wire import (
     RobotMode,
 )
@@ -81,7 +80,7 @@ class FciController(ControllerRequests):
         self.states = self.writer.states
         w = self.writer
         #: the commanded joint reference: the published q_d / dq_d / ddq_d themselves
-        self.reference = JointReference(w.q_d, w.dq_d, w.ddq_d)
+        self.reference = JointReference(w.q_d, w.dq_d, w.ddq_d, w.reference_columns)
         #: the commanded torque (without gravity): the published tau_J_d itself
         self.tau_J_d = w.tau_J_d
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))
@@ -278,16 +277,13 @@ class FciController(ControllerRequests):
             if m.n_motion:
                 self.safety.check()
                 self._apply_verdicts()
-            acc = self.accounting
-            acc.close_cycle()
-            if np.count_nonzero(acc.lost_run >= MAX_LOST_CYCLES):
+            if self.accounting.close_cycle():  # some robot at the 20-cycle bound
                 self.safety.communication_constraints()
                 self._apply_verdicts()
-            if np.count_nonzero(cycle.finish):
+            if self.arrival.close():  # (have cleared) some command ends its motion
                 for i in np.flatnonzero(cycle.finish & m.in_motion).tolist():
                     self.end_motion(i, MoveStatus.kSuccess, hold_reference=True)
                 cycle.finish[...] = False
-            cycle.have[...] = False
         if self.recovery.count:
             for i in self.recovery.advance(self.physics.dq):
                 self.finish_recovery(i)

@@ -18,6 +18,8 @@ class LateIntents:
 
     def __init__(self, n: int) -> None:
         self.rows = np.zeros(n, dtype=bool)
+        #: some robot has an intent (the servo's usual answer, no, without a reduce)
+        self.pending = False
         self.q = np.zeros((n, 7))
         self.dq = np.zeros((n, 7))
 
@@ -28,6 +30,7 @@ class LateIntents:
         np.copyto(self.q, q, where=r)
         np.copyto(self.dq, dq, where=r)
         self.rows |= rows
+        self.pending = True
 
     def servo(
         self, q_ref: np.ndarray, dq_ref: np.ndarray | None, have: np.ndarray, moving: np.ndarray
@@ -35,9 +38,10 @@ class LateIntents:
         """The servo's target this cycle: the late intents of robots still ``moving`` for
         which no fresh command arrived (``have``), the given target elsewhere; forgets
         the intents."""
-        if not np.count_nonzero(self.rows):
+        if not self.pending:
             return q_ref, dq_ref
         rows = (self.rows & ~have & moving)[:, None]
         self.rows[...] = False
+        self.pending = False
         dq = np.zeros_like(q_ref) if dq_ref is None else dq_ref
         return np.where(rows, self.q, q_ref), np.where(rows, self.dq, dq)

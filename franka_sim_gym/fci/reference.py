@@ -33,8 +33,20 @@ class JointReference:
     from extrapolated samples: docs/fci-behaviour.md "Frozen, not continued").
     """
 
-    def __init__(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> None:
+    def __init__(
+        self,
+        q: np.ndarray,
+        dq: np.ndarray,
+        ddq: np.ndarray,
+        columns: tuple[np.ndarray, tuple[int, int, int]],
+    ) -> None:
         self.q, self.dq, self.ddq = q, dq, ddq
+        # The published state's columns holding q, dq and ddq (StateWriter.reference_columns)
+        # and where each starts in them: the ring copies them at once.
+        self._columns, self._starts = columns
+        for start, view in zip(self._starts, (q, dq, ddq), strict=True):
+            if not np.shares_memory(self._columns[:, start : start + 7], view):
+                raise ValueError("columns: expected the state's columns holding q, dq and ddq")
         self.ddq_frozen = np.zeros_like(q)
         n = q.shape[0]
         #: the message id the last command that actually arrived echoed
@@ -49,7 +61,7 @@ class JointReference:
         self._real_ddq = np.zeros_like(q)
         # The references the last RING published states carried (by message id), so
         # a late datagram is judged against the reference of the state it answers.
-        self._ring = np.zeros((3, n, RING, 7))
+        self._ring = np.zeros((n, RING, self._columns.shape[1]))
         #: the arrays the joint generators' cycle records into, in its order (fci/limits/
         #: _joint.c joint_advance / joint_record: the record's only text)
         self.arrays = (
@@ -59,11 +71,7 @@ class JointReference:
 
     def remember(self, message_id: int) -> None:
         """Store the reference as published in state ``message_id``."""
-        k = message_id % RING
-        ring = self._ring
-        ring[0, :, k] = self.q
-        ring[1, :, k] = self.dq
-        ring[2, :, k] = self.ddq
+        self._ring[:, message_id % RING] = self._columns
 
     def published(self, ids: np.ndarray, current: int) -> tuple[np.ndarray, ...] | None:
         """(q, dq, ddq) as published in state ``ids[i]`` for each robot, (n, 7) each;
@@ -74,7 +82,8 @@ class JointReference:
             return None
         rows = np.arange(ids.shape[0])
         k = ids % RING
-        return tuple(self._ring[j, rows, k] for j in range(3))
+        published = self._ring[rows, k]
+        return tuple(published[:, start : start + 7] for start in self._starts)
 
     def seed(self, i: int, q: np.ndarray, echo: int) -> None:
         """Start robot i's motion at rest at ``q`` (a new Move); ``echo``: the last published id."""

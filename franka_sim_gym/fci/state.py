@@ -58,6 +58,16 @@ class StateWriter:
             views[k] for k in ("q", "dq", "theta", "dtheta")
         )
         self.q_d, self.dq_d, self.ddq_d = views["q_d"], views["dq_d"], views["ddq_d"]
+        #: the shadow's columns from q_d to ddq_d (q_d, dq, dq_d, ddq_d: adjacent on the
+        #: wire), and where q_d, dq_d and ddq_d start in it: the commanded reference in one
+        #: slice, which the joint reference's ring copies at once
+        first = ROBOT_STATE_DTYPE.fields["q_d"][1]
+        end = ROBOT_STATE_DTYPE.fields["ddq_d"][1] + 7 * 4
+        a = (first - _FLOAT_BEGIN) // 4
+        self.reference_columns = (
+            self.shadow[:, a : a + (end - first) // 4],
+            tuple((ROBOT_STATE_DTYPE.fields[k][1] - first) // 4 for k in ("q_d", "dq_d", "ddq_d")),
+        )
         self.tau_J, self.tau_J_d, self.dtau_J = views["tau_J"], views["tau_J_d"], views["dtau_J"]
         self.O_T_EE, self.O_T_EE_d, self.O_T_EE_c = (
             views[k] for k in ("O_T_EE", "O_T_EE_d", "O_T_EE_c")
