@@ -109,7 +109,8 @@ class JointGenerators:
         )  # fmt: skip
         if pending:
             self._judge_pending(cycle.first & have, have, echo)
-        cycle.first &= ~have
+        if np.count_nonzero(cycle.first):  # (the opening commands only)
+            cycle.first &= ~have
 
     def _judge_pending(self, first: np.ndarray, have: np.ndarray, echo: np.ndarray) -> None:
         """The robots :meth:`_advance_joints` left to the engine (a row tripped): judged as
@@ -238,4 +239,5 @@ class JointGenerators:
         # A torque is not a waypoint: a lost cycle keeps the last one (docs/fci-behaviour.md "What
         # the sim does with a lost cycle": tau_J_d held).
         np.copyto(self.tau_J_d, cycle.tau_c, where=rows[:, None])
-        cycle.first &= ~(rows & m.torque_only)
+        if np.count_nonzero(cycle.first):  # (the opening commands only)
+            cycle.first &= ~(rows & m.torque_only)
