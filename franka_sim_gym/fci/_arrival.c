@@ -154,7 +154,7 @@ static PyObject *Arrival_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
                                        F_REFUSED_ELBOW, F_REFUSED_TORQUE};
     for (int k = 0; k < 7; k++) {
         int f = flag_order_1[k];
-        if (bools_get(v[a++], &self->flags[f], n, FLAG_NAMES[f]) < 0) goto fail;
+        if (bytes_get(v[a++], &self->flags[f], n, 1, FLAG_NAMES[f]) < 0) goto fail;
     }
     Py_ssize_t s7[2] = {n, 7}, s44[3] = {n, 4, 4}, s6[2] = {n, 6}, s2[2] = {n, 2};
     const Py_ssize_t *shapes[R_F64] = {s7, s7, s7, s44, s6, s2};
@@ -166,7 +166,7 @@ static PyObject *Arrival_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
                                        F_REASON};
     for (int k = 0; k < 5; k++) {
         int f = flag_order_2[k];
-        if (bools_get(v[a++], &self->flags[f], n, FLAG_NAMES[f]) < 0) goto fail;
+        if (bytes_get(v[a++], &self->flags[f], n, 1, FLAG_NAMES[f]) < 0) goto fail;
     }
     Py_ssize_t layout[1 + L_FIELDS];
     if (integers(v[a++], 1 + L_FIELDS, layout, "layout") < 0) goto fail;

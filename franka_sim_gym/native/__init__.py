@@ -40,6 +40,7 @@ REQUIRED = (
     "fci._frames",
     "fci._measured",
     "fci._publish",
+    "fci.cartesian._history",
     "fci.limits._joint",
     "fci.contact._contact",
     "sim._ik",

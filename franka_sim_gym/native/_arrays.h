@@ -1,8 +1,7 @@
 /* What every C kernel shares (franka_sim_gym/<layer>/_<name>.c, built by setup.py):
  * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
  * state fields and of stacked scratch rows are fine), with their shape checked before a
- * single element is read or written; (n,) one-byte flags (uint8, or numpy's bool read only);
- * writable (n,) bool masks; the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
+ * single element is read or written; (n,) one-byte flags (uint8 or numpy's bool); the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 
@@ -109,7 +108,8 @@ static inline void f64_release(F64 *a)
     a->view.obj = NULL;
 }
 
-/* An (n,) array of one-byte flags: uint8, or (read only) numpy's bool. */
+/* An (n,) array of one-byte flags (uint8 or numpy's bool), or None where the caller allows
+ * it (data NULL). */
 typedef struct {
     Py_buffer view;
     char *data;
@@ -118,24 +118,25 @@ typedef struct {
 
 #define BYTE1(b, i) (*(unsigned char *)((b).data + (i) * (b).stride))
 
-/* Borrow ``obj`` as (n,) one-byte flags: writable uint8, or readable uint8 / bool. Returns
- * 0, or -1 with a ValueError naming ``name``. */
+/* Borrow ``obj`` as (n,) one-byte flags, uint8 or bool, writable where asked (a kernel
+ * writes 0 or 1, which both read alike). Returns 0, or -1 with a ValueError naming
+ * ``name``. */
 static inline int bytes_get(PyObject *obj, Bytes *b, Py_ssize_t n, int writable, const char *name)
 {
     memset(b, 0, sizeof(*b));
+    const char *kind = writable ? " writable" : "";
     int flags = PyBUF_RECORDS_RO | (writable ? PyBUF_WRITABLE : 0);
     if (PyObject_GetBuffer(obj, &b->view, flags) < 0) {
         PyErr_Clear();
-        PyErr_Format(PyExc_ValueError, "%s: expected a%s uint8 array", name,
-                     writable ? " writable" : "");
+        PyErr_Format(PyExc_ValueError, "%s: expected a%s uint8 or bool array", name, kind);
         return -1;
     }
     const char *f = b->view.format;
     if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
-    int kind_ok = f && (strcmp(f, "B") == 0 || (!writable && strcmp(f, "?") == 0));
+    int kind_ok = f && (strcmp(f, "B") == 0 || strcmp(f, "?") == 0);
     if (b->view.ndim != 1 || b->view.itemsize != 1 || !kind_ok || b->view.shape[0] != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a uint8%s array of shape (%zd,)", name,
-                     writable ? "" : " or bool", n);
+        PyErr_Format(PyExc_ValueError, "%s: expected a%s uint8 or bool array of shape (%zd,)",
+                     name, kind, n);
         PyBuffer_Release(&b->view);
         b->view.obj = NULL;
         return -1;
@@ -145,29 +146,15 @@ static inline int bytes_get(PyObject *obj, Bytes *b, Py_ssize_t n, int writable,
     return 0;
 }
 
-/* Borrow ``obj`` as (n,) writable one-byte flags: numpy's bool (or uint8), written as 0 / 1
- * (the controller's per-robot masks). Returns 0, or -1 with a ValueError naming ``name``. */
-static inline int bools_get(PyObject *obj, Bytes *b, Py_ssize_t n, const char *name)
+/* As bytes_get, and None accepted (no array: data NULL). */
+static inline int bytes_or_none_get(PyObject *obj, Bytes *b, Py_ssize_t n, int writable,
+                                    const char *name)
 {
-    memset(b, 0, sizeof(*b));
-    if (PyObject_GetBuffer(obj, &b->view, PyBUF_RECORDS) < 0) {
-        PyErr_Clear();
-        PyErr_Format(PyExc_ValueError, "%s: expected a writable bool array", name);
-        return -1;
+    if (obj == Py_None) {
+        memset(b, 0, sizeof(*b));
+        return 0;
     }
-    const char *f = b->view.format;
-    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
-    int kind_ok = f && (strcmp(f, "?") == 0 || strcmp(f, "B") == 0);
-    if (b->view.ndim != 1 || b->view.itemsize != 1 || !kind_ok || b->view.shape[0] != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a writable bool array of shape (%zd,)",
-                     name, n);
-        PyBuffer_Release(&b->view);
-        b->view.obj = NULL;
-        return -1;
-    }
-    b->data = (char *)b->view.buf;
-    b->stride = b->view.strides ? b->view.strides[0] : 1;
-    return 0;
+    return bytes_get(obj, b, n, writable, name);
 }
 
 static inline void bytes_release(Bytes *b)

@@ -17,46 +17,12 @@
 #include "_arrays.h"
 #include "_solve6.h"
 
-/* A bool (n,) argument (numpy bool: one byte each), or None (data NULL). */
-typedef struct {
-    Py_buffer view;
-    const char *data;
-    Py_ssize_t stride;
-} Mask;
-
-static int mask_get(PyObject *obj, Mask *m, Py_ssize_t n, int writable, const char *name)
-{
-    memset(m, 0, sizeof(*m));
-    if (obj == Py_None) return 0;
-    int flags = PyBUF_RECORDS_RO | (writable ? PyBUF_WRITABLE : 0);
-    if (PyObject_GetBuffer(obj, &m->view, flags) < 0) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a%s bool array", name,
-                     writable ? " writable" : "");
-        return -1;
-    }
-    const char *f = m->view.format;
-    if (f && (*f == '<' || *f == '=' || *f == '@' || *f == '|')) f++;
-    if (m->view.ndim != 1 || m->view.itemsize != 1 || !f || strcmp(f, "?") != 0 ||
-        m->view.shape[0] != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected a bool array of shape (%zd,)", name, n);
-        PyBuffer_Release(&m->view);
-        m->view.obj = NULL;
-        return -1;
-    }
-    m->data = (const char *)m->view.buf;
-    m->stride = m->view.strides ? m->view.strides[0] : 1;
-    return 0;
-}
+/* A bool (n,) argument, or None (data NULL: mask_at's ``otherwise``). */
+typedef Bytes Mask;
 
 static inline int mask_at(const Mask *m, Py_ssize_t i, int otherwise)
 {
     return m->data ? m->data[i * m->stride] != 0 : otherwise;
-}
-
-static void mask_release(Mask *m)
-{
-    if (m->view.obj) PyBuffer_Release(&m->view);
-    m->view.obj = NULL;
 }
 
 /* One arm's evaluation (ArmKinematics._evaluate) from MjData's rows: the EE position in
@@ -215,7 +181,7 @@ static void ik_solver_release(IkSolver *s)
     f64_release(&s->anchors);
     f64_release(&s->base);
     f64_release(&s->errors);
-    mask_release(&s->converged);
+    bytes_release(&s->converged);
 }
 
 /* Borrow native_solve's tuple (cached_q, qpos, site_pos, site_mat, axes, anchors, base,
@@ -240,7 +206,7 @@ static int ik_solver_get(PyObject *obj, Py_ssize_t n, IkSolver *s)
         f64_get(t[5], &s->anchors, 3, s73, 0, "anchors") < 0 ||
         f64_get(t[6], &s->base, 2, s3, 0, "base") < 0 ||
         f64_get(t[7], &s->errors, 2, s2n, 1, "errors") < 0 ||
-        mask_get(t[8], &s->converged, n, 1, "converged") < 0)
+        bytes_or_none_get(t[8], &s->converged, n, 1, "converged") < 0)
         return -1;
     if (!s->converged.data) {
         PyErr_SetString(PyExc_ValueError, "converged: expected a bool array, not None");

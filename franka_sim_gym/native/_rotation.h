@@ -163,6 +163,17 @@ static inline void rotation_log(const double *m, double *out)
     for (int k = 0; k < 3; k++) out[k] = q[k + 1] / div * half;
 }
 
+/* relative_rotation_log: rotation_log(A^T B), the rotation vector taking A to B in A's
+ * (the body) frame. */
+static inline void relative_rotation_log(const double *A, const double *B, double *out)
+{
+    double At[9], M[9];
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) At[3 * r + c] = A[3 * c + r];
+    mat3_mul(At, B, 0, M);
+    rotation_log(M, out);
+}
+
 /* rotation_exp: the rotation of the rotation vector rv (axis * angle), Rodrigues with
  * sin t / t and (1 - cos t) / t^2, their series below series_below. */
 static inline void rotation_exp(const double rv[3], double *E)

@@ -46,14 +46,14 @@ static PyObject *ik_solve(PyObject *self, PyObject *const *args, Py_ssize_t narg
         f64_get(args[2], &a[TARGET], 3, s44, 0, "target") < 0 ||
         (args[3] != Py_None && f64_get(args[3], &a[F_EE], 3, s44, 0, "F_T_EE") < 0) ||
         (args[4] != Py_None && f64_get(args[4], &a[ELBOW], 1, s1, 0, "elbow") < 0) ||
-        mask_get(args[5], &active, n, 0, "active") < 0 || ik_solver_get(args[7], n, &solver) < 0)
+        bytes_or_none_get(args[5], &active, n, 0, "active") < 0 || ik_solver_get(args[7], n, &solver) < 0)
         goto done;
     IkProblem p =
         ik_problem(&solver, &a[Q_INIT], &a[Q], &a[TARGET], &a[F_EE], &a[ELBOW], &active);
     if (ik_solve_core(&p, &solver.kin, n, rows_valid) == 0) result = Py_NewRef(Py_None);
 done:
     f64_release_all(a, COUNT);
-    mask_release(&active);
+    bytes_release(&active);
     ik_solver_release(&solver);
     return result;
 }

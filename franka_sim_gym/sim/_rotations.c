@@ -78,13 +78,10 @@ KERNEL(logarithm, 1, ARRAY(F64_IN, "R", 3, ROWS, 3, 3), ARRAY(OUT, "out", 2, ROW
 static void relative_logarithm_rows(const F64 *a, Py_ssize_t n)
 {
     for (Py_ssize_t i = 0; i < n; i++) {
-        double A[9], At[9], B[9], M[9], rv[3];
+        double A[9], B[9], rv[3];
         row_at(&a[0], i, 9, A);
         row_at(&a[1], i, 9, B);
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) At[3 * r + c] = A[3 * c + r];
-        mat3_mul(At, B, 0, M);
-        rotation_log(M, rv);
+        relative_rotation_log(A, B, rv);
         row_put(&a[2], i, 3, rv);
     }
 }

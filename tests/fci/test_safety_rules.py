@@ -194,7 +194,7 @@ def test_the_planned_check_refuses_bad_arrays_by_name():
     with pytest.raises(ValueError, match="error"):
         RULES.SafetyPlan(*head, np.zeros(2, np.int32), np.zeros(2, np.uint8))
     with pytest.raises(ValueError, match="bad"):
-        RULES.SafetyPlan(*head, np.zeros(2, np.int64), np.zeros(2, bool))
+        RULES.SafetyPlan(*head, np.zeros(2, np.int64), np.zeros(2, np.int16))
     with pytest.raises(ValueError, match="ee_prev"):
         RULES.SafetyPlan(*head[:3], np.zeros((2, 2)), *head[4:], np.zeros(2, np.int64),
                          np.zeros(2, np.uint8))  # fmt: skip

@@ -74,9 +74,9 @@ class CartesianGenerators:
         #: the history (pose, twist, elbow, reported twist, IK joint history), its last
         #: real sample and the ring of published ones (fci/cartesian/reference.py)
         self.reference = CartesianReference(n)
-        self.stepper = CartesianStepper(physics, modes, writer)
+        self.stepper = CartesianStepper(physics, modes, writer, self.reference)
         self.checks = CartesianChecks(modes, config, writer, engine)
-        self.recorder = CartesianRecorder(modes, self.reference)
+        self.recorder = CartesianRecorder(modes, self.reference, self.stepper.plan)
         #: the pose a twist motion started from (O_T_EE_d / O_T_EE_c while it runs)
         self.start_T = np.tile(np.eye(4), (n, 1, 1))
         # The cycle's command candidates (the last datagram applied wins).
@@ -153,9 +153,7 @@ class CartesianGenerators:
         apply = self.engine.live(active)  # robots a verdict aborted are not recorded
         if not np.count_nonzero(apply):
             return
-        real = have & apply
-        self.recorder.record(step, real, apply, extrapolate, first)
-        h.record_real(real, echo)
+        self.recorder.record(step, have & apply, apply, extrapolate, first, echo)
         if np.count_nonzero(first):
             cycle.first &= ~have
 

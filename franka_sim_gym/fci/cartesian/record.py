@@ -2,7 +2,25 @@
 
 The commanded (or extrapolated) pose and twist with their derivatives, the twist the
 state reports and its rate, the elbow's history while one is streamed, and the IK
-joint history — rebased at rest on the opening command and after a failed solve.
+joint history — rebased at rest on the opening command and after a failed solve. All
+but the elbow's are one C call (fci/cartesian/_history.c ``History.record``):
+
+* the pose and its history, while a pose motion runs: the differences; an extrapolated
+  cycle's own velocity and the frozen acceleration (docs/fci-behaviour.md "What the sim
+  does with a lost cycle"); at rest on the opening command; the frozen acceleration
+  follows the commands that arrived;
+* the twist, its acceleration (frozen for an extrapolated cycle) and the frozen one,
+  while a twist motion runs;
+* the reported twist and its rate (zero on the opening command). A twist motion: its own
+  twist. A pose motion: the commanded pose's twist in the base frame, rotation as
+  log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and then
+  reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and acceleration
+  (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion);
+* the IK joint history: a usable solution (step.py ``usable``) is followed; the opening
+  command starts the history at rest, which is true: the joint side is judged from the
+  next command on; a failed solve leaves no valid history: the acceleration needs two
+  more solutions, the jerk three (step.py ``WARM_*``);
+* the last real command's echo, and no guesses since, for the commands that arrived.
 """
 
 from __future__ import annotations
@@ -10,20 +28,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..modes import Modes
-from ..rows import put_rows
-from ..tables import DELTA_T
 from .reference import CartesianReference
-from .step import WARM_JERK, Step, usable
+from .step import Step
 
 
 class CartesianRecorder:
-    """Records judged steps of n robots into their Cartesian history."""
+    """Records judged steps of n robots into their Cartesian history (``plan``: the
+    stepper's, fci/cartesian/_history.c)."""
 
-    def __init__(self, modes: Modes, history: CartesianReference) -> None:
+    def __init__(self, modes: Modes, history: CartesianReference, plan) -> None:
         self.modes = modes
         self.history = history
         self.n = history.n
-        self._spatial = np.empty((self.n, 6))  # a pose motion's reported twist
+        self._plan = plan
 
     def record(
         self,
@@ -32,72 +49,18 @@ class CartesianRecorder:
         apply: np.ndarray,
         extrapolate: np.ndarray,
         first: np.ndarray,
+        echo: np.ndarray,
     ) -> None:
-        """Record what survived the checks (``apply``; ``real``: the commands that arrived;
-        ``first``: opening commands, which start the history at rest)."""
-        m, h = self.modes, self.history
-        d = step.d
-        every = np.count_nonzero(apply) == self.n  # (the common case: plain copies)
-        every_real = every and np.count_nonzero(real) == self.n
-        any_lost = step.pose_ex is not None
-        any_first = np.count_nonzero(first) > 0
-        x = extrapolate[:, None] if any_lost else None
-        put_rows(h.T, step.T, apply, every)
-        if d is not None:
-            if any_lost or any_first:
-                a = apply[:, None]
-                at_rest = (first & apply)[:, None]
-                v, omega, acc, alpha = d.v, d.omega, d.a, d.alpha
-                if any_lost:
-                    v_ex, w_ex = step.pose_ex
-                    v, omega = np.where(x, v_ex, v), np.where(x, w_ex, omega)
-                    acc = np.where(x, h.a_frozen, acc)
-                    alpha = np.where(x, h.alpha_frozen, alpha)
-                if any_first:
-                    v, omega = np.where(at_rest, 0.0, v), np.where(at_rest, 0.0, omega)
-                    acc, alpha = np.where(at_rest, 0.0, acc), np.where(at_rest, 0.0, alpha)
-                np.copyto(h.v, v, where=a)
-                np.copyto(h.omega, omega, where=a)
-                np.copyto(h.a, acc, where=a)
-                np.copyto(h.alpha, alpha, where=a)
-            else:  # every value a real difference: the history's two orders in one copy
-                put_rows(h.history, d.stacked[:, :2], apply, every)
-            put_rows(h.acceleration_frozen, h.history[:, 1], real, every_real)
-        if m.n_cartesian_velocity:
-            put_rows(h.twist, step.twist, apply, every)
-            dtwist = step.twist_stack[:, 1]
-            if any_lost:
-                dtwist = np.where(x, h.dtwist_frozen, dtwist)
-            put_rows(h.dtwist, dtwist, apply, every)
-            put_rows(h.dtwist_frozen, h.dtwist, real, every_real)
-        self._record_reported(apply, first, every and not any_first)
+        """Record what survived the checks (``apply``; ``real``: the commands that arrived,
+        echoing ``echo``; ``first``: opening commands, which start the history at rest)."""
+        ik = step.ik
+        v_ex, w_ex = (None, None) if step.pose_ex is None else step.pose_ex
+        self._plan.record(
+            step.T, step.twist, step.twist_stack, v_ex, w_ex, self.modes.cartesian_position,
+            apply, real, extrapolate, first, ik.converged, ik.position_error, ik.rotation_error,
+            echo,
+        )  # fmt: skip
         self._record_elbow(step, real, apply, extrapolate)
-        self._record_joint_side(step, apply, first)
-
-    def _record_reported(self, apply: np.ndarray, first: np.ndarray, plain: bool) -> None:
-        """What the state reports as the commanded twist and its rate. A twist motion: its
-        own twist. A pose motion: the commanded pose's twist in the base frame, rotation as
-        log(R_c R_prev^T) = R_c omega_body — what libfranka's pose limiter computes and
-        then reads back from O_dP_EE_c / O_ddP_EE_c as the last commanded twist and
-        acceleration (src/control_loop.cpp, ControlLoop<CartesianPose>::convertMotion).
-        ``plain``: every robot records and none opens its motion."""
-        m, h = self.modes, self.history
-        if m.n_cartesian_position:
-            spatial = self._spatial
-            spatial[:, :3] = h.v
-            np.einsum("nij,nj->ni", h.T[:, :3, :3], h.omega, out=spatial[:, 3:])
-            reported = (
-                spatial
-                if m.n_cartesian_position == self.n
-                else np.where(m.cartesian_position[:, None], spatial, h.twist)
-            )
-        else:
-            reported = h.twist
-        dreported = (reported - h.reported) / DELTA_T
-        if not plain:
-            dreported = np.where((first & apply)[:, None], 0.0, dreported)
-        put_rows(h.dreported, dreported, apply, plain)
-        put_rows(h.reported, reported, apply, plain)
 
     def _record_elbow(
         self, step: Step, real: np.ndarray, apply: np.ndarray, extrapolate: np.ndarray
@@ -117,23 +80,3 @@ class CartesianRecorder:
         np.copyto(h.dde_frozen, h.dde, where=real)
         np.copyto(h.elbow, elbow.command, where=streamed[:, None])
         h.set_has_elbow(np.where(apply, elbow.has, h.has_elbow))
-
-    def _record_joint_side(self, step: Step, apply: np.ndarray, first: np.ndarray) -> None:
-        """The joint history: rebased at rest on the opening command and after a failure."""
-        h, ik = self.history, step.ik
-        a = apply[:, None]
-        rebase = apply & (first | ~ik.converged)
-        if not np.count_nonzero(rebase) and np.count_nonzero(ik.converged) == self.n:
-            # Every solve converged and none opens its motion: every applied solution is
-            # usable and nothing is rebased; q, dq, ddq in one copy.
-            np.copyto(h.joint, step.solution, where=a[:, :, None])
-            np.add(h.ik_warm, 1.0, out=h.ik_warm, where=apply)
-            return
-        np.copyto(h.q_ik, step.ik.q, where=(apply & usable(ik))[:, None])
-        np.copyto(h.dq_ik, np.where(rebase[:, None], 0.0, step.dq), where=a)
-        np.copyto(h.ddq_ik, np.where(rebase[:, None], 0.0, step.joint.ddq), where=a)
-        # The opening command starts the history at rest, which is true: the joint side is
-        # judged from the next command on. A failed solve leaves no valid history: the
-        # acceleration needs two more solutions, the jerk three.
-        warm_after = np.where(first, WARM_JERK, np.where(rebase, 0, h.ik_warm + 1))
-        np.copyto(h.ik_warm, warm_after, where=apply)

@@ -83,6 +83,12 @@ class CartesianHistory:
             raise AssertionError("the history layout and WIDTH disagree")
         self.has_elbow = self.elbow_flag > 0.0
 
+    def column(self, view: np.ndarray) -> int:
+        """The first column of the field ``view`` in a row of the buffer (the layout the
+        C arithmetic reads: fci/cartesian/_history.c)."""
+        start = view.__array_interface__["data"][0] - self.buffer.__array_interface__["data"][0]
+        return start // self.buffer.itemsize
+
     def set_has_elbow(self, has_elbow: np.ndarray) -> None:
         """Set the (n,) elbow flags, the bool mirror and the buffer's column alike."""
         self.has_elbow[...] = has_elbow
@@ -154,12 +160,3 @@ class CartesianReference(CartesianHistory):
         np.copyto(self.buffer, self._real, where=rows[:, None])
         np.copyto(self.has_elbow, self.elbow_flag > 0.0, where=rows)
         self.run[rows] = 0
-
-    def record_real(self, real: np.ndarray, echo: np.ndarray) -> None:
-        """``real`` robots recorded a command that arrived, echoing ``echo``."""
-        if np.count_nonzero(real) == self.n:
-            self.real_echo[...] = echo
-            self.run[...] = 0
-        else:
-            np.copyto(self.real_echo, echo, where=real)
-            self.run[real] = 0

@@ -5,7 +5,8 @@ joint side of a Cartesian command": the candidate is the command that arrived or
 law's extrapolation; a twist is integrated onto the IK target pose; the pose's (or the twist's)
 derivatives and the elbow's are taken over one cycle; the target is solved from the history's IK
 solution at F_T_EE (joint 3 held where an elbow is streamed) and the solution's acceleration and
-jerk form the joint side, judged only as far as the joint history is warm.
+jerk form the joint side, judged only as far as the joint history is warm. The differences'
+one text is C (fci/cartesian/_history.c, over the history's rows); here: which are taken when.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ... import native
+from ...sim import rotations
 from ...sim.arm import ArmPhysics
 from ...sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
 from ...sim.kinematics import ArmKinematics
@@ -24,7 +27,11 @@ from ..limits import cartesian as rules
 from ..modes import Modes
 from ..state import StateWriter
 from ..tables import DELTA_T
-from .reference import CartesianHistory
+from .reference import CartesianHistory, CartesianReference
+
+#: The history's arithmetic (fci/cartesian/_history.c): missing or stale, importing this
+#: module fails with the rebuild command.
+_C = native.require("fci.cartesian._history", "History", "usable")
 
 log = logging.getLogger("franka_sim_gym.fci")
 
@@ -69,22 +76,46 @@ class Step(NamedTuple):
     solution: np.ndarray
 
 
+def history_plan(reference: CartesianReference, pose_stack: np.ndarray, joint_stack: np.ndarray):
+    """The history's arithmetic (fci/cartesian/_history.c ``History``) over ``reference``,
+    its differences written to ``pose_stack`` (n, 3, 6) and ``joint_stack`` (n, 4, 7; row 0
+    the IK solution), with the cycle's, the warm-up's, the IK's and the rotations' constants."""
+    h = reference
+    columns = (h.T, h.history, h.acceleration_frozen, h.twist, h.dtwist, h.dtwist_frozen)
+    columns += (h.reported, h.dreported, h.joint, h.ik_warm)
+    return _C.History(
+        h.buffer, h.real_echo, h.run, pose_stack, joint_stack,
+        (h.buffer.shape[1], *(h.column(view) for view in columns)),
+        (DELTA_T, WARM_ACCELERATION, WARM_JERK, USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR,
+         rotations.NEAR_PI, rotations.TURNING_ABOVE, rotations.SERIES_BELOW,
+         rotations.SLERP_LINEAR),
+    )  # fmt: skip
+
+
 def usable(ik: IkResult) -> np.ndarray:
     """(n,) the IK solutions the servo may follow: converged, or ended near the target.
 
     A solve that ended far from the target (an unreachable pose) is not followed: the
     servo holds the last usable solution instead of a diverging iterate into the stops
-    (the arm would flail at full torque).
+    (the arm would flail at full torque). (The record applies the same rule in C.)
     """
-    return ik.converged | (
-        (ik.position_error <= USABLE_POSITION_ERROR) & (ik.rotation_error <= USABLE_ROTATION_ERROR)
-    )
+    out = np.empty(len(ik.converged), dtype=bool)
+    return _C.usable(
+        ik.converged, ik.position_error, ik.rotation_error, out,
+        USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR,
+    )  # fmt: skip
 
 
 class CartesianStepper:
-    """Evaluates Cartesian steps of n robots (the scratch arrays of one step and the IK)."""
+    """Evaluates Cartesian steps of n robots (the scratch arrays of one step and the IK).
 
-    def __init__(self, physics: ArmPhysics, modes: Modes, writer: StateWriter) -> None:
+    ``plan`` is the history's arithmetic over ``reference`` and this stepper's scratch
+    (fci/cartesian/_history.c): the differences here, the record in record.py.
+    """
+
+    def __init__(
+        self, physics: ArmPhysics, modes: Modes, writer: StateWriter, reference: CartesianReference
+    ) -> None:
         n = physics.n
         self.n = n
         self.modes = modes
@@ -101,9 +132,12 @@ class CartesianStepper:
         self._twist_stack = np.empty((n, 3, 6))  # [twist, dtwist, ddtwist]
         self._pose_stack = np.empty((n, 3, 6))  # the pose's derivatives
         self._joint = S = np.empty((n, 4, 7))  # [q, dq, ddq, dddq] of the IK solution
-        # its views: q; [dq, ddq, dddq]; [ddq, dddq] (judged); [q, dq, ddq] (recorded); dq
-        self._joint_views = (S[:, 0], S[:, 1:], S[:, 2:], S[:, :3], S[:, 1])
+        # its views: q; [ddq, dddq] (judged); [q, dq, ddq] (recorded); dq
+        self._joint_views = (S[:, 0], S[:, 2:], S[:, :3], S[:, 1])
         self._motion = S[:, :2]  # [q, dq]: the range (27) and the envelope (28)
+        self._checked = np.zeros(n, dtype=bool)  # where the joint side's rows are judged
+        self._d = rules.PoseDerivatives(self._pose_stack)
+        self.plan = history_plan(reference, self._pose_stack, S)
         # The elbow's derivatives while no elbow is streamed (read, never written).
         zeros = np.zeros(n)
         zeros.setflags(write=False)
@@ -151,18 +185,20 @@ class CartesianStepper:
         # reported twist), the twist's judge twist motions; each only when one runs.
         d = None
         if m.n_cartesian_position:
-            d = rules.pose_derivatives(T_cand, h.T, h.history, 1, out=self._pose_stack)
+            self.plan.pose_derivatives(h.buffer, T_cand)
+            d = self._d
         twist_stack = self._twist_derivatives(h, twist) if n_twist else None
         # -- the joint side: IK from the previous solution -----------------------------------
         streamed = elbow.has is not self.none and bool(
             np.count_nonzero(elbow.has) or np.count_nonzero(elbow.had)
         )
         e_fixed = np.where(elbow.has, elbow.command[:, 0], np.nan) if streamed else None
-        q, differences, judged, recorded, dq = self._joint_views
+        q, judged, recorded, dq = self._joint_views
         F_T_EE = self.writer.F_T_EE if self.writer.any_custom_ee else None
         ik = self.kinematics.solve(T_cand, h.q_ik, F_T_EE, e_fixed, rows=active, out=q)
-        rules.joint_side(q, h.q_ik, h.dq_ik, h.ddq_ik, 1, out=differences)
-        checked = self._joint_checked(h, ik, first, active)
+        checked = self._checked
+        if self.plan.joint_side(h.buffer, first, active, ik.converged, checked):
+            self._log_ik_failure(active & ~ik.converged, ik)
         joint = rules.JointSide(judged, checked, self._motion, h.q_ik, active & ik.converged)
         return Step(T_cand, twist, twist_stack, d, pose_ex, elbow, de_ex, ik, dq, joint, recorded)
 
@@ -188,20 +224,6 @@ class CartesianStepper:
         np.subtract(dtwist, h.dtwist, out=ddtwist)
         ddtwist /= DELTA_T
         return stack
-
-    def _joint_checked(
-        self, h: CartesianHistory, ik: IkResult, first: np.ndarray, active: np.ndarray
-    ) -> np.ndarray:
-        """(n,) where the joint side's velocity and acceleration are judged (28 / 29 / 30); the jerk
-        (``self._joint[:, 3]``) is zeroed where its history is not warm yet."""
-        warm = ik.converged & ~first
-        failed = active & ~ik.converged
-        if np.count_nonzero(failed):
-            self._log_ik_failure(failed, ik)
-        ik_jerk = warm & (h.ik_warm >= WARM_JERK)
-        if np.count_nonzero(ik_jerk) < self.n:
-            self._joint[~ik_jerk, 3] = 0.0
-        return warm & (h.ik_warm >= WARM_ACCELERATION)
 
     def _elbow(
         self, h: CartesianHistory, candidates: Candidates, have: np.ndarray, extrapolate

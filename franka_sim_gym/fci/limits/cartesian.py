@@ -66,8 +66,6 @@ from .cartesian_derivatives import (
     PoseDerivatives,
     Twist,
     elbow_derivatives,
-    joint_side,
-    pose_derivatives,
 )
 from .record import NO_ERROR, Violation
 
@@ -223,7 +221,7 @@ def check_cartesian_pose(
     """Judge n O_T_EE_c commands (31 is judged on arrival); one latched error per robot.
 
     Args:
-        d: the pose's derivatives (:func:`pose_derivatives`).
+        d: the pose's derivatives (fci/cartesian/_history.c ``History.pose_derivatives``).
         first: (n,) the motion's opening command: the start rows replace the
             derivative rows (the history is rebased at rest on it).
         T_c: (n, 4, 4) commanded poses; O_T_EE: (n, 16) the measured poses as the
@@ -331,6 +329,4 @@ __all__ = [
     "check_cartesian_velocity",
     "describe_cartesian",
     "elbow_derivatives",
-    "joint_side",
-    "pose_derivatives",
 ]

@@ -1,10 +1,12 @@
-"""The backward differences a Cartesian command is judged on: the pose's (translation per
-axis, rotation as the body-frame rotation vector), the elbow's and the IK solution's
-(the joint side), with the named views the rules read.
+"""The backward differences a Cartesian command is judged on, as the rules read them: the
+pose's (translation per axis, rotation as the body-frame rotation vector), the elbow's and
+the IK solution's (the joint side), with their named views; and the elbow's differences.
 
-Backward Euler over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference formulas"); the
-orientation's derivatives in the body frame, the frame the lost-cycle law composes
-the rotation increment in (docs/fci-behaviour.md "What the sim does with a lost cycle").
+Backward Euler over ``steps * dt`` as for q_c (docs/fci-behaviour.md "The difference
+formulas"); the orientation's derivatives in the body frame, the frame the lost-cycle law
+composes the rotation increment in (docs/fci-behaviour.md "What the sim does with a lost
+cycle"). The pose's and the joint side's one text is C, over the Cartesian history's rows
+(fci/cartesian/_history.c ``History.pose_derivatives`` and ``joint_side``).
 """
 
 from __future__ import annotations
@@ -13,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...sim.rotations import relative_rotation_log
 from .record import interval
 
 
@@ -93,50 +94,9 @@ class JointSide(NamedTuple):
         return self.motion[:, 1]
 
 
-def pose_derivatives(
-    T_c: np.ndarray, T_prev: np.ndarray, history: np.ndarray, steps, out: np.ndarray | None = None
-) -> PoseDerivatives:
-    """Velocity, acceleration and jerk of O_T_EE_c: translation per axis in the base frame,
-    rotation as the body-frame rotation vector of R_prev^T R_c per interval.
-
-    ``history`` is the previous (n, 2, 6) [[v | omega], [a | alpha]], side by side so
-    that each order takes one difference. ``out``: an (n, 3, 6) array to fill (and keep
-    as ``stacked``), default a new one.
-    """
-    h = interval(steps)
-    D = np.empty((len(T_c), 3, 6)) if out is None else out
-    velocity, acceleration, jerk = D[:, 0], D[:, 1], D[:, 2]
-    np.subtract(T_c[:, :3, 3], T_prev[:, :3, 3], out=velocity[:, :3])
-    relative_rotation_log(T_prev[:, :3, :3], T_c[:, :3, :3], out=velocity[:, 3:])
-    velocity /= h
-    np.subtract(velocity, history[:, 0], out=acceleration)
-    acceleration /= h
-    np.subtract(acceleration, history[:, 1], out=jerk)
-    jerk /= h
-    return PoseDerivatives(D)
-
-
 def elbow_derivatives(e_c, e_prev, de_prev, dde_prev, steps) -> ElbowDerivatives:
     """Backward differences of elbow_c[0] against its history."""
     h = np.reshape(interval(steps), -1)
     v = (e_c - e_prev) / h
     a = (v - de_prev) / h
     return ElbowDerivatives(v, a, (a - dde_prev) / h)
-
-
-def joint_side(q_ik, q_prev, dq_prev, ddq_prev, steps, out: np.ndarray | None = None):
-    """dq, ddq, dddq of the IK solution (backward Euler, as for q_c); ``out``: an
-    (n, 3, 7) array to write them into, side by side (default: new arrays)."""
-    h = interval(steps)
-    if out is None:
-        dq = (q_ik - q_prev) / h
-        ddq = (dq - dq_prev) / h
-        return dq, ddq, (ddq - ddq_prev) / h
-    dq, ddq, dddq = out[:, 0], out[:, 1], out[:, 2]
-    np.subtract(q_ik, q_prev, out=dq)
-    dq /= h
-    np.subtract(dq, dq_prev, out=ddq)
-    ddq /= h
-    np.subtract(ddq, ddq_prev, out=dddq)
-    dddq /= h
-    return dq, ddq, dddq
