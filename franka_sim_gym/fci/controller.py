@@ -110,6 +110,7 @@ class FciController(ControllerRequests):
             w.message_id,
             self.engine,
             self.late,
+            self.cycle_input,
         )
         #: the robot's asynchronous joint-position generator (fci/async_position.py)
         self.asynchronous = AsyncPositionGenerator(n, self.table, self.reference, self.engine)

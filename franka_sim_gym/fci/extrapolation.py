@@ -18,7 +18,7 @@ docs/system_requirements.rst):
 
 All functions are pure and batch-first (leading robot axis). The q_c and dq_c laws'
 only text is C (fci/limits/_joint.c ``position_law`` / ``velocity_law``): the joint
-generators' cycle applies them itself (``joint_advance``), the Cartesian generators
+generators' cycle applies them itself (``JointCycle``), the Cartesian generators
 through these functions (``cartesian.step``).
 """
 

@@ -25,7 +25,7 @@ from .reference import JointReference
 from .tables import DELTA_T, JOINT_VELOCITY_LIMIT_TOLERANCE, MAX_LOST_CYCLES
 
 #: the joint generators' cycle: the lost-cycle law, the rows, the record (their only text)
-_CYCLE = native.require("fci.limits._joint", "joint_advance", "joint_record")
+_CYCLE = native.require("fci.limits._joint", "JointCycle", "joint_record")
 
 
 class JointGenerators:
@@ -36,7 +36,8 @@ class JointGenerators:
             is written).
         tau_J_d: (n, 7) the applied torque (the published field itself; written).
         published: (n,) the id of the last published state of each robot (read).
-        engine: the judge; late: where late datagrams' intents go.
+        engine: the judge; late: where late datagrams' intents go; cycle: the controller's
+            cycle input (its ``first`` flags are read and cleared).
     """
 
     def __init__(
@@ -49,6 +50,7 @@ class JointGenerators:
         published: np.ndarray,
         engine: MotionLimitEngine,
         late: LateIntents,
+        cycle: CycleInput,
     ) -> None:
         self.modes = modes
         self.reference = reference
@@ -60,11 +62,18 @@ class JointGenerators:
         self.engine = engine
         self.late = late
         n = modes.n
-        #: joint_advance's outputs: error, candidate, new q / dq / ddq (read where a row tripped)
+        #: the cycle's outputs: error, candidate, new q / dq / ddq (read where a row tripped)
         self._scratch = (
             np.full(n, -1, dtype=np.int64),
             *(np.zeros((n, 7)) for _ in range(4)),
         )
+        constants, positional = self.table.joint_constants
+        #: the cycle's C text over the arrays that stay (fci/limits/_joint.c JointCycle)
+        self._cycle = _CYCLE.JointCycle(
+            engine.aborted, cycle.first, accounting.lost_run, MAX_LOST_CYCLES,
+            *self.reference.arrays, constants, positional, JOINT_VELOCITY_LIMIT_TOLERANCE,
+            DELTA_T, *self._scratch,
+        )  # fmt: skip
 
     def advance(self, cycle: CycleInput, started: np.ndarray) -> None:
         """The cycle's joint and torque commands of the ``started`` motions: judged and
@@ -92,20 +101,15 @@ class JointGenerators:
         with ``extrapolate_lost`` the other started joint motions lose the cycle
         (docs/fci-behaviour.md "What the sim does with a lost cycle": one substitute
         waypoint per missed cycle at the frozen acceleration, checked, never clamped).
-        One C call (fci/limits/_joint.c ``joint_advance``: the lost-cycle law, the rows,
+        One C call (fci/limits/_joint.c ``JointCycle.advance``: the lost-cycle law, the rows,
         the record); a robot whose candidate trips a row goes to the engine first.
         """
-        m, ref, s = self.modes, self.reference, self._scratch
+        m, config = self.modes, self.config
         if echo is None:
             echo = self.published
-        constants, positional = self.table.joint_constants
-        config = self.config
-        pending = _CYCLE.joint_advance(
-            q_c, dq_c, have, started, m.tracking, self.engine.aborted, m.joint_position,
-            m.joint_velocity, cycle.first, extrapolate_lost, self.accounting.lost_run,
-            MAX_LOST_CYCLES, echo, *ref.arrays, constants, positional,
-            config.start_pose_tolerance, config.start_velocity_tolerance,
-            JOINT_VELOCITY_LIMIT_TOLERANCE, DELTA_T, *s,
+        pending = self._cycle.advance(
+            q_c, dq_c, have, started, m.tracking, m.joint_position, m.joint_velocity, echo,
+            extrapolate_lost, config.start_pose_tolerance, config.start_velocity_tolerance,
         )  # fmt: skip
         if pending:
             self._judge_pending(cycle.first & have, have, echo)

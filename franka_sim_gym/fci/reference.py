@@ -8,7 +8,7 @@ The arrays are the published q_d / dq_d / ddq_d themselves (views into the
 state's float64 shadow), updated in place: what the robot applied is exactly
 what it reports, and the next command is differenced against that. A cycle's
 record (a real command, a lost cycle's guess, a hold at rest) is written by the joint
-generators' C cycle (fci/limits/_joint.c ``joint_advance``, ``joint_record``); this
+generators' C cycle (fci/limits/_joint.c ``JointCycle``, ``joint_record``); this
 module seeds, rewinds and remembers.
 """
 
@@ -63,7 +63,7 @@ class JointReference:
         # a late datagram is judged against the reference of the state it answers.
         self._ring = np.zeros((n, RING, self._columns.shape[1]))
         #: the arrays the joint generators' cycle records into, in its order (fci/limits/
-        #: _joint.c joint_advance / joint_record: the record's only text)
+        #: _joint.c JointCycle / joint_record: the record's only text)
         self.arrays = (
             self.q, self.dq, self.ddq, self.ddq_frozen,
             self._real_q, self._real_dq, self._real_ddq, self.real_echo, self.run,

@@ -133,3 +133,52 @@ def test_a_backlog_drained_in_order_leaves_the_history_of_its_real_samples():
         v += a * 1e-3
         guess += v * 1e-3
     assert abs((waypoint(106)[1] - guess) / 1e-3 - dq[1]) > 1e-4
+
+
+def test_the_joint_cycle_refuses_arrays_by_name():
+    """The cycle's C plan (fci/limits/_joint.c JointCycle) names a wrong argument."""
+    ctrl = make_controller(n=2)
+    g, m, cycle = ctrl.joint, ctrl.modes, ctrl.cycle_input
+    good = (cycle.q_c, cycle.dq_c, cycle.have, ctrl.accounting.started, m.tracking,
+            m.joint_position, m.joint_velocity, ctrl.writer.message_id, True, 0.1, 0.1)  # fmt: skip
+    assert g._cycle.advance(*good) == 0  # nothing in motion: nothing judged
+    with pytest.raises(ValueError, match=r"q_c: axis 1 has length 6, expected 7"):
+        g._cycle.advance(np.zeros((2, 6)), *good[1:])
+    with pytest.raises(ValueError, match=r"started: expected a uint8 or bool array of shape"):
+        g._cycle.advance(*good[:3], np.zeros(3, dtype=bool), *good[4:])
+    with pytest.raises(ValueError, match="echo: expected an int64 or uint64 array"):
+        g._cycle.advance(*good[:7], np.zeros(2), *good[8:])
+    with pytest.raises(TypeError, match=r"advance\(\) takes 11 arguments \(10 given\)"):
+        g._cycle.advance(*good[:10])
+
+
+@pytest.mark.parametrize(
+    "generator, pose_tolerance, velocity_tolerance, expected",
+    [
+        (JP, 0.3, 0.1, ()),
+        (JP, 0.1, 0.3, ("joint_position_motion_generator_start_pose_invalid",)),
+        (JV, 0.1, 0.3, ()),
+        (JV, 0.3, 0.1, ("joint_motion_generator_acceleration_discontinuity",)),
+    ],
+)
+def test_each_generator_judges_its_first_command_by_its_own_configured_tolerance(
+    generator, pose_tolerance, velocity_tolerance, expected
+):
+    """docs/motion-limits.md: the opening q_c within start_pose_tolerance of q_d (else 11), the
+    opening dq_c within start_velocity_tolerance of dq_d (else 15), the config's own."""
+    ctrl = make_controller(
+        enforce_motion_limits=True,
+        start_pose_tolerance=pose_tolerance,
+        start_velocity_tolerance=velocity_tolerance,
+    )
+    ctrl.move(0, int(IMP), int(generator))
+    ctrl.step()
+    commands = np.zeros(1, dtype=ROBOT_COMMAND_DTYPE)
+    field = "q_c" if generator == JP else "dq_c"
+    value = ctrl.states["q_d"].astype(np.float64) if generator == JP else np.zeros((1, 7))
+    value[0, 6] += 0.2  # between the two tolerances
+    commands[field] = value
+    commands["message_id"] = ctrl.states["message_id"]
+    ctrl.receive(commands, np.ones(1, dtype=bool))
+    ctrl.step()
+    assert ctrl.error_names(0) == expected

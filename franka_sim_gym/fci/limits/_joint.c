@@ -14,7 +14,7 @@
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   cartesian_rule(kind, codes, stacked, first, start_pose, start_elbow, elbow, ...) (below)
- *   joint_advance(q_c, dq_c, have, ..., error, candidate, new_q, new_dq, new_ddq) -> pending
+ *   JointCycle(started, ..., new_ddq).advance(q_c, dq_c, have, ...) -> pending (below)
  *   joint_record(rows, have, new_q, new_dq, new_ddq, echo, <the reference>) (below)
  *   position_step(x, v, a, dt) -> (x', v'), velocity_step(v, a, dt) -> v'
  *
@@ -600,14 +600,18 @@ static inline void record_row(const Reference *r, Py_ssize_t i, int real, const 
     }
 }
 
-/* joint_advance(q_c, dq_c, have, started, tracking, aborted, joint_position, joint_velocity,
- *               first, extrapolate_lost, lost_run, max_lost, echo,
- *               q, dq, ddq, ddq_frozen, real_q, real_dq, real_ddq, real_echo, run,
- *               constants, positional, position_tolerance, velocity_tolerance, shift, dt,
- *               error, candidate, new_q, new_dq, new_ddq) -> pending
+/* JointCycle(aborted, first, lost_run, max_lost, q, dq, ddq, ddq_frozen, real_q, real_dq,
+ *            real_ddq, real_echo, run, constants, positional, shift, dt,
+ *            error, candidate, new_q, new_dq, new_ddq)
+ * JointCycle.advance(q_c, dq_c, have, started, tracking, joint_position, joint_velocity, echo,
+ *                    extrapolate_lost, position_tolerance, velocity_tolerance) -> pending
  *
- * One cycle of the joint generators (fci/joint_generators.py JointGenerators.advance) for
- * every robot whose motion tracks (``tracking`` and not ``aborted`` by a pending verdict):
+ * One cycle of the joint generators (fci/joint_generators.py JointGenerators.advance), as a
+ * plan over the arrays that stay (the engine's pending verdicts, the cycle's first-command
+ * flags, the accounting's lost runs, the reference, the table's constants and the outputs);
+ * each call hands over what changes: the commands, the robots they are for, the modes' masks
+ * (Modes.regroup rebinds them), the echo and the configured tolerances. For every robot whose motion tracks (``tracking`` and not
+ * ``aborted`` by a pending verdict):
  *
  * - ``have``: its command (q_c or dq_c, echoing ``echo``) is the candidate;
  * - else, when ``extrapolate_lost`` and its motion has ``started``, the cycle is lost: the
@@ -625,53 +629,91 @@ static inline void record_row(const Reference *r, Py_ssize_t i, int real, const 
  * ``new_ddq`` what it would record, and the count of such robots is returned, for the
  * caller to judge (the engine) and record those the verdicts leave running
  * (joint_record). */
-static PyObject *joint_advance(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
-{
-    (void)self;
-    enum { Q_C, DQ_C, IN_ARRAYS };
-    enum { HAVE, STARTED, TRACKING, ABORTED, POSITION_MODE, VELOCITY_MODE, FIRST, FLAGS };
-    enum { CANDIDATE, NEW_Q, NEW_DQ, NEW_DDQ, OUT_ARRAYS };
+enum { Q_C, DQ_C, IN_ARRAYS };
+enum { HAVE, STARTED, TRACKING, ABORTED, POSITION_MODE, VELOCITY_MODE, FIRST, FLAGS };
+enum { CANDIDATE, NEW_Q, NEW_DQ, NEW_DDQ, OUT_ARRAYS };
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n;
     F64 in[IN_ARRAYS], out[OUT_ARRAYS], constants;
     Bytes flags[FLAGS];
     PerRobot lost_run;
     Int64s echo, error;
     Reference ref;
-    memset(in, 0, sizeof(in));
-    memset(out, 0, sizeof(out));
-    memset(&constants, 0, sizeof(constants));
-    memset(flags, 0, sizeof(flags));
-    memset(&lost_run, 0, sizeof(lost_run));
-    memset(&echo, 0, sizeof(echo));
-    memset(&error, 0, sizeof(error));
-    memset(&ref, 0, sizeof(ref));
-    PyObject *result = NULL;
-    if (check_nargs(nargs, 33, "joint_advance") < 0) return NULL;
-    Py_ssize_t n = leading(args[0], "q_c");
-    if (n < 0) return NULL;
-    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
-    static const char *flag_names[FLAGS] = {"have", "started", "tracking", "aborted",
-                                            "joint_position", "joint_velocity", "first"};
-    static const char *out_names[OUT_ARRAYS] = {"candidate", "new_q", "new_dq", "new_ddq"};
     double extrapolate_lost, max_lost, positional, position_tolerance, velocity_tolerance,
         shift, dt;
-    if (num_get(args[0], &in[Q_C], 2, s7, 0, "q_c") < 0 ||
-        num_get(args[1], &in[DQ_C], 2, s7, 0, "dq_c") < 0)
-        goto done;
-    for (int k = 0; k < FLAGS; k++)
-        if (bytes_get(args[2 + k], &flags[k], n, 0, flag_names[k]) < 0) goto done;
-    if (number(args[9], &extrapolate_lost, "extrapolate_lost") < 0 ||
-        per_robot_get(args[10], &lost_run, n, "lost_run") < 0 ||
-        number(args[11], &max_lost, "max_lost") < 0 ||
-        int64s_get(args[12], &echo, n, 0, "echo") < 0 || reference_get(args + 13, n, &ref) < 0 ||
-        f64_get(args[22], &constants, 2, sc, 0, "constants") < 0 ||
-        number(args[23], &positional, "positional") < 0 ||
-        number(args[24], &position_tolerance, "position_tolerance") < 0 ||
-        number(args[25], &velocity_tolerance, "velocity_tolerance") < 0 ||
-        number(args[26], &shift, "shift") < 0 || number(args[27], &dt, "dt") < 0 ||
-        int64s_get(args[28], &error, n, 1, "error") < 0)
-        goto done;
+} JointCycleObject;
+
+/* The per-call arguments' borrows (the plan's own stay). */
+static void cycle_release_call(JointCycleObject *a)
+{
+    f64_release_all(a->in, IN_ARRAYS);
+    bytes_release(&a->flags[HAVE]);
+    bytes_release(&a->flags[STARTED]);
+    bytes_release(&a->flags[TRACKING]);
+    bytes_release(&a->flags[POSITION_MODE]);
+    bytes_release(&a->flags[VELOCITY_MODE]);
+    int64s_release(&a->echo);
+}
+
+static void JointCycle_dealloc(JointCycleObject *self)
+{
+    cycle_release_call(self);
+    f64_release_all(self->out, OUT_ARRAYS);
+    f64_release(&self->constants);
+    for (int k = 0; k < FLAGS; k++) bytes_release(&self->flags[k]);
+    per_robot_release(&self->lost_run);
+    int64s_release(&self->error);
+    reference_release(&self->ref);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *JointCycle_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "JointCycle() takes no keyword arguments");
+        return NULL;
+    }
+    if (check_nargs(PyTuple_GET_SIZE(args), 22, "JointCycle") < 0) return NULL;
+    PyObject *const *v = &PyTuple_GET_ITEM(args, 0);
+    Py_ssize_t n = leading(v[0], "aborted");
+    if (n < 0) return NULL;
+    JointCycleObject *self = (JointCycleObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->n = n;
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    static const char *out_names[OUT_ARRAYS] = {"candidate", "new_q", "new_dq", "new_ddq"};
+    if (bytes_get(v[0], &self->flags[ABORTED], n, 0, "aborted") < 0 ||
+        bytes_get(v[1], &self->flags[FIRST], n, 0, "first") < 0 ||
+        per_robot_get(v[2], &self->lost_run, n, "lost_run") < 0 ||
+        number(v[3], &self->max_lost, "max_lost") < 0 || reference_get(v + 4, n, &self->ref) < 0 ||
+        f64_get(v[13], &self->constants, 2, sc, 0, "constants") < 0 ||
+        number(v[14], &self->positional, "positional") < 0 ||
+        number(v[15], &self->shift, "shift") < 0 || number(v[16], &self->dt, "dt") < 0 ||
+        int64s_get(v[17], &self->error, n, 1, "error") < 0)
+        goto fail;
     for (int k = 0; k < OUT_ARRAYS; k++)
-        if (f64_get(args[29 + k], &out[k], 2, s7, 1, out_names[k]) < 0) goto done;
+        if (f64_get(v[18 + k], &self->out[k], 2, s7, 1, out_names[k]) < 0) goto fail;
+    return (PyObject *)self;
+fail:
+    Py_DECREF(self);
+    return NULL;
+}
+
+/* The loop of one cycle over the plan's arrays, the call's borrowed. */
+static long long advance_rows(JointCycleObject *a)
+{
+    const Py_ssize_t n = a->n;
+    F64 *in = a->in, *out = a->out;
+    const Bytes *flags = a->flags;
+    const double dt = a->dt, extrapolate_lost = a->extrapolate_lost, max_lost = a->max_lost;
+    const PerRobot lost_run = a->lost_run;
+    const Int64s echo = a->echo, error = a->error;
+    const Reference ref = a->ref;
+    const F64 constants = a->constants;
+    const double positional = a->positional, position_tolerance = a->position_tolerance;
+    const double velocity_tolerance = a->velocity_tolerance, shift = a->shift;
     /* The generators' rows read the candidate against the reference as it stands (the
      * rules' arguments: start = q_d for q_c, dq_d for dq_c; one cycle). */
     Joint rp, rv;
@@ -744,24 +786,59 @@ static PyObject *joint_advance(PyObject *self, PyObject *const *args, Py_ssize_t
         }
         record_row(&ref, i, have, q, dq, ddq, INT64_AT(echo, i));
     }
-    result = PyLong_FromLongLong(pending);
+    return pending;
+}
+
+static PyObject *JointCycle_advance(JointCycleObject *self, PyObject *const *args,
+                                    Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 11, "advance") < 0) return NULL;
+    Py_ssize_t n = self->n, s7[2] = {n, 7};
+    PyObject *result = NULL;
+    if (num_get(args[0], &self->in[Q_C], 2, s7, 0, "q_c") < 0 ||
+        num_get(args[1], &self->in[DQ_C], 2, s7, 0, "dq_c") < 0 ||
+        bytes_get(args[2], &self->flags[HAVE], n, 0, "have") < 0 ||
+        bytes_get(args[3], &self->flags[STARTED], n, 0, "started") < 0 ||
+        bytes_get(args[4], &self->flags[TRACKING], n, 0, "tracking") < 0 ||
+        bytes_get(args[5], &self->flags[POSITION_MODE], n, 0, "joint_position") < 0 ||
+        bytes_get(args[6], &self->flags[VELOCITY_MODE], n, 0, "joint_velocity") < 0 ||
+        int64s_get(args[7], &self->echo, n, 0, "echo") < 0 ||
+        number(args[8], &self->extrapolate_lost, "extrapolate_lost") < 0 ||
+        number(args[9], &self->position_tolerance, "position_tolerance") < 0 ||
+        number(args[10], &self->velocity_tolerance, "velocity_tolerance") < 0)
+        goto done;
+    result = PyLong_FromLongLong(advance_rows(self));
 done:
-    f64_release_all(in, IN_ARRAYS);
-    f64_release_all(out, OUT_ARRAYS);
-    f64_release(&constants);
-    for (int k = 0; k < FLAGS; k++) bytes_release(&flags[k]);
-    per_robot_release(&lost_run);
-    int64s_release(&echo);
-    int64s_release(&error);
-    reference_release(&ref);
+    cycle_release_call(self);
     return result;
 }
+
+static PyMethodDef JOINT_CYCLE_METHODS[] = {
+    {"advance", (PyCFunction)(void (*)(void))JointCycle_advance, METH_FASTCALL,
+     "advance(q_c, dq_c, have, started, tracking, joint_position, joint_velocity, echo, "
+     "extrapolate_lost, position_tolerance, velocity_tolerance) -> pending: one cycle of the "
+     "joint generators."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject JointCycleType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.fci.limits._joint.JointCycle",
+    .tp_basicsize = sizeof(JointCycleObject),
+    .tp_dealloc = (destructor)JointCycle_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "JointCycle(aborted, first, lost_run, max_lost, <the reference>, "
+              "constants, positional, shift, dt, error, candidate, new_q, new_dq, new_ddq): "
+              "the joint generators' cycle.",
+    .tp_methods = JOINT_CYCLE_METHODS,
+    .tp_new = JointCycle_new,
+};
 
 /* joint_record(rows, have, new_q, new_dq, new_ddq, echo, q, dq, ddq, ddq_frozen, real_q,
  *              real_dq, real_ddq, real_echo, run)
  *
- * Record the cycle of ``rows`` (joint_advance's pending robots that the verdicts left
- * running) from what joint_advance left in new_q / new_dq / new_ddq: a real command where
+ * Record the cycle of ``rows`` (JointCycle.advance's pending robots that the verdicts left
+ * running) from what JointCycle.advance left in new_q / new_dq / new_ddq: a real command where
  * ``have``, else a guess. */
 static PyObject *joint_record(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -1490,8 +1567,7 @@ static PyMethodDef METHODS[] = {
     METHOD(torque_rule, "Errors 34 and 32 of every robot, 34 over 32: error."),
     METHOD(torque_detail, "Robot i's error 34 or 32 for the log line: (error, joint, value, limit)."),
     METHOD(cartesian_rule, "The Cartesian pose (kind 0) or twist (kind 1) table of every robot: None, or (error, tripped)."),
-    METHOD(joint_advance, "One cycle of the joint generators: candidates, lost-cycle guesses, their rows, the record; returns the robots left to the engine."),
-    METHOD(joint_record, "Record the cycle of the rows joint_advance left to the engine."),
+    METHOD(joint_record, "Record the cycle of the rows JointCycle.advance left to the engine."),
     METHOD(position_step, "q_c's lost-cycle law on arrays: (x + (v + a dt) dt, v + a dt)."),
     METHOD(velocity_step, "dq_c's lost-cycle law on arrays: v + a dt."),
     METHOD(safety_detail, "Robot i's error 3 or 4 for the log line: (error, joint, value, upper, lower)."),
@@ -1506,10 +1582,11 @@ static struct PyModuleDef _joint_definition = {
 
 PyMODINIT_FUNC PyInit__joint(void)
 {
-    if (PyType_Ready(&SafetyPlanType) < 0) return NULL;
+    if (PyType_Ready(&SafetyPlanType) < 0 || PyType_Ready(&JointCycleType) < 0) return NULL;
     PyObject *m = kernel_module(&_joint_definition);
     if (!m) return NULL;
-    if (PyModule_AddObjectRef(m, "SafetyPlan", (PyObject *)&SafetyPlanType) < 0) {
+    if (PyModule_AddObjectRef(m, "SafetyPlan", (PyObject *)&SafetyPlanType) < 0 ||
+        PyModule_AddObjectRef(m, "JointCycle", (PyObject *)&JointCycleType) < 0) {
         Py_DECREF(m);
         return NULL;
     }
