@@ -15,10 +15,12 @@
  *       row-major) from rotation (n, 3, 3), the flange's rotation transposed (the bases
  *       at their worlds' origins); elbow = (q_3, the sign of q_4, sign(0) taken as +1 as
  *       copysign does: docs/fci-behaviour.md "RobotState fields") from q (n, 7);
- *   Publishing.copies(q, in_motion)
+ *   Publishing.copies(q, keeps_q_d)
  *       docs/fci-behaviour.md "RobotState fields": O_T_EE_d = O_T_EE_c = O_T_EE and
  *       elbow_d = elbow_c = elbow for every robot (a Cartesian generator then writes its
- *       own), q_d = q (the measured q (n, 7)) for the robots not in motion ((n,) bool);
+ *       own), q_d = q (the measured q (n, 7)) but for the robots whose q_d is a reference
+ *       ((n,) bool: a joint generator's or an external controller's motion): between
+ *       motions and during a Cartesian one;
  *   Publishing.publish(success_rate)
  *       every robot's next message id, the shadow cast to the wire's float32 (round to
  *       nearest, as numpy's cast), and the success rate ((n,) float64, or None: kept).
@@ -161,7 +163,7 @@ static PyObject *Publishing_copies(PublishingObject *self, PyObject *const *args
     F64 q;
     Bytes motion;
     if (f64_get(args[0], &q, 2, s7, 0, "q") < 0) return NULL;
-    if (bytes_get(args[1], &motion, self->n, 0, "in_motion") < 0) {
+    if (bytes_get(args[1], &motion, self->n, 0, "keeps_q_d") < 0) {
         f64_release(&q);
         return NULL;
     }
@@ -177,7 +179,7 @@ static PyObject *Publishing_copies(PublishingObject *self, PyObject *const *args
             AT2(a[P_ELBOW_D], i, k) = x;
             AT2(a[P_ELBOW_C], i, k) = x;
         }
-        if (!BYTE1(motion, i)) /* between motions q_d is the measured q */
+        if (!BYTE1(motion, i)) /* between motions and in a Cartesian one: the measured q */
             for (int j = 0; j < 7; j++) AT2(a[P_Q_D], i, j) = AT2(q, i, j);
     }
     f64_release(&q);
@@ -219,7 +221,8 @@ static PyMethodDef PUBLISHING_METHODS[] = {
     {"pose", (PyCFunction)(void (*)(void))Publishing_pose, METH_FASTCALL,
      "pose(position, rotation, q): the measured O_T_EE and elbow."},
     {"copies", (PyCFunction)(void (*)(void))Publishing_copies, METH_FASTCALL,
-     "copies(q, in_motion): the desired and commanded pose and elbow, q_d between motions."},
+     "copies(q, keeps_q_d): the desired and commanded pose and elbow, and q_d = q where no "
+     "reference is kept."},
     {"publish", (PyCFunction)Publishing_publish, METH_O,
      "publish(success_rate): the next message ids, the shadow cast to the wire, the rate."},
     {NULL, NULL, 0, NULL},

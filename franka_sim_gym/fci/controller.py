@@ -398,8 +398,8 @@ class FciController(ControllerRequests):
         physics = self.physics
         # Idle and under joint generators the desired/commanded pose and elbow
         # are the measured ones (docs/fci-behaviour.md "RobotState fields": O_T_EE_d /
-        # O_T_EE_c); between motions q_d is the measured q.
-        w.copy_for_publish(physics.q, m.in_motion)
+        # O_T_EE_c); between motions and in a Cartesian one q_d is the measured q.
+        w.copy_for_publish(physics.q, m.keeps_q_d)
         if m.n_cartesian:
             self.cartesian.publish()
         w.publish(self.accounting.success_rate())

@@ -67,6 +67,9 @@ class Modes:
         self.cartesian_position = self.in_motion & (gen == CARTESIAN_POSITION)
         self.cartesian_velocity = self.in_motion & (gen == CARTESIAN_VELOCITY)
         self.cartesian = self.cartesian_position | self.cartesian_velocity
+        #: q_d is a reference, not the measured q (docs/fci-behaviour.md "RobotState fields":
+        #: the measured q between motions and during a Cartesian motion)
+        self.keeps_q_d = self.in_motion & ~self.cartesian
         self.external = self.in_motion & (ctrl == EXTERNAL)
         #: the internal servo is the Cartesian impedance (a motion under kCartesianImpedance)
         self.cartesian_impedance = self.in_motion & (ctrl == CARTESIAN_IMPEDANCE)

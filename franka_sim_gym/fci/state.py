@@ -166,12 +166,13 @@ class StateWriter:
             pose = self.O_T_EE
             pose[...] = frames.to_wire(frames.from_wire(pose) @ self.F_T_EE)
 
-    def copy_for_publish(self, q: np.ndarray, in_motion: np.ndarray) -> None:
+    def copy_for_publish(self, q: np.ndarray, keeps_q_d: np.ndarray) -> None:
         """docs/fci-behaviour.md "RobotState fields": the desired and commanded pose and
         elbow are the measured ones (a Cartesian generator writes its own after this),
-        and between motions q_d is the measured ``q`` (n, 7) (``in_motion`` (n,) bool:
-        the robots it is not). One C call (fci/_publish.c)."""
-        self._publishing.copies(q, in_motion)
+        and q_d is the measured ``q`` (n, 7) but where ``keeps_q_d`` ((n,) bool: a joint
+        generator's or an external controller's motion holds a reference). One C call
+        (fci/_publish.c)."""
+        self._publishing.copies(q, keeps_q_d)
 
     def publish(self, success_rate: np.ndarray | None) -> None:
         """Make state k+1 the published one: new message id, floats cast to the wire.

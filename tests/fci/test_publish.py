@@ -96,7 +96,7 @@ def test_bad_arrays_are_refused_by_name():
         with pytest.raises(error, match=text):
             _PUBLISH.Publishing(*args)
     plan = _PUBLISH.Publishing(*ok)
-    with pytest.raises(ValueError, match="in_motion"):
+    with pytest.raises(ValueError, match="keeps_q_d"):
         plan.copies(np.zeros((2, 7)), np.zeros(3, bool))
     before = w.q_d.copy()
     with pytest.raises(ValueError, match="q: axis 1 has length 6, expected 7"):

@@ -246,9 +246,9 @@ class CartesianGenerators:
         return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
 
     def publish(self) -> None:
-        """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, elbow_d / elbow_c and q_d of the
-        robots in a Cartesian motion (docs/fci-behaviour.md "RobotState fields", the three
-        regimes)."""
+        """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c and elbow_d / elbow_c of the robots in
+        a Cartesian motion (docs/fci-behaviour.md "RobotState fields", the three regimes;
+        their q_d is the measured q, as between motions: StateWriter.copy_for_publish)."""
         m, w, h, n = self.modes, self.writer, self.reference, self.n
         if m.n_cartesian_position:
             every = m.n_cartesian_position == n
@@ -268,9 +268,6 @@ class CartesianGenerators:
             streamed = (m.cartesian & h.has_elbow)[:, None]
             np.copyto(w.elbow_d, h.elbow, where=streamed)
             np.copyto(w.elbow_c, h.elbow, where=streamed)
-        # docs/fci-behaviour.md "RobotState fields": q_d reports the measured q during a Cartesian
-        # motion.
-        put_rows(w.q_d, self.physics.q, cartesian, every)
 
     def remember(self, message_id: int) -> None:
         """The history as published in state ``message_id`` (what a late datagram
