@@ -193,8 +193,10 @@ def main() -> None:
             )
     goal_hold = None
     if args.goal_hold is not None:
-        # the velocity entries the hold zeroes: the env's cartesian_dof (FrankaFCIEnv's 6)
-        dims = int(spec.kwargs.get("cartesian_dof", 6))
+        # the velocity entries the hold zeroes: the env's own cartesian_dof, as it builds it
+        probe = gym.make(spec)
+        dims = probe.unwrapped.core.commands.cartesian_dof
+        probe.close()
         goal_hold = {"radius": args.goal_hold, "velocity_dims": dims}
         try:  # its arguments judged once, by GoalHold itself, before minutes of fitting
             GoalHold(None, **goal_hold)

@@ -112,30 +112,18 @@ class RobotTable:
     def velocity_envelope_halves(
         self, q: np.ndarray, shift: float | np.ndarray = JOINT_VELOCITY_LIMIT_TOLERANCE
     ) -> np.ndarray:
-        """(..., 14): [upper | -lower] of :meth:`velocity_envelope` (lower is the same law
-        on the mirrored range), with ``shift`` in place of the tolerance (broadcast
-        against the (..., 14) bounds: a caller's margins). ``q`` is (..., 7), or already
-        doubled as (..., 14) [q | q], which a writeable float64 array (strided too, up
-        to two axes) is then overwritten with and returned as the result. The law's only text is C
-        (fci/limits/_joint.c ``envelope_halves``, beside the rules that read it).
+        """(..., 14): [upper | -lower] of :meth:`velocity_envelope` at ``q`` (..., 7) (lower
+        is the same law on the mirrored range), with ``shift`` in place of the tolerance
+        (broadcast against the (..., 14) bounds: a caller's margins). The law's only text
+        is C (fci/limits/_joint.c ``envelope_halves``, beside the rules that read it).
         """
-        q = np.asarray(q)
-        doubled = q.shape[-1] == 14
-        lead = q.shape[:-1]
-        # in place: rows below must be a view of q (a reshape that copies would lose them)
-        inplace = (
-            doubled
-            and q.dtype == np.float64
-            and q.flags.writeable
-            and (q.ndim <= 2 or q.flags.c_contiguous)
-        )
-        out = q if inplace else np.empty((*lead, 14))
+        q = np.asarray(q, dtype=np.float64)
+        out = np.empty((*q.shape[:-1], 14))
         rows = out.reshape(-1, 14)
-        q7 = (q[..., :7] if doubled else q).reshape(-1, 7)
         if not isinstance(shift, float):
             shift = np.broadcast_to(np.asarray(shift, dtype=np.float64), rows.shape)
         constants, positional = self.joint_constants
-        _envelope_law().envelope_halves(q7, constants, positional, shift, rows)
+        _envelope_law().envelope_halves(q.reshape(-1, 7), constants, positional, shift, rows)
         return out
 
 
