@@ -5,14 +5,17 @@
  * rows are fci/cartesian/reference.py's (n, WIDTH) float64 buffers, their columns handed
  * over once as the layout.
  *
- *   History(buffer, real_echo, run, pose_stack, joint_stack, layout, constants)
+ *   History(buffer, real_echo, run, pose_stack, joint_stack, published, layout, constants)
  *       a plan over the live history (buffer (n, WIDTH); real_echo (n,) uint64, run (n,)
  *       int64: the last real command's echo and the guesses since), the stepper's
  *       scratch (pose_stack (n, 3, 6): [v | omega], [a | alpha], [jerk | zeta];
- *       joint_stack (n, 4, 7): the IK solution q and its dq, ddq, dddq), the layout
- *       (WIDTH and the first columns of T, [v | omega | a | alpha], the frozen
- *       [a | alpha], twist, dtwist, the frozen dtwist, the reported twist, its rate,
- *       [q_ik | dq_ik | ddq_ik], ik_warm) and the constants (dt: fci/tables.py DELTA_T;
+ *       joint_stack (n, 4, 7): the IK solution q and its dq, ddq, dddq), what the state
+ *       publishes of it (published: the twist motions' start pose start_T (n, 4, 4) and
+ *       the state's O_T_EE_d, O_T_EE_c (n, 16), O_dP_EE_d, O_dP_EE_c, O_ddP_EE_c (n, 6),
+ *       elbow_d, elbow_c (n, 2)), the layout (WIDTH and the first columns of T,
+ *       [v | omega | a | alpha], the frozen [a | alpha], twist, dtwist, the frozen dtwist,
+ *       the reported twist, its rate, [q_ik | dq_ik | ddq_ik], ik_warm, the elbow, the
+ *       elbow flag) and the constants (dt: fci/tables.py DELTA_T;
  *       the IK samples before the acceleration and the jerk are judged: step.py
  *       WARM_ACCELERATION, WARM_JERK; sim/ik.py USABLE_POSITION_ERROR,
  *       USABLE_ROTATION_ERROR; sim/rotations.py NEAR_PI, TURNING_ABOVE, SERIES_BELOW,
@@ -33,6 +36,12 @@
  *       what the robots of ``apply`` leave in the live history (record.py says what and
  *       why); twist_stack None while no twist motion runs, v_ex / w_ex None while no
  *       robot is extrapolated;
+ *   History.publish(pose, velocity)
+ *       docs/fci-behaviour.md "RobotState fields", the three regimes: for the robots in a
+ *       pose motion (pose (n,) bool) O_T_EE_d = O_T_EE_c = the history's pose, in a twist
+ *       motion (velocity) the pose the motion started from, both column-major as the
+ *       wire; for both O_dP_EE_d = O_dP_EE_c = the reported twist, O_ddP_EE_c its rate,
+ *       and elbow_d = elbow_c = the streamed elbow while one is streamed;
  *   usable(converged, position_error, rotation_error, out, position_max, rotation_max)
  *       the IK solutions the servo may follow: converged, or ended within both bounds.
  *
@@ -47,7 +56,10 @@
 
 /* The layout's columns, in the order History() takes them. */
 enum { C_T, C_POSE, C_FROZEN, C_TWIST, C_DTWIST, C_DTWIST_FROZEN, C_REPORTED, C_DREPORTED,
-       C_JOINT, C_WARM, C_COUNT };
+       C_JOINT, C_WARM, C_ELBOW, C_ELBOW_FLAG, C_COUNT };
+/* What the state publishes of the history, in the order History() takes them. */
+enum { P_START_T, P_POSE_D, P_POSE_C, P_TWIST_D, P_TWIST_C, P_DTWIST_C, P_ELBOW_D, P_ELBOW_C,
+       P_COUNT };
 /* The constants, in the order History() takes them. */
 enum { K_DT, K_WARM_ACCELERATION, K_WARM_JERK, K_USABLE_P, K_USABLE_R, K_ROTATION, K_COUNT = 9 };
 
@@ -56,7 +68,7 @@ typedef struct {
     Py_ssize_t n, width;
     Py_ssize_t col[C_COUNT];
     double dt, warm_acceleration, warm_jerk, usable_p, usable_r;
-    F64 buffer, pose_stack, joint_stack;
+    F64 buffer, pose_stack, joint_stack, published[P_COUNT];
     Int64s real_echo, run;
 } HistoryObject;
 
@@ -91,6 +103,7 @@ static void History_dealloc(HistoryObject *self)
     f64_release(&self->buffer);
     f64_release(&self->pose_stack);
     f64_release(&self->joint_stack);
+    f64_release_all(self->published, P_COUNT);
     int64s_release(&self->real_echo);
     int64s_release(&self->run);
     Py_TYPE(self)->tp_free((PyObject *)self);
@@ -119,12 +132,16 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
         PyErr_SetString(PyExc_TypeError, "History() takes no keyword arguments");
         return NULL;
     }
-    if (check_nargs(PyTuple_GET_SIZE(args), 7, "History") < 0) return NULL;
+    if (check_nargs(PyTuple_GET_SIZE(args), 8, "History") < 0) return NULL;
     PyObject *const *v = &PyTuple_GET_ITEM(args, 0);
     double layout[C_COUNT + 1], k[K_COUNT];
-    if (doubles_of(v[5], C_COUNT + 1, layout, "layout") < 0 ||
-        doubles_of(v[6], K_COUNT, k, "constants") < 0)
+    if (doubles_of(v[6], C_COUNT + 1, layout, "layout") < 0 ||
+        doubles_of(v[7], K_COUNT, k, "constants") < 0)
         return NULL;
+    if (!PyTuple_Check(v[5]) || PyTuple_GET_SIZE(v[5]) != P_COUNT) {
+        PyErr_Format(PyExc_TypeError, "published: expected a tuple of %d arrays", P_COUNT);
+        return NULL;
+    }
     Py_ssize_t n = leading(v[0], "buffer");
     if (n < 0) return NULL;
     HistoryObject *self = (HistoryObject *)type->tp_alloc(type, 0);
@@ -132,7 +149,7 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
     self->n = n;
     self->width = (Py_ssize_t)layout[0];
     /* each block's width, as reference.py's layout lays them out */
-    static const Py_ssize_t SIZE[C_COUNT] = {16, 12, 6, 6, 6, 6, 6, 6, 21, 1};
+    static const Py_ssize_t SIZE[C_COUNT] = {16, 12, 6, 6, 6, 6, 6, 6, 21, 1, 2, 1};
     for (int c = 0; c < C_COUNT; c++) {
         self->col[c] = (Py_ssize_t)layout[c + 1];
         if (self->col[c] != layout[c + 1] || self->col[c] < 0 ||
@@ -159,6 +176,15 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
         f64_get(v[3], &self->pose_stack, 3, s36, 1, "pose_stack") < 0 ||
         f64_get(v[4], &self->joint_stack, 3, s47, 1, "joint_stack") < 0)
         goto fail;
+    static const char *const PUBLISHED[P_COUNT] = {"start_T",   "O_T_EE_d",  "O_T_EE_c",
+                                                   "O_dP_EE_d", "O_dP_EE_c", "O_ddP_EE_c",
+                                                   "elbow_d",   "elbow_c"};
+    Py_ssize_t s44[3] = {n, 4, 4}, s16[2] = {n, 16}, s6[2] = {n, 6}, s2[2] = {n, 2};
+    const Py_ssize_t *shapes[P_COUNT] = {s44, s16, s16, s6, s6, s6, s2, s2};
+    for (int p = 0; p < P_COUNT; p++)
+        if (f64_get(PyTuple_GET_ITEM(v[5], p), &self->published[p], p == P_START_T ? 3 : 2,
+                    shapes[p], p != P_START_T, PUBLISHED[p]) < 0)
+            goto fail;
     return (PyObject *)self;
 fail:
     Py_DECREF(self);
@@ -384,6 +410,48 @@ done:
     return result;
 }
 
+/* publish(pose, velocity) */
+static PyObject *History_publish(HistoryObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 2, "publish") < 0) return NULL;
+    Py_ssize_t n = self->n;
+    Bytes pose, velocity;
+    memset(&velocity, 0, sizeof(velocity));
+    if (bytes_get(args[0], &pose, n, 0, "pose") < 0) return NULL;
+    if (bytes_get(args[1], &velocity, n, 0, "velocity") < 0) {
+        bytes_release(&pose);
+        return NULL;
+    }
+    const F64 *p = self->published;
+    const Py_ssize_t *col = self->col;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const int posing = BYTE1(pose, i) != 0, twisting = BYTE1(velocity, i) != 0;
+        if (!posing && !twisting) continue;
+        const double *row = row_of(&self->buffer, i);
+        /* the pose motion's commanded pose, or the pose a twist motion started from, as the
+         * wire's column-major 4 x 4 (fci/frames.py to_wire) */
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++) {
+                double x = posing ? row[col[C_T] + 4 * r + c] : AT3(p[P_START_T], i, r, c);
+                AT2(p[P_POSE_D], i, 4 * c + r) = x;
+                AT2(p[P_POSE_C], i, 4 * c + r) = x;
+            }
+        for (int k = 0; k < 6; k++) {
+            AT2(p[P_TWIST_D], i, k) = row[col[C_REPORTED] + k];
+            AT2(p[P_TWIST_C], i, k) = row[col[C_REPORTED] + k];
+            AT2(p[P_DTWIST_C], i, k) = row[col[C_DREPORTED] + k];
+        }
+        if (row[col[C_ELBOW_FLAG]] > 0.0) /* an elbow is streamed */
+            for (int k = 0; k < 2; k++) {
+                AT2(p[P_ELBOW_D], i, k) = row[col[C_ELBOW] + k];
+                AT2(p[P_ELBOW_C], i, k) = row[col[C_ELBOW] + k];
+            }
+    }
+    bytes_release(&pose);
+    bytes_release(&velocity);
+    Py_RETURN_NONE;
+}
+
 /* usable(converged, position_error, rotation_error, out, position_max, rotation_max) */
 static PyObject *usable(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -429,6 +497,8 @@ static PyMethodDef HISTORY_METHODS[] = {
     {"record", (PyCFunction)(void (*)(void))History_record, METH_FASTCALL,
      "record(T, twist, twist_stack, v_ex, w_ex, pose, apply, real, extrapolate, first, "
      "converged, position_error, rotation_error, echo): a judged step into the history."},
+    {"publish", (PyCFunction)(void (*)(void))History_publish, METH_FASTCALL,
+     "publish(pose, velocity): the Cartesian fields the state reports of the history."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -438,7 +508,8 @@ static PyTypeObject HistoryType = {
     .tp_basicsize = sizeof(HistoryObject),
     .tp_dealloc = (destructor)History_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "History(buffer, real_echo, run, pose_stack, joint_stack, layout, constants): "
+    .tp_doc = "History(buffer, real_echo, run, pose_stack, joint_stack, published, layout, "
+              "constants): "
               "the Cartesian history's differences and record.",
     .tp_methods = HISTORY_METHODS,
     .tp_new = History_new,

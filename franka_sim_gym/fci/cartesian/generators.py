@@ -33,10 +33,9 @@ from ..accounting import CycleAccounting
 from ..config import ControllerConfig
 from ..cycle_input import CycleInput
 from ..engine import MotionLimitEngine
-from ..frames import from_wire, to_wire
+from ..frames import from_wire
 from ..late import LateIntents
 from ..modes import Modes
-from ..rows import put_rows
 from ..state import StateWriter
 from ..tables import MAX_LOST_CYCLES
 from .checks import CartesianChecks
@@ -74,11 +73,11 @@ class CartesianGenerators:
         #: the history (pose, twist, elbow, reported twist, IK joint history), its last
         #: real sample and the ring of published ones (fci/cartesian/reference.py)
         self.reference = CartesianReference(n)
-        self.stepper = CartesianStepper(physics, modes, writer, self.reference)
-        self.checks = CartesianChecks(modes, config, writer, engine)
-        self.recorder = CartesianRecorder(modes, self.reference, self.stepper.plan)
         #: the pose a twist motion started from (O_T_EE_d / O_T_EE_c while it runs)
         self.start_T = np.tile(np.eye(4), (n, 1, 1))
+        self.stepper = CartesianStepper(physics, modes, writer, self.reference, self.start_T)
+        self.checks = CartesianChecks(modes, config, writer, engine)
+        self.recorder = CartesianRecorder(modes, self.reference, self.stepper.plan)
         # The cycle's command candidates (the last datagram applied wins).
         self.T_cmd = np.tile(np.eye(4), (n, 1, 1))
         self.twist_cmd = np.zeros((n, 6))
@@ -246,28 +245,12 @@ class CartesianGenerators:
         return np.where(rows, h.q_ik, q_ref), np.where(rows, h.dq_ik, dq)
 
     def publish(self) -> None:
-        """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c and elbow_d / elbow_c of the robots in
-        a Cartesian motion (docs/fci-behaviour.md "RobotState fields", the three regimes;
-        their q_d is the measured q, as between motions: StateWriter.copy_for_publish)."""
-        m, w, h, n = self.modes, self.writer, self.reference, self.n
-        if m.n_cartesian_position:
-            every = m.n_cartesian_position == n
-            put_rows(w.O_T_EE_d, to_wire(h.T), m.cartesian_position, every)
-            put_rows(w.O_T_EE_c, w.O_T_EE_d, m.cartesian_position, every)
-        if m.n_cartesian_velocity:
-            T_start = to_wire(self.start_T)
-            every = m.n_cartesian_velocity == n
-            put_rows(w.O_T_EE_d, T_start, m.cartesian_velocity, every)
-            put_rows(w.O_T_EE_c, T_start, m.cartesian_velocity, every)
-        every = m.n_cartesian == n
-        cartesian = m.cartesian
-        put_rows(w.field["O_dP_EE_d"], h.reported, cartesian, every)
-        put_rows(w.field["O_dP_EE_c"], h.reported, cartesian, every)
-        put_rows(w.field["O_ddP_EE_c"], h.dreported, cartesian, every)
-        if np.count_nonzero(h.has_elbow):
-            streamed = (m.cartesian & h.has_elbow)[:, None]
-            np.copyto(w.elbow_d, h.elbow, where=streamed)
-            np.copyto(w.elbow_c, h.elbow, where=streamed)
+        """O_T_EE_d / O_T_EE_c, O_dP_EE_d / O_dP_EE_c, O_ddP_EE_c and elbow_d / elbow_c of the
+        robots in a Cartesian motion (docs/fci-behaviour.md "RobotState fields", the three
+        regimes; one C call, fci/cartesian/_history.c ``History.publish``; their q_d is the
+        measured q, as between motions: StateWriter.copy_for_publish)."""
+        m = self.modes
+        self.stepper.plan.publish(m.cartesian_position, m.cartesian_velocity)
 
     def remember(self, message_id: int) -> None:
         """The history as published in state ``message_id`` (what a late datagram

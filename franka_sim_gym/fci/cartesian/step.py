@@ -76,15 +76,25 @@ class Step(NamedTuple):
     solution: np.ndarray
 
 
-def history_plan(reference: CartesianReference, pose_stack: np.ndarray, joint_stack: np.ndarray):
+def history_plan(
+    reference: CartesianReference,
+    pose_stack: np.ndarray,
+    joint_stack: np.ndarray,
+    start_T: np.ndarray,
+    writer: StateWriter,
+):
     """The history's arithmetic (fci/cartesian/_history.c ``History``) over ``reference``,
     its differences written to ``pose_stack`` (n, 3, 6) and ``joint_stack`` (n, 4, 7; row 0
-    the IK solution), with the cycle's, the warm-up's, the IK's and the rotations' constants."""
-    h = reference
+    the IK solution), what it publishes written to ``writer``'s Cartesian fields (a twist
+    motion's pose: ``start_T`` (n, 4, 4)), with the cycle's, the warm-up's, the IK's and the
+    rotations' constants."""
+    h, w = reference, writer
     columns = (h.T, h.history, h.acceleration_frozen, h.twist, h.dtwist, h.dtwist_frozen)
-    columns += (h.reported, h.dreported, h.joint, h.ik_warm)
+    columns += (h.reported, h.dreported, h.joint, h.ik_warm, h.elbow, h.elbow_flag)
+    published = (start_T, w.O_T_EE_d, w.O_T_EE_c, w.field["O_dP_EE_d"], w.field["O_dP_EE_c"])
+    published += (w.field["O_ddP_EE_c"], w.elbow_d, w.elbow_c)
     return _C.History(
-        h.buffer, h.real_echo, h.run, pose_stack, joint_stack,
+        h.buffer, h.real_echo, h.run, pose_stack, joint_stack, published,
         (h.buffer.shape[1], *(h.column(view) for view in columns)),
         (DELTA_T, WARM_ACCELERATION, WARM_JERK, USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR,
          rotations.NEAR_PI, rotations.TURNING_ABOVE, rotations.SERIES_BELOW,
@@ -110,11 +120,17 @@ class CartesianStepper:
     """Evaluates Cartesian steps of n robots (the scratch arrays of one step and the IK).
 
     ``plan`` is the history's arithmetic over ``reference`` and this stepper's scratch
-    (fci/cartesian/_history.c): the differences here, the record in record.py.
+    (fci/cartesian/_history.c): the differences here, the record in record.py, what the state
+    publishes in generators.py (``start_T``: a twist motion's start pose).
     """
 
     def __init__(
-        self, physics: ArmPhysics, modes: Modes, writer: StateWriter, reference: CartesianReference
+        self,
+        physics: ArmPhysics,
+        modes: Modes,
+        writer: StateWriter,
+        reference: CartesianReference,
+        start_T: np.ndarray,
     ) -> None:
         n = physics.n
         self.n = n
@@ -137,7 +153,7 @@ class CartesianStepper:
         self._motion = S[:, :2]  # [q, dq]: the range (27) and the envelope (28)
         self._checked = np.zeros(n, dtype=bool)  # where the joint side's rows are judged
         self._d = rules.PoseDerivatives(self._pose_stack)
-        self.plan = history_plan(reference, self._pose_stack, S)
+        self.plan = history_plan(reference, self._pose_stack, S, start_T, writer)
         # The elbow's derivatives while no elbow is streamed (read, never written).
         zeros = np.zeros(n)
         zeros.setflags(write=False)

@@ -14,6 +14,7 @@ import pytest
 
 from franka_sim_gym.fci.cartesian.reference import CartesianReference
 from franka_sim_gym.fci.cartesian.step import WARM_ACCELERATION, WARM_JERK, history_plan, usable
+from franka_sim_gym.fci.state import StateWriter
 from franka_sim_gym.fci.tables import DELTA_T
 from franka_sim_gym.sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
 
@@ -35,7 +36,8 @@ def plan():
     h = CartesianReference(N)
     h.T[...] = np.eye(4)
     pose_stack, joint_stack = np.zeros((N, 3, 6)), np.zeros((N, 4, 7))
-    return h, history_plan(h, pose_stack, joint_stack), pose_stack, joint_stack
+    plan = history_plan(h, pose_stack, joint_stack, np.tile(np.eye(4), (N, 1, 1)), StateWriter(N))
+    return h, plan, pose_stack, joint_stack
 
 
 def _flags(*rows: int) -> np.ndarray:
@@ -225,6 +227,47 @@ def test_usable_solutions():
     assert usable(ik).tolist() == [True, True, False, False]
 
 
+# -- what the state publishes -------------------------------------------------------------------
+
+
+def PUBLISHED() -> tuple:  # noqa: N802  (the plan's "published" tuple, of fresh arrays)
+    start = np.tile(np.eye(4), (N, 1, 1))
+    return (start, *(np.zeros((N, 16)) for _ in range(2)), *(np.zeros((N, 6)) for _ in range(3)),
+            *(np.zeros((N, 2)) for _ in range(2)))  # fmt: skip
+
+
+def test_the_state_publishes_each_motions_own_pose_and_every_motions_twist():
+    """docs/fci-behaviour.md "RobotState fields": a pose motion's O_T_EE_d / O_T_EE_c are its
+    commanded pose, a twist motion's the pose it started from, column-major as the wire; both
+    report the recorded twist and its rate; elbow_d / elbow_c the streamed elbow."""
+    h = CartesianReference(N)
+    w = StateWriter(N)
+    start = np.tile(np.eye(4), (N, 1, 1))
+    start[:, :3, 3] = [0.1, 0.2, 0.3]
+    p = history_plan(h, np.zeros((N, 3, 6)), np.zeros((N, 4, 7)), start, w)
+    h.T[...] = np.arange(16.0).reshape(4, 4)
+    h.reported[...] = 0.5
+    h.dreported[...] = -2.0
+    h.elbow[...] = [0.7, -1.0]
+    h.set_has_elbow(_flags(0, 1))
+    w.elbow_d[...] = w.elbow_c[...] = 9.0
+    before = w.O_T_EE_d.copy()
+    p.publish(_flags(0), _flags(1))
+    np.testing.assert_array_equal(w.O_T_EE_d[0], np.arange(16.0).reshape(4, 4).T.reshape(16))
+    np.testing.assert_array_equal(w.O_T_EE_c[0], w.O_T_EE_d[0])
+    np.testing.assert_array_equal(w.O_T_EE_d[1], start[1].T.reshape(16))
+    np.testing.assert_array_equal(w.O_T_EE_c[1], start[1].T.reshape(16))
+    np.testing.assert_array_equal(w.O_T_EE_d[2], before[2])  # no Cartesian motion
+    for field, value in (("O_dP_EE_d", 0.5), ("O_dP_EE_c", 0.5), ("O_ddP_EE_c", -2.0)):
+        assert w.field[field][:2].tolist() == [[value] * 6] * 2
+        assert not w.field[field][2].any()
+    assert w.elbow_d[:2].tolist() == [[0.7, -1.0]] * 2 and w.elbow_c[1].tolist() == [0.7, -1.0]
+    h.set_has_elbow(NONE)
+    w.elbow_d[...] = 9.0
+    p.publish(_flags(0), NONE)
+    assert (w.elbow_d == 9.0).all()  # no elbow streamed: the measured one stays
+
+
 # -- the layout it refuses ---------------------------------------------------------------------
 
 
@@ -237,9 +280,14 @@ def test_the_plan_refuses_another_layout_by_name(plan):
     with pytest.raises(ValueError, match="checked: expected a writable"):
         p.joint_side(h.buffer, NONE, ALL, ALL, NONE.copy().view(np.int8))
     with pytest.raises(ValueError, match="layout: block"):
-        type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, (10, *range(10)),
-                (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+        type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, PUBLISHED(),
+                (10, *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
     with pytest.raises(ValueError, match="buffer: expected rows of contiguous"):
         wide = np.zeros((N, 2 * h.buffer.shape[1]))[:, ::2]
-        type(p)(wide, h.real_echo, h.run, np.zeros((N, 3, 6)), S, (h.buffer.shape[1], *range(10)),
-                (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+        type(p)(wide, h.real_echo, h.run, np.zeros((N, 3, 6)), S, PUBLISHED(),
+                (h.buffer.shape[1], *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+    with pytest.raises(ValueError, match="O_dP_EE_c: axis 1 has length 7, expected 6"):
+        fields = list(PUBLISHED())
+        fields[4] = np.zeros((N, 7))
+        type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, tuple(fields),
+                (h.buffer.shape[1], *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
