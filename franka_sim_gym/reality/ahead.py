@@ -74,10 +74,16 @@ class Ahead:
             self._cycle += count - 1
             self.advance()  # the refills due at the last advance, if any
             return out
+        # Some robot runs out within them: in spans up to each refill (or the ring's wrap).
         out = np.empty((count, *self._ring.shape[1:]))
-        for k in range(count):
-            out[k] = self._ring[self._cycle % BLOCK]
-            self.advance()
+        k = 0
+        while k < count:
+            at = self._cycle % BLOCK
+            span = max(1, min(count - k, self._next - self._cycle, BLOCK - at))
+            out[k : k + span] = self._ring[at : at + span]
+            k += span
+            self._cycle += span - 1
+            self.advance()  # the refills due at the span's last cycle, if any
         return out
 
     def current(self) -> np.ndarray:
