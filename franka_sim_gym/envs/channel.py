@@ -221,13 +221,13 @@ class Links:
         drawn = self.drawn
         k = drawn.k
         drawn.k = k + 1
-        blocked = drawn.blocked[k]
-        if blocked is None:  # every sending arm's datagram reaches the robot in time
+        drops = drawn.drops
+        if drops is None or not drops[k]:  # every sending arm's datagram arrives in time
             receive(command, sending)
             if self._in_run:
                 self._account(sending, sending, lost)
             return
-        delivered = sending & ~blocked
+        delivered = sending & ~drawn.blocked[k]
         receive(command, delivered)
         self._account(sending, delivered, lost)
 
@@ -266,8 +266,10 @@ class DrawnLinks:
         #: per arm, the first cycle whose datagram is not held up behind a spike
         self._free = np.zeros(n, dtype=np.int64)
         self._now = 0
-        #: this step's table (begin_step) and the cycles of it transmitted so far
-        self.blocked: list[np.ndarray | None] = []
+        #: this step's table (begin_step): which arm's datagram each cycle drops, whether
+        #: the cycle drops any (None: no cycle does), and the cycles transmitted so far
+        self.blocked: np.ndarray | None = None
+        self.drops: list[bool] | None = None
         self._frees: np.ndarray | None = None
         self.k = 0
 
@@ -284,14 +286,15 @@ class DrawnLinks:
     def begin_step(self, cycles: int) -> None:
         """The losses and spikes of the next ``cycles`` cycles of every arm, drawn at once
         (the streams move on by ``cycles`` whether or not all of them are used), and which
-        arm's datagram each of those cycles drops: ``blocked[k]`` ((n,) bool, or None
-        when cycle k drops none), read by :meth:`Links.transmit` (which moves ``k`` on)."""
+        arm's datagram each of those cycles drops: ``blocked[k]`` ((n,) bool), read by
+        :meth:`Links.transmit` (which moves ``k`` on) where ``drops[k]`` says cycle k drops
+        any (``drops`` None: no cycle of the step does)."""
         self._settle()
         u = self.ahead.take(cycles)
         events = u < self._odds  # (cycles, n, 2): a loss, a spike
         if not events.any() and int(self._free.max()) <= self._now:
             # A quiet step (most are): nothing drops and nothing is held up after it.
-            self.blocked = [None] * cycles
+            self.drops = None
             self._frees = None
             return
         lost, spike = events[..., 0], events[..., 1]
@@ -303,8 +306,8 @@ class DrawnLinks:
         ends[0] = np.maximum(ends[0], self._free)
         self._frees = np.maximum.accumulate(ends, axis=0)
         blocked = lost | (self._frees > now)
-        drops = blocked.any(axis=1).tolist()
-        self.blocked = [row if drop else None for row, drop in zip(blocked, drops, strict=True)]
+        self.blocked = blocked
+        self.drops = blocked.any(axis=1).tolist()
 
     def _settle(self) -> None:
         """Move the clock and the held-up datagrams' end on by the cycles the last step
