@@ -33,6 +33,7 @@ class Ahead:
     ) -> None:
         # (BLOCK, n, width): a cycle's samples are one contiguous row
         self._ring = np.zeros((BLOCK, n, width))
+        self._rows = list(self._ring)  # its rows as views, made once (a cycle reads one)
         self._sample = sample
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._refill = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
@@ -89,4 +90,9 @@ class Ahead:
     def current(self) -> np.ndarray:
         """(n, width) every robot's sample of this cycle (a view, valid until the next
         :meth:`advance`)."""
-        return self._ring[self._cycle % BLOCK]
+        return self._rows[self._cycle % BLOCK]
+
+    def next(self) -> np.ndarray:
+        """:meth:`advance`, then :meth:`current` (a cycle's one call)."""
+        self.advance()
+        return self._rows[self._cycle % BLOCK]

@@ -61,3 +61,12 @@ def test_take_reads_what_as_many_advances_read():
         if count == 30:
             for ahead in (taken, stepped):
                 ahead.reseed([0], [np.random.default_rng(7)])
+
+
+def test_next_reads_what_advance_then_current_read():
+    nexted, stepped = Ahead(2, 2, uniform), Ahead(2, 2, uniform)
+    for ahead in (nexted, stepped):
+        ahead.reseed([0, 1], [np.random.default_rng(3), np.random.default_rng(4)])
+    for _ in range(2 * BLOCK + 5):  # across refills and the ring's wrap
+        stepped.advance()
+        np.testing.assert_array_equal(nexted.next(), stepped.current())

@@ -82,7 +82,5 @@ class RobotReality:
     def write_measured(self, advance: bool) -> None:
         """The state's measured fields from the physics through the sensors (``advance``:
         a new cycle's samples; False: the samples of this cycle again)."""
-        sensors = self.sensors
-        if advance:
-            sensors.advance()
-        self.writer.write_measured(self.physics, sensors.current())
+        noise = self.sensors.next() if advance else self.sensors.current()
+        self.writer.write_measured(self.physics, noise)
