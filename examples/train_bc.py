@@ -65,6 +65,7 @@ from __future__ import annotations
 import argparse
 import copy
 import csv
+import inspect
 import json
 import time
 from pathlib import Path
@@ -162,6 +163,7 @@ def main() -> None:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     import franka_sim_gym  # noqa: F401  (registers the ids)
+    from franka_sim_gym.envs.core import FciBatch  # the envs' one constructor
     from franka_sim_gym.training.ensemble import Ensemble, member_file, member_seed
     from franka_sim_gym.training.evaluation import evaluate
     from franka_sim_gym.training.goal_hold import GoalHold
@@ -193,10 +195,10 @@ def main() -> None:
             )
     goal_hold = None
     if args.goal_hold is not None:
-        # the velocity entries the hold zeroes: the env's own cartesian_dof, as it builds it
-        probe = gym.make(spec)
-        dims = probe.unwrapped.core.commands.cartesian_dof
-        probe.close()
+        # the velocity entries the hold zeroes: the env's cartesian_dof (its own default
+        # where the dataset's spec leaves it out)
+        default = inspect.signature(FciBatch).parameters["cartesian_dof"].default
+        dims = int(spec.kwargs.get("cartesian_dof", default))
         goal_hold = {"radius": args.goal_hold, "velocity_dims": dims}
         try:  # its arguments judged once, by GoalHold itself, before minutes of fitting
             GoalHold(None, **goal_hold)

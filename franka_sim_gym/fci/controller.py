@@ -232,7 +232,7 @@ class FciController(ControllerRequests):
             if np.count_nonzero(late_joint):
                 # Late datagrams of joint motions are handled on arrival: the one
                 # the extrapolated run is missing rewinds it, the others are judged.
-                self.joint.late_datagrams(cycle, commands, late_joint, ids)
+                self.joint.late_datagrams(commands, late_joint, ids)
                 self._apply_verdicts()
                 accepted &= ~late_joint
         a.take(commands)
@@ -250,7 +250,7 @@ class FciController(ControllerRequests):
             started = self.accounting.started
             if self.asynchronous.count:
                 self.asynchronous.generate(cycle, self.accounting.answered)
-            self.joint.advance(cycle, started)
+            self.joint.advance(started)
             if m.n_cartesian and np.count_nonzero(started):
                 self.cartesian.advance(cycle, started)
             self._apply_verdicts()

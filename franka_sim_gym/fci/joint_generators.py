@@ -37,7 +37,9 @@ class JointGenerators:
         tau_J_d: (n, 7) the applied torque (the published field itself; written).
         published: (n,) the id of the last published state of each robot (read).
         engine: the judge; late: where late datagrams' intents go; cycle: the controller's
-            cycle input (its ``first`` flags are read and cleared).
+            cycle input (read; its ``first`` flags cleared). The cycle's C plan holds the
+            engine's, the accounting's, the cycle input's and the reference's arrays: their
+            owners write them in place, never rebind them.
     """
 
     def __init__(
@@ -61,6 +63,7 @@ class JointGenerators:
         self.published = published
         self.engine = engine
         self.late = late
+        self.cycle = cycle
         n = modes.n
         #: the cycle's outputs: error, candidate, new q / dq / ddq (read where a row tripped)
         self._scratch = (
@@ -75,18 +78,17 @@ class JointGenerators:
             DELTA_T, *self._scratch,
         )  # fmt: skip
 
-    def advance(self, cycle: CycleInput, started: np.ndarray) -> None:
+    def advance(self, started: np.ndarray) -> None:
         """The cycle's joint and torque commands of the ``started`` motions: judged and
         applied, or (joint motions) extrapolated for a lost cycle."""
-        m = self.modes
+        m, cycle = self.modes, self.cycle
         if m.n_tracking and np.count_nonzero(started):
-            self._advance_joints(cycle, started, cycle.have, cycle.q_c, cycle.dq_c)
+            self._advance_joints(started, cycle.have, cycle.q_c, cycle.dq_c)
         if m.n_external and np.count_nonzero(cycle.have & m.external):
-            self._advance_torques(cycle)
+            self._advance_torques()
 
     def _advance_joints(
         self,
-        cycle: CycleInput,
         started: np.ndarray,
         have: np.ndarray,
         q_c: np.ndarray,
@@ -104,7 +106,7 @@ class JointGenerators:
         One C call (fci/limits/_joint.c ``JointCycle.advance``: the lost-cycle law, the rows,
         the record); a robot whose candidate trips a row goes to the engine first.
         """
-        m, config = self.modes, self.config
+        m, config, cycle = self.modes, self.config, self.cycle
         if echo is None:
             echo = self.published
         pending = self._cycle.advance(
@@ -135,9 +137,7 @@ class JointGenerators:
             self.engine.live(tripped), have, new_q, new_dq, new_ddq, echo, *ref.arrays
         )
 
-    def late_datagrams(
-        self, cycle: CycleInput, commands: np.ndarray, late: np.ndarray, ids: np.ndarray
-    ) -> None:
+    def late_datagrams(self, commands: np.ndarray, late: np.ndarray, ids: np.ndarray) -> None:
         """docs/fci-behaviour.md "A datagram that turns up late replaces the guess it stood in for".
 
         Inside an extrapolated run, the datagram echoing the run's oldest unanswered
@@ -159,7 +159,7 @@ class JointGenerators:
             ref.rewind(rewind)
             never = np.zeros(len(rewind), dtype=bool)
             q_c, dq_c = commands["q_c"], commands["dq_c"]
-            self._advance_joints(cycle, never, rewind, q_c, dq_c, ids, extrapolate_lost=False)
+            self._advance_joints(never, rewind, q_c, dq_c, ids, extrapolate_lost=False)
             # The sample stands for state e + 1; the history must stand for the last
             # published state: guess the cycles in between again, from the real sample
             # (a later datagram of the backlog rewinds them in turn).
@@ -169,7 +169,7 @@ class JointGenerators:
                 rows = rewind & (behind > j) & self.engine.live(self.modes.tracking)
                 if not np.count_nonzero(rows):
                     break
-                self._advance_joints(cycle, rows, never, q_c, dq_c)
+                self._advance_joints(rows, never, q_c, dq_c)
         judged = late & ~rewind & self.engine.live(self.modes.tracking)
         if np.count_nonzero(judged):
             self._judge_only(commands, judged, ids)
@@ -231,8 +231,9 @@ class JointGenerators:
         self.engine.judge(check.error, rows, lambda i: describe_rule(i, *args))
         return check
 
-    def _advance_torques(self, cycle: CycleInput) -> None:
+    def _advance_torques(self) -> None:
         """Judge the arrived torques (34 range, 32 rate); a lost cycle keeps the last one."""
+        cycle = self.cycle
         m = self.modes
         rows = cycle.have & m.external
         args = (cycle.tau_c, self.tau_J_d.copy(), cycle.first & rows, 1, self.table)

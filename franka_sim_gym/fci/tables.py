@@ -118,6 +118,8 @@ class RobotTable:
         is C (fci/limits/_joint.c ``envelope_halves``, beside the rules that read it).
         """
         q = np.asarray(q, dtype=np.float64)
+        if q.ndim == 0 or q.shape[-1] != 7:
+            raise ValueError(f"q: expected joint positions (..., 7), got shape {q.shape}")
         out = np.empty((*q.shape[:-1], 14))
         rows = out.reshape(-1, 14)
         if not isinstance(shift, float):

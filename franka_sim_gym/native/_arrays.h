@@ -1,7 +1,9 @@
 /* What every C kernel shares (franka_sim_gym/<layer>/_<name>.c, built by setup.py):
- * float64 (and float32) array arguments through the buffer protocol, strided (views of structured
- * state fields and of stacked scratch rows are fine), with their shape checked before a
- * single element is read or written; (n,) one-byte flags (uint8 or numpy's bool); the argument count; numpy's minimum / maximum; the module. No rule of the robot lives here. */
+ * float64 (and float32) array arguments through the buffer protocol, strided (views of
+ * structured state fields and of stacked scratch rows are fine), with their shape checked
+ * before a single element is read or written; (n,) one-byte flags (uint8 or numpy's bool);
+ * (n,) 8-byte integers; the argument count; numpy's minimum / maximum; the module. No rule
+ * of the robot lives here. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 #define FRANKA_SIM_GYM_NATIVE_ARRAYS_H
 

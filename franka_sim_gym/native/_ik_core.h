@@ -17,7 +17,8 @@
 #include "_arrays.h"
 #include "_solve6.h"
 
-/* A bool (n,) argument, or None (data NULL: mask_at's ``otherwise``). */
+/* An (n,) one-byte flag argument (bool or uint8), or None (data NULL: mask_at's
+ * ``otherwise``). */
 typedef Bytes Mask;
 
 static inline int mask_at(const Mask *m, Py_ssize_t i, int otherwise)

@@ -1,13 +1,13 @@
 /* The rotation library's one text (sim/rotations.py calls it through sim/_rotations.c;
- * envs/_client_filters.c's pose rules call it directly): one rotation at a time, row-major
- * arrays of nine doubles, quaternions (w, x, y, z) as Eigen stores them. Each matrix
- * product sums over k = 0, 1, 2 in that order, without fused multiply-adds (setup.py);
- * 3- and 4-vector dot products sum in numpy einsum's order. (The numpy text these
- * replaced took its 3x3 products from the CPU's BLAS kernel: docs/architecture.md says
- * what changed.) No rule of the robot lives here.
+ * envs/_client_filters.c's pose rules and fci/cartesian/_history.c call it directly): one
+ * rotation at a time, row-major arrays of nine doubles, quaternions (w, x, y, z) as Eigen
+ * stores them. Each matrix product sums over k = 0, 1, 2 in that order, without fused
+ * multiply-adds (setup.py); 3- and 4-vector dot products sum in the order numpy's einsum
+ * takes on x86-64 (its two-lane float64 loops). No rule of the robot lives here.
  *
  * The thresholds are sim/rotations.py's (NEAR_PI, TURNING_ABOVE, SERIES_BELOW,
- * SLERP_LINEAR), handed to each including module's configure() and kept in its ROTATION. */
+ * SLERP_LINEAR), handed to each including module (its configure(), or a plan's constants)
+ * and kept in its ROTATION. */
 #ifndef FRANKA_SIM_GYM_NATIVE_ROTATION_H
 #define FRANKA_SIM_GYM_NATIVE_ROTATION_H
 

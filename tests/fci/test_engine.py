@@ -24,8 +24,7 @@ def test_a_violation_is_a_verdict_the_controller_applies_after_the_generator_ret
     command["q_c"] = q
     command["q_c"][1, 3] += 0.01  # 10 rad/s in one cycle: 14 on robot 1 only
     ctrl.receive(command, np.ones(2, dtype=bool))
-    cycle = ctrl.cycle_input
-    ctrl.joint.advance(cycle, ctrl.accounting.started)
+    ctrl.joint.advance(ctrl.accounting.started)
     # judged, not applied yet: robot 1 still moves, its command is not recorded
     assert ctrl.engine.aborted.tolist() == [False, True]
     assert ctrl.modes.in_motion.all()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from franka_sim_gym.fci.tables import FR3, JOINT_VELOCITY_LIMIT_TOLERANCE
 
@@ -24,3 +25,8 @@ def test_one_robot_band_is_its_row_of_the_batch_band():
     np.testing.assert_array_equal(lower[0], -default[1, 7:])
     widened = FR3.velocity_envelope_halves(q[1:2], np.full((1, 1), shift))
     np.testing.assert_array_equal(widened[0], batch[1])
+
+
+def test_the_band_names_positions_of_another_shape():
+    with pytest.raises(ValueError, match=r"q: expected joint positions .* got shape \(2, 14\)"):
+        FR3.velocity_envelope_halves(np.zeros((2, 14)))

@@ -1,4 +1,4 @@
-/* The Cartesian history's arithmetic, its one text (issue 38): the backward differences a
+/* The Cartesian history's arithmetic, its one text: the backward differences a
  * Cartesian command is judged on (docs/fci-behaviour.md "The difference formulas", "The
  * joint side of a Cartesian command") and what a judged step leaves in the history
  * (fci/cartesian/record.py). fci/cartesian/step.py and record.py call it; the history's
@@ -45,10 +45,12 @@
  *   usable(converged, position_error, rotation_error, out, position_max, rotation_max)
  *       the IK solutions the servo may follow: converged, or ended within both bounds.
  *
- * Built without fused multiply-adds (setup.py): each difference rounds as the numpy text
- * it replaced did, and a product sum as numpy einsum's (native/_rotation.h dot3). */
+ * Built without fused multiply-adds (setup.py): each difference rounds as written, and the
+ * reported rotation R_c omega_body sums as numpy's einsum does (native/_rotation.h dot3,
+ * added to +0.0: einsum starts its sum at zero, so an all-negative-zero sum is +0.0). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <math.h>
 #include <string.h>
 
 #include "_arrays.h"
@@ -147,15 +149,23 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
     HistoryObject *self = (HistoryObject *)type->tp_alloc(type, 0);
     if (!self) return NULL;
     self->n = n;
-    self->width = (Py_ssize_t)layout[0];
     /* each block's width, as reference.py's layout lays them out */
     static const Py_ssize_t SIZE[C_COUNT] = {16, 12, 6, 6, 6, 6, 6, 6, 21, 1, 2, 1};
+    static const char *const BLOCKS[C_COUNT] = {
+        "T", "history", "acceleration_frozen", "twist", "dtwist", "dtwist_frozen",
+        "reported", "dreported", "joint", "ik_warm", "elbow", "elbow_flag"};
+    for (int c = 0; c <= C_COUNT; c++) /* integers no wider than a row can be */
+        if (!(layout[c] >= 0.0 && layout[c] <= 1e6 && layout[c] == floor(layout[c]))) {
+            PyErr_Format(PyExc_ValueError, "layout: %s is not a column count",
+                         c == 0 ? "the width" : BLOCKS[c - 1]);
+            goto fail;
+        }
+    self->width = (Py_ssize_t)layout[0];
     for (int c = 0; c < C_COUNT; c++) {
         self->col[c] = (Py_ssize_t)layout[c + 1];
-        if (self->col[c] != layout[c + 1] || self->col[c] < 0 ||
-            self->col[c] + SIZE[c] > self->width) {
-            PyErr_Format(PyExc_ValueError, "layout: block %d does not fit a %zd-column row", c,
-                         self->width);
+        if (self->col[c] + SIZE[c] > self->width) {
+            PyErr_Format(PyExc_ValueError, "layout: %s (%zd columns at %zd) does not fit a "
+                         "%zd-column row", BLOCKS[c], SIZE[c], self->col[c], self->width);
             goto fail;
         }
     }
@@ -168,7 +178,6 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
     self->warm_jerk = k[K_WARM_JERK];
     self->usable_p = k[K_USABLE_P];
     self->usable_r = k[K_USABLE_R];
-    rotation_configure(&k[K_ROTATION]);
     Py_ssize_t s36[3] = {n, 3, 6}, s47[3] = {n, 4, 7};
     if (history_get(self, v[0], &self->buffer, 1, "buffer") < 0 ||
         int64s_get(v[1], &self->real_echo, n, 1, "real_echo") < 0 ||
@@ -185,6 +194,9 @@ static PyObject *History_new(PyTypeObject *type, PyObject *args, PyObject *kwarg
         if (f64_get(PyTuple_GET_ITEM(v[5], p), &self->published[p], p == P_START_T ? 3 : 2,
                     shapes[p], p != P_START_T, PUBLISHED[p]) < 0)
             goto fail;
+    /* sim/rotations.py's thresholds, module-wide (every plan is handed the same ones): set
+     * only by a plan that was built */
+    rotation_configure(&k[K_ROTATION]);
     return (PyObject *)self;
 fail:
     Py_DECREF(self);
@@ -374,7 +386,7 @@ static PyObject *History_record(HistoryObject *self, PyObject *const *args, Py_s
             for (int k = 0; k < 3; k++) {
                 const double R_row[3] = {T[4 * k], T[4 * k + 1], T[4 * k + 2]};
                 reported[k] = pose[k];
-                reported[3 + k] = dot3(R_row, pose + 3);
+                reported[3 + k] = 0.0 + dot3(R_row, pose + 3);
             }
         } else {
             for (int k = 0; k < 6; k++) reported[k] = twist[k];
@@ -467,9 +479,13 @@ static PyObject *usable(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     memset(&r, 0, sizeof(r));
     PyObject *result = NULL;
     double bounds[2];
+    static const char *const BOUNDS[2] = {"position_max", "rotation_max"};
     for (int k = 0; k < 2; k++) {
         bounds[k] = PyFloat_AsDouble(args[4 + k]);
-        if (bounds[k] == -1.0 && PyErr_Occurred()) return NULL;
+        if (bounds[k] == -1.0 && PyErr_Occurred()) {
+            PyErr_Format(PyExc_TypeError, "usable: %s must be a number", BOUNDS[k]);
+            return NULL;
+        }
     }
     if (bytes_get(args[0], &converged, n, 0, "converged") < 0) return NULL;
     if (f64_get(args[1], &p, 1, s1, 0, "position_error") < 0 ||

@@ -49,7 +49,9 @@ class CartesianGenerators:
 
     Args:
         physics, writer, modes, accounting, config: the controller's (read; the
-            writer's Cartesian fields and q_d are written by :meth:`publish`).
+            writer's Cartesian fields are written by :meth:`publish`, in one C call with
+            the history's arithmetic: fci/cartesian/_history.c, which holds the history's,
+            the writer's and ``start_T``'s arrays, written in place, never rebound).
         engine: the judge; late: where late datagrams' intents go.
     """
 

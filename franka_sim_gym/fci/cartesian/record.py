@@ -29,14 +29,14 @@ import numpy as np
 
 from ..modes import Modes
 from .reference import CartesianReference
-from .step import Step
+from .step import _C, Step
 
 
 class CartesianRecorder:
     """Records judged steps of n robots into their Cartesian history (``plan``: the
     stepper's, fci/cartesian/_history.c)."""
 
-    def __init__(self, modes: Modes, history: CartesianReference, plan) -> None:
+    def __init__(self, modes: Modes, history: CartesianReference, plan: _C.History) -> None:
         self.modes = modes
         self.history = history
         self.n = history.n

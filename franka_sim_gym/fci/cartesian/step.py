@@ -5,8 +5,9 @@ joint side of a Cartesian command": the candidate is the command that arrived or
 law's extrapolation; a twist is integrated onto the IK target pose; the pose's (or the twist's)
 derivatives and the elbow's are taken over one cycle; the target is solved from the history's IK
 solution at F_T_EE (joint 3 held where an elbow is streamed) and the solution's acceleration and
-jerk form the joint side, judged only as far as the joint history is warm. The differences'
-one text is C (fci/cartesian/_history.c, over the history's rows); here: which are taken when.
+jerk form the joint side, judged only as far as the joint history is warm. The pose's and the
+joint side's differences have their one text in C (fci/cartesian/_history.c, over the history's
+rows); a twist motion's integration and derivatives and the elbow's are numpy, here.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ def history_plan(
     joint_stack: np.ndarray,
     start_T: np.ndarray,
     writer: StateWriter,
-):
+) -> _C.History:
     """The history's arithmetic (fci/cartesian/_history.c ``History``) over ``reference``,
     its differences written to ``pose_stack`` (n, 3, 6) and ``joint_stack`` (n, 4, 7; row 0
     the IK solution), what it publishes written to ``writer``'s Cartesian fields (a twist

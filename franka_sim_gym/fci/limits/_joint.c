@@ -14,7 +14,7 @@
  *   torque_rule(tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   torque_detail(i, tau_c, tau_prev, steps, tau_max, dtau_max, dt)
  *   cartesian_rule(kind, codes, stacked, first, start_pose, start_elbow, elbow, ...) (below)
- *   JointCycle(started, ..., new_ddq).advance(q_c, dq_c, have, ...) -> pending (below)
+ *   JointCycle(aborted, ..., new_ddq).advance(q_c, dq_c, have, ...) -> pending (below)
  *   joint_record(rows, have, new_q, new_dq, new_ddq, echo, <the reference>) (below)
  *   position_step(x, v, a, dt) -> (x', v'), velocity_step(v, a, dt) -> v'
  *
@@ -608,10 +608,11 @@ static inline void record_row(const Reference *r, Py_ssize_t i, int real, const 
  *
  * One cycle of the joint generators (fci/joint_generators.py JointGenerators.advance), as a
  * plan over the arrays that stay (the engine's pending verdicts, the cycle's first-command
- * flags, the accounting's lost runs, the reference, the table's constants and the outputs);
- * each call hands over what changes: the commands, the robots they are for, the modes' masks
- * (Modes.regroup rebinds them), the echo and the configured tolerances. For every robot whose motion tracks (``tracking`` and not
- * ``aborted`` by a pending verdict):
+ * flags, the accounting's lost runs, the reference, the table's constants and the outputs:
+ * their owners write them in place, never rebind them); each call hands over what changes:
+ * the commands, the robots they are for, the modes' masks (Modes.regroup rebinds them), the
+ * echo and the configured tolerances. For every robot whose motion tracks (``tracking`` and
+ * not ``aborted`` by a pending verdict):
  *
  * - ``have``: its command (q_c or dq_c, echoing ``echo``) is the candidate;
  * - else, when ``extrapolate_lost`` and its motion has ``started``, the cycle is lost: the

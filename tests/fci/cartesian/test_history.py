@@ -17,6 +17,7 @@ from franka_sim_gym.fci.cartesian.step import WARM_ACCELERATION, WARM_JERK, hist
 from franka_sim_gym.fci.state import StateWriter
 from franka_sim_gym.fci.tables import DELTA_T
 from franka_sim_gym.sim.ik import USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR, IkResult
+from franka_sim_gym.sim.rotations import NEAR_PI, SERIES_BELOW, SLERP_LINEAR, TURNING_ABOVE
 
 N = 3
 
@@ -171,7 +172,7 @@ def test_a_lost_cycle_records_the_laws_velocity_and_the_frozen_acceleration(plan
             pose_ex=(v_ex, w_ex))  # fmt: skip
     assert h.v[2].tolist() == [0.25] * 3 and h.omega[2].tolist() == [-0.5] * 3
     assert h.a[2].tolist() == [7.0] * 3 and h.alpha[2].tolist() == [7.0] * 3
-    assert h.acceleration_frozen[2].tolist() == [7.0] * 6  # a guess freezes nothing
+    assert h.acceleration_frozen[2].tolist() == [7.0] * 6  # the guess's: the frozen one
     assert h.acceleration_frozen[0].tolist() == [5.0] * 6
     assert h.real_echo.tolist() == [7, 8, 3] and h.run.tolist() == [0, 0, 2]
     with pytest.raises(ValueError, match="extrapolated robot without v_ex"):
@@ -191,7 +192,7 @@ def test_a_twist_motion_records_its_twist_and_reports_it(plan):
             pose_ex=(np.zeros((N, 3)), np.zeros((N, 3))))  # fmt: skip
     np.testing.assert_array_equal(h.twist, twist)
     assert h.dtwist[:, 0].tolist() == [9.0, -1.0, 9.0]  # the guess's acceleration is frozen
-    assert h.dtwist_frozen[:, 0].tolist() == [9.0, -1.0, 9.0]
+    assert h.dtwist_frozen[:, 0].tolist() == [9.0, -1.0, 9.0]  # re-frozen by the real ones
     np.testing.assert_array_equal(h.reported, twist)
     assert not h.history.any()  # no pose motion: the pose's history is not touched
 
@@ -229,8 +230,13 @@ def test_usable_solutions():
 
 # -- what the state publishes -------------------------------------------------------------------
 
+#: a plan's constants as step.py hands them over
+CONSTANTS = (DELTA_T, WARM_ACCELERATION, WARM_JERK, USABLE_POSITION_ERROR, USABLE_ROTATION_ERROR,
+             NEAR_PI, TURNING_ABOVE, SERIES_BELOW, SLERP_LINEAR)  # fmt: skip
 
-def PUBLISHED() -> tuple:  # noqa: N802  (the plan's "published" tuple, of fresh arrays)
+
+def _published() -> tuple:
+    """The plan's "published" arrays, fresh ones."""
     start = np.tile(np.eye(4), (N, 1, 1))
     return (start, *(np.zeros((N, 16)) for _ in range(2)), *(np.zeros((N, 6)) for _ in range(3)),
             *(np.zeros((N, 2)) for _ in range(2)))  # fmt: skip
@@ -262,10 +268,26 @@ def test_the_state_publishes_each_motions_own_pose_and_every_motions_twist():
         assert w.field[field][:2].tolist() == [[value] * 6] * 2
         assert not w.field[field][2].any()
     assert w.elbow_d[:2].tolist() == [[0.7, -1.0]] * 2 and w.elbow_c[1].tolist() == [0.7, -1.0]
+    h.set_has_elbow(ALL)  # robot 2 streams none while in no Cartesian motion: its own stays
+    w.elbow_d[...] = 9.0
+    p.publish(_flags(0), _flags(1))
+    assert w.elbow_d[:2].tolist() == [[0.7, -1.0]] * 2 and (w.elbow_d[2] == 9.0).all()
     h.set_has_elbow(NONE)
     w.elbow_d[...] = 9.0
     p.publish(_flags(0), NONE)
     assert (w.elbow_d == 9.0).all()  # no elbow streamed: the measured one stays
+
+
+def test_the_reported_rotation_of_a_held_orientation_is_a_positive_zero(plan):
+    """omega_body exactly +0 (an opening command, a held orientation) and a rotation row of
+    negative entries: R_c omega is +0.0 as numpy's einsum gives it (the wire carries the
+    sign of a zero)."""
+    h, p, D, _ = plan
+    T = np.tile(np.eye(4), (N, 1, 1))
+    T[:, :3, :3] = [[-1e-16, -1.0, -1e-17], [1.0, -1e-16, 0.0], [0.0, 0.0, 1.0]]
+    D[...] = 0.0
+    _record(p, T)
+    assert not np.signbit(h.reported).any()
 
 
 # -- the layout it refuses ---------------------------------------------------------------------
@@ -279,15 +301,15 @@ def test_the_plan_refuses_another_layout_by_name(plan):
         p.pose_derivatives(h.buffer, np.zeros((N, 3, 4)))
     with pytest.raises(ValueError, match="checked: expected a writable"):
         p.joint_side(h.buffer, NONE, ALL, ALL, NONE.copy().view(np.int8))
-    with pytest.raises(ValueError, match="layout: block"):
-        type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, PUBLISHED(),
-                (10, *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+    with pytest.raises(ValueError, match=r"layout: T \(16 columns at 0\) does not fit a 10-"):
+        type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, _published(),
+                (10, *range(12)), CONSTANTS)  # fmt: skip
     with pytest.raises(ValueError, match="buffer: expected rows of contiguous"):
         wide = np.zeros((N, 2 * h.buffer.shape[1]))[:, ::2]
-        type(p)(wide, h.real_echo, h.run, np.zeros((N, 3, 6)), S, PUBLISHED(),
-                (h.buffer.shape[1], *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+        type(p)(wide, h.real_echo, h.run, np.zeros((N, 3, 6)), S, _published(),
+                (h.buffer.shape[1], *range(12)), CONSTANTS)  # fmt: skip
     with pytest.raises(ValueError, match="O_dP_EE_c: axis 1 has length 7, expected 6"):
-        fields = list(PUBLISHED())
+        fields = list(_published())
         fields[4] = np.zeros((N, 7))
         type(p)(h.buffer, h.real_echo, h.run, np.zeros((N, 3, 6)), S, tuple(fields),
-                (h.buffer.shape[1], *range(12)), (DELTA_T,) + (1.0,) * 8)  # fmt: skip
+                (h.buffer.shape[1], *range(12)), CONSTANTS)  # fmt: skip
