@@ -9,8 +9,8 @@
  *   lowpass(x, x_ref, gain, out)                               franka::lowpassFilter
  *   limit_velocities(v_c, v_last, a_last, upper, lower, a_max, j_max, out)
  *   limit_positions(q_c, q_last, v_last, a_last, upper, lower, a_max, j_max, out)
- *   joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, constants,
- *               positional, shift, a_max, j_max, out)   lowpass (+ band, limiter): one call
+ *   JointClient(positions, limited, q_d, dq_d, ddq_d, gain, constants, positional, shift,
+ *               a_max, j_max, out).cycle(target, first)   lowpass (+ band, limiter): one call
  *   limit_torques(tau_c, tau_last, d_max, out)                 franka::limitRate (joints)
  *   limit_twist(twist_c, twist_last, dtwist_last, limits, out)
  *   limit_pose(T_c, T_last, twist_last, dtwist_last, limits, out)   (Cartesian)
@@ -135,8 +135,7 @@ static void limit_positions_rows(const F64 *a, Py_ssize_t n)
 KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
        ARRAY(NUM_IN, "q_last", 2, ROWS, 7), JOINT_HISTORY_AND_LIMITS)
 
-/* joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, constants,
- *             positional, shift, a_max, j_max, out): one cycle of the env client's joint
+/* One cycle of the env client's joint
  * position (``positions`` true) or joint velocity command (envs/commands.py
  * CommandGenerator), one call: libfranka's low-pass of the target
  * against its reference (q_d, or dq_d for a velocity; a position motion's first command,
@@ -146,66 +145,141 @@ KERNEL(limit_positions, 1, ARRAY(F64_IN, "command", 2, ROWS, 7),
  * broadcast views for one value), ``first`` an (n,) bool or None, ``constants`` and
  * ``positional`` RobotTable.joint_constants. The same rows as lowpass, envelope_halves
  * and limit_positions / limit_velocities one after the other: the same bits. */
-static PyObject *joint_cycle(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* The arrays of a joint cycle, in this order: target, q_d, dq_d, ddq_d, gain, constants,
+ * a_max, j_max, out. */
+enum { JC_TARGET, JC_Q_D, JC_DQ_D, JC_DDQ_D, JC_GAIN, JC_CONSTANTS, JC_A_MAX, JC_J_MAX, JC_OUT,
+       JC_COUNT };
+
+/* The cycle's rows over borrowed arrays (JointClient.cycle's loop). */
+static void joint_cycle_rows(F64 *a, const Bytes *first, Py_ssize_t n, int positions,
+                             int limited, int pos, double shift)
 {
-    (void)self;
-    if (check_nargs(nargs, 14, "joint_cycle") < 0) return NULL;
-    if (!CONFIGURED) {
-        PyErr_SetString(PyExc_RuntimeError, "joint_cycle: configure(...) first");
-        return NULL;
-    }
-    const int positions = PyObject_IsTrue(args[0]), limited = PyObject_IsTrue(args[1]);
-    if (positions < 0 || limited < 0) return NULL;
-    args += 2; /* the arrays */
-    enum { TARGET, Q_D, DQ_D, DDQ_D, GAIN, CONSTANTS, A_MAX, J_MAX, OUT_, COUNT };
-    F64 a[COUNT];
-    Bytes first;
-    memset(a, 0, sizeof(a));
-    memset(&first, 0, sizeof(first));
-    PyObject *result = NULL;
-    Py_ssize_t n = leading(args[0], "target");
-    if (n < 0) return NULL;
-    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
-    int firsts = args[5] != Py_None;
-    double positional = PyFloat_AsDouble(args[7]), shift = PyFloat_AsDouble(args[8]);
-    if (PyErr_Occurred()) goto done;
-    if (f64_get(args[0], &a[TARGET], 2, s7, 0, "target") < 0 ||
-        num_get(args[1], &a[Q_D], 2, s7, 0, "q_d") < 0 ||
-        num_get(args[2], &a[DQ_D], 2, s7, 0, "dq_d") < 0 ||
-        num_get(args[3], &a[DDQ_D], 2, s7, 0, "ddq_d") < 0 ||
-        f64_get(args[4], &a[GAIN], 2, s7, 0, "gain") < 0 ||
-        (firsts && bytes_get(args[5], &first, n, 0, "first") < 0) ||
-        f64_get(args[6], &a[CONSTANTS], 2, sc, 0, "constants") < 0 ||
-        f64_get(args[9], &a[A_MAX], 2, s7, 0, "a_max") < 0 ||
-        f64_get(args[10], &a[J_MAX], 2, s7, 0, "j_max") < 0 ||
-        f64_get(args[11], &a[OUT_], 2, s7, 1, "out") < 0)
-        goto done;
-    const int pos = positional != 0.0;
+    const int firsts = first->data != NULL;
     for (Py_ssize_t i = 0; i < n; i++) {
-        const int own = positions && firsts && BYTE1(first, i);
+        const int own = positions && firsts && BYTE1(*first, i);
         for (int j = 0; j < 7; j++) {
-            const double target = AT2(a[TARGET], i, j), q_d = num2(&a[Q_D], i, j);
-            const double dq_d = num2(&a[DQ_D], i, j);
+            const double target = AT2(a[JC_TARGET], i, j), q_d = num2(&a[JC_Q_D], i, j);
+            const double dq_d = num2(&a[JC_DQ_D], i, j);
             const double ref = own ? target : positions ? q_d : dq_d;
-            const double x = lowpass_value(target, ref, AT2(a[GAIN], i, j));
+            const double x = lowpass_value(target, ref, AT2(a[JC_GAIN], i, j));
             if (!limited) {
-                AT2(a[OUT_], i, j) = x;
+                AT2(a[JC_OUT], i, j) = x;
                 continue;
             }
             double upper, lower;
-            envelope(&a[CONSTANTS], j, q_d, pos, shift, &upper, &lower);
-            AT2(a[OUT_], i, j) =
-                limit_joint(x, q_d, dq_d, num2(&a[DDQ_D], i, j), upper, lower,
-                            AT2(a[A_MAX], i, j), AT2(a[J_MAX], i, j), positions);
+            envelope(&a[JC_CONSTANTS], j, q_d, pos, shift, &upper, &lower);
+            AT2(a[JC_OUT], i, j) =
+                limit_joint(x, q_d, dq_d, num2(&a[JC_DDQ_D], i, j), upper, lower,
+                            AT2(a[JC_A_MAX], i, j), AT2(a[JC_J_MAX], i, j), positions);
         }
     }
-    result = args[11];
-    Py_INCREF(result);
-done:
-    f64_release_all(a, COUNT);
-    bytes_release(&first);
-    return result;
 }
+
+/* Borrow a joint cycle's arrays but the target (k = JC_TARGET skipped) from ``v``: q_d, dq_d,
+ * ddq_d, gain, constants, a_max, j_max, out, each at its index in ``at``. */
+static int joint_cycle_get(PyObject *const *v, const int *at, Py_ssize_t n, F64 *a)
+{
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    return (num_get(v[at[JC_Q_D]], &a[JC_Q_D], 2, s7, 0, "q_d") < 0 ||
+            num_get(v[at[JC_DQ_D]], &a[JC_DQ_D], 2, s7, 0, "dq_d") < 0 ||
+            num_get(v[at[JC_DDQ_D]], &a[JC_DDQ_D], 2, s7, 0, "ddq_d") < 0 ||
+            f64_get(v[at[JC_GAIN]], &a[JC_GAIN], 2, s7, 0, "gain") < 0 ||
+            f64_get(v[at[JC_CONSTANTS]], &a[JC_CONSTANTS], 2, sc, 0, "constants") < 0 ||
+            f64_get(v[at[JC_A_MAX]], &a[JC_A_MAX], 2, s7, 0, "a_max") < 0 ||
+            f64_get(v[at[JC_J_MAX]], &a[JC_J_MAX], 2, s7, 0, "j_max") < 0 ||
+            f64_get(v[at[JC_OUT]], &a[JC_OUT], 2, s7, 1, "out") < 0)
+               ? -1
+               : 0;
+}
+
+/* JointClient(positions, limited, q_d, dq_d, ddq_d, gain, constants, positional, shift,
+ *             a_max, j_max, out).cycle(target, first) -> out
+ * The joint cycle above as a plan: the state's fields, the filter's settings and the output
+ * held, a cycle hands over the target and the first-command flags (an (n,) bool, or None). */
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n;
+    int positions, limited, pos;
+    double shift;
+    PyObject *out;
+    F64 a[JC_COUNT];
+} JointClientObject;
+
+static void JointClient_dealloc(JointClientObject *self)
+{
+    f64_release_all(self->a, JC_COUNT);
+    Py_XDECREF(self->out);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *JointClient_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    if (kwargs && PyDict_Size(kwargs)) {
+        PyErr_SetString(PyExc_TypeError, "JointClient() takes no keyword arguments");
+        return NULL;
+    }
+    if (check_nargs(PyTuple_GET_SIZE(args), 12, "JointClient") < 0) return NULL;
+    if (!CONFIGURED) {
+        PyErr_SetString(PyExc_RuntimeError, "JointClient: configure(...) first");
+        return NULL;
+    }
+    PyObject *const *v = &PyTuple_GET_ITEM(args, 0);
+    Py_ssize_t n = leading(v[11], "out");
+    if (n < 0) return NULL;
+    JointClientObject *self = (JointClientObject *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->n = n;
+    static const int AT[JC_COUNT] = {-1, 2, 3, 4, 5, 6, 9, 10, 11};
+    self->positions = PyObject_IsTrue(v[0]);
+    self->limited = PyObject_IsTrue(v[1]);
+    double positional = PyFloat_AsDouble(v[7]);
+    self->shift = PyFloat_AsDouble(v[8]);
+    if (self->positions < 0 || self->limited < 0 || PyErr_Occurred() ||
+        joint_cycle_get(v, AT, n, self->a) < 0) {
+        Py_DECREF(self);
+        return NULL;
+    }
+    self->pos = positional != 0.0;
+    self->out = Py_NewRef(v[11]);
+    return (PyObject *)self;
+}
+
+static PyObject *JointClient_cycle(JointClientObject *self, PyObject *const *args,
+                                   Py_ssize_t nargs)
+{
+    if (check_nargs(nargs, 2, "cycle") < 0) return NULL;
+    Py_ssize_t s7[2] = {self->n, 7};
+    Bytes first;
+    if (f64_get(args[0], &self->a[JC_TARGET], 2, s7, 0, "target") < 0) return NULL;
+    if (bytes_or_none_get(args[1], &first, self->n, 0, "first") < 0) {
+        f64_release(&self->a[JC_TARGET]);
+        return NULL;
+    }
+    joint_cycle_rows(self->a, &first, self->n, self->positions, self->limited, self->pos,
+                     self->shift);
+    f64_release(&self->a[JC_TARGET]);
+    bytes_release(&first);
+    return Py_NewRef(self->out);
+}
+
+static PyMethodDef JOINT_CLIENT_METHODS[] = {
+    {"cycle", (PyCFunction)(void (*)(void))JointClient_cycle, METH_FASTCALL,
+     "cycle(target, first) -> out: one cycle of the joint command (joint_cycle's rows)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject JointClientType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "franka_sim_gym.envs._client_filters.JointClient",
+    .tp_basicsize = sizeof(JointClientObject),
+    .tp_dealloc = (destructor)JointClient_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "JointClient(positions, limited, q_d, dq_d, ddq_d, gain, constants, positional, "
+              "shift, a_max, j_max, out): a joint position (or velocity) command's low-pass "
+              "(then, limited, its band and limiter), all but the target held.",
+    .tp_methods = JOINT_CLIENT_METHODS,
+    .tp_new = JointClient_new,
+};
 
 /* limit_torques(tau_c, tau_last, d_max, out): (n, 7) each (d_max a broadcast view for
  * one rate). */
@@ -412,10 +486,6 @@ static PyMethodDef METHODS[] = {
                              "j_max, out): franka::limitRate for joint velocities."),
     METHOD(limit_positions, "limit_positions(q_c, q_last, v_last, a_last, upper, lower, "
                             "a_max, j_max, out): franka::limitRate for joint positions."),
-    METHOD(joint_cycle,
-           "joint_cycle(positions, limited, target, q_d, dq_d, ddq_d, gain, first, "
-           "constants, positional, shift, a_max, j_max, out): a joint position (or "
-           "velocity) command's low-pass (then, limited, its band and limiter), one call."),
     METHOD(limit_torques, "limit_torques(tau_c, tau_last, d_max, out): franka::limitRate "
                           "for torques."),
     METHOD(limit_twist, "limit_twist(twist_c, twist_last, dtwist_last, limits, out): "
@@ -429,5 +499,19 @@ static PyMethodDef METHODS[] = {
     {NULL, NULL, 0, NULL},
 };
 
-KERNEL_MODULE(_client_filters,
-              "libfranka's client filter rules, which the env's client runs every cycle.")
+static struct PyModuleDef _client_filters_definition = {
+    PyModuleDef_HEAD_INIT, "_client_filters",
+    "libfranka's client filter rules, which the env's client runs every cycle.", -1, METHODS,
+    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__client_filters(void)
+{
+    if (PyType_Ready(&JointClientType) < 0) return NULL;
+    PyObject *m = kernel_module(&_client_filters_definition);
+    if (!m) return NULL;
+    if (PyModule_AddObjectRef(m, "JointClient", (PyObject *)&JointClientType) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

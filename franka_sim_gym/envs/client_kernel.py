@@ -41,7 +41,7 @@ RULES = native.require(
     "lowpass",
     "limit_velocities",
     "limit_positions",
-    "joint_cycle",
+    "JointClient",
     "limit_torques",
     "limit_twist",
     "cartesian_lowpass",

@@ -245,6 +245,8 @@ class CommandGenerator:
         self._lowpassed = np.zeros((n, cols))
         self._out = np.zeros_like(self._lowpassed)
         self._fields_of = None
+        self._joint_client_fields = None  # the fields the joint cycle's plan was made over
+        self._joint_client_plan = None
         self._field_views: dict[str, np.ndarray] = {}
         self._ref_pose = np.zeros((n, 4, 4))
         self._pose_lowpassed = np.zeros((n, 4, 4))
@@ -374,6 +376,26 @@ class CommandGenerator:
             self._fields_of = state
         return self._field_views
 
+    def _joint_client(self, fields: dict[str, np.ndarray]):
+        """The joint cycle's C plan over the state's fields ``fields`` (made once per state
+        array, as the fields' views are: envs/_client_filters.c JointClient)."""
+        if fields is not self._joint_client_fields:
+            self._joint_client_plan = RULES.JointClient(
+                self.interface == "joint_position",
+                self.action_filter in RATE_LIMITED,
+                fields["q_d"],
+                fields["dq_d"],
+                fields["ddq_d"],
+                self._gain,
+                *self.table.joint_constants,
+                self._band_shift,
+                self._ddq_max,
+                self._dddq_max,
+                self._out,
+            )
+            self._joint_client_fields = fields
+        return self._joint_client_plan
+
     def _filtered(self, state: np.ndarray, k: int) -> np.ndarray:
         """Cycle k's joint, torque or twist command: libfranka's low-pass filter against
         the state's reference, then (``"limit_rate"``) its rate limiter; with
@@ -387,22 +409,8 @@ class CommandGenerator:
             # no q_d to filter to), then ("limit_rate") its limiter inside the velocity
             # band at the last commanded position (libfranka evaluates it at the
             # reference) with the client's margin inside libfranka's tolerance: one C
-            # call (envs/_client_filters.c joint_cycle)
-            return RULES.joint_cycle(
-                interface == "joint_position",
-                self.action_filter in RATE_LIMITED,
-                target,
-                fields["q_d"],
-                fields["dq_d"],
-                fields["ddq_d"],
-                self._gain,
-                self._first if self._n_first else None,
-                *self.table.joint_constants,
-                self._band_shift,
-                self._ddq_max,
-                self._dddq_max,
-                self._out,
-            )
+            # call (envs/_client_filters.c JointClient, planned once per state array)
+            return self._joint_client(fields).cycle(target, self._first if self._n_first else None)
         # The twist's and the torque's: the low-pass, then ("limit_rate") their limiters.
         x = RULES.lowpass(target, fields[_REFERENCE[interface]], self._gain, self._lowpassed)
         if self.safety_box is not None:  # (the twist interface: box set, see __init__)

@@ -24,8 +24,9 @@ def names(bits: np.ndarray) -> np.ndarray:
     """Per row of (n, 41) error bits: the tuple of the robot's error names."""
     out = np.empty(len(bits), dtype=object)
     out.fill(())
-    for i in np.flatnonzero(bits.any(axis=1)).tolist():
-        out[i] = error_names(bits[i])
+    if bits.any():  # (most steps: no error anywhere)
+        for i in np.flatnonzero(bits.any(axis=1)).tolist():
+            out[i] = error_names(bits[i])
     return out
 
 

@@ -170,8 +170,8 @@ def _joint_cycle(state, target, first, positions=True, limited=True):
     out = np.zeros((n, 7))
     fields = state["q_d"], state["dq_d"], state["ddq_d"]
     constants, positional = FR3.joint_constants
-    args = (gain, first, constants, positional, shift, a_max, j_max, out)
-    result = RULES.joint_cycle(positions, limited, target, *fields, *args)
+    args = (gain, constants, positional, shift, a_max, j_max, out)
+    result = RULES.JointClient(positions, limited, *fields, *args).cycle(target, first)
     return result, (gain, a_max, j_max, shift)
 
 
@@ -235,5 +235,10 @@ def test_the_joint_position_cycle_names_a_bad_argument():
     state, target = _joint_cycle_inputs()
     with pytest.raises(ValueError, match="first"):
         _joint_cycle(state, target, np.zeros(4, dtype=bool))
-    with pytest.raises(ValueError, match="q_d"):
-        _joint_cycle(state[:4], target, None)
+    with pytest.raises(ValueError, match="target: axis 0 has length 5, expected 4"):
+        _joint_cycle(state[:4], target, None)  # the plan is for the state's 4 robots
+    gain, a_max, j_max, shift = _joint_cycle(state, target, None)[1]
+    constants, positional = FR3.joint_constants
+    with pytest.raises(ValueError, match="q_d: axis 0 has length 4, expected 5"):
+        RULES.JointClient(True, True, state["q_d"][:4], state["dq_d"], state["ddq_d"], gain,
+                          constants, positional, shift, a_max, j_max, np.zeros((5, 7)))  # fmt: skip
