@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import native
-from . import limits
+from . import extrapolation, limits
 from .accounting import CycleAccounting
 from .config import ControllerConfig
 from .cycle_input import CycleInput
@@ -182,9 +182,8 @@ class JointGenerators:
             return
         m, ref = self.modes, self.reference
         self.late.apply(rows & m.joint_position, commands["q_c"], 0.0)
-        self.late.apply(
-            rows & m.joint_velocity, ref.q + commands["dq_c"] * DELTA_T, commands["dq_c"]
-        )
+        dq_c = commands["dq_c"]  # q_d moved by one cycle of it, as the cycle records it
+        self.late.apply(rows & m.joint_velocity, extrapolation.velocity_step(ref.q, dq_c), dq_c)
 
     def _judge_only(self, commands: np.ndarray, rows: np.ndarray, ids: np.ndarray) -> None:
         """Check late commands of ``rows`` without recording them: each against the

@@ -9,7 +9,7 @@ import pytest
 from franka_sim_gym.fci.errors import Error
 from franka_sim_gym.fci.wire import ROBOT_COMMAND_DTYPE, RobotMode
 from franka_sim_gym.fci.wire.protocol import MoveStatus
-from tests.fci_helpers import IMP, JP, LoopClient, make_controller
+from tests.fci_helpers import IMP, JP, JV, LoopClient, make_controller
 
 DT = 1e-3
 
@@ -220,6 +220,28 @@ def test_a_late_datagram_is_applied_to_the_servo_but_never_recorded():
     np.testing.assert_array_equal(ctrl.servo_q[0], late_q)
     c.send(q_c=stream(q0, 51))  # the next command is differenced against the history
     np.testing.assert_array_equal(ctrl.servo_q[0], ctrl.reference.q[0])
+
+
+def test_a_late_velocity_datagram_drives_the_servo_one_cycle_of_its_dq_c_from_q_d():
+    """A late dq_c datagram's intent (docs/fci-behaviour.md "A datagram that turns up late
+    replaces the guess it stood in for"): the servo tracks q_d moved by one cycle of its
+    dq_c, at dq_c, for the cycle it arrived in; the history is not touched."""
+    ctrl = make_controller(enforce_motion_limits=False)
+    c = LoopClient(ctrl)
+    c.start(JV, IMP)
+    dq = np.zeros(7)
+    for k in range(50):
+        dq[1] = 0.002 * k  # a gentle ramp on joint 2
+        c.send(dq_c=dq)
+    late_id = int(c.state["message_id"]) - 3
+    late_dq = dq + 0.001
+    command = np.zeros(1, dtype=ROBOT_COMMAND_DTYPE)
+    command["message_id"], command["dq_c"] = late_id, late_dq
+    q_d = ctrl.reference.q[0].copy()  # the reference the intent moves from
+    ctrl.receive(command, np.ones(1, dtype=bool))
+    c.events += ctrl.step()
+    np.testing.assert_array_equal(ctrl.servo_q[0], q_d + late_dq * DT)
+    assert not np.array_equal(ctrl.reference.dq[0], late_dq)  # never recorded
 
 
 def test_a_client_that_skipped_states_is_judged_against_the_states_it_answers():

@@ -768,7 +768,8 @@ static long long advance_rows(JointCycleObject *a)
             } else {
                 bits |= velocity_joint(&rv, i, j, first, dt, NULL, d);
                 const double dq_c = AT2(out[CANDIDATE], i, j);
-                q[j] = have ? AT2(r[R_Q], i, j) + dq_c * dt : guess_q[j];
+                /* a dq_c command moves q_d by one cycle of it (the same Euler step) */
+                q[j] = have ? velocity_law(AT2(r[R_Q], i, j), dq_c, dt) : guess_q[j];
                 dq[j] = have ? dq_c : guess_dq[j];
             }
             ddq[j] = have ? (first ? 0.0 : d[1]) : frozen;
