@@ -175,23 +175,6 @@ static void joint_cycle_rows(F64 *a, const Bytes *first, Py_ssize_t n, int posit
     }
 }
 
-/* Borrow a joint cycle's arrays but the target (k = JC_TARGET skipped) from ``v``: q_d, dq_d,
- * ddq_d, gain, constants, a_max, j_max, out, each at its index in ``at``. */
-static int joint_cycle_get(PyObject *const *v, const int *at, Py_ssize_t n, F64 *a)
-{
-    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
-    return (num_get(v[at[JC_Q_D]], &a[JC_Q_D], 2, s7, 0, "q_d") < 0 ||
-            num_get(v[at[JC_DQ_D]], &a[JC_DQ_D], 2, s7, 0, "dq_d") < 0 ||
-            num_get(v[at[JC_DDQ_D]], &a[JC_DDQ_D], 2, s7, 0, "ddq_d") < 0 ||
-            f64_get(v[at[JC_GAIN]], &a[JC_GAIN], 2, s7, 0, "gain") < 0 ||
-            f64_get(v[at[JC_CONSTANTS]], &a[JC_CONSTANTS], 2, sc, 0, "constants") < 0 ||
-            f64_get(v[at[JC_A_MAX]], &a[JC_A_MAX], 2, s7, 0, "a_max") < 0 ||
-            f64_get(v[at[JC_J_MAX]], &a[JC_J_MAX], 2, s7, 0, "j_max") < 0 ||
-            f64_get(v[at[JC_OUT]], &a[JC_OUT], 2, s7, 1, "out") < 0)
-               ? -1
-               : 0;
-}
-
 /* JointClient(positions, limited, q_d, dq_d, ddq_d, gain, constants, positional, shift,
  *             a_max, j_max, out).cycle(target, first) -> out
  * The joint cycle above as a plan: the state's fields, the filter's settings and the output
@@ -229,13 +212,21 @@ static PyObject *JointClient_new(PyTypeObject *type, PyObject *args, PyObject *k
     JointClientObject *self = (JointClientObject *)type->tp_alloc(type, 0);
     if (!self) return NULL;
     self->n = n;
-    static const int AT[JC_COUNT] = {-1, 2, 3, 4, 5, 6, 9, 10, 11};
     self->positions = PyObject_IsTrue(v[0]);
     self->limited = PyObject_IsTrue(v[1]);
     double positional = PyFloat_AsDouble(v[7]);
     self->shift = PyFloat_AsDouble(v[8]);
+    Py_ssize_t s7[2] = {n, 7}, sc[2] = {N_CONSTANTS, 7};
+    F64 *a = self->a;
     if (self->positions < 0 || self->limited < 0 || PyErr_Occurred() ||
-        joint_cycle_get(v, AT, n, self->a) < 0) {
+        num_get(v[2], &a[JC_Q_D], 2, s7, 0, "q_d") < 0 ||
+        num_get(v[3], &a[JC_DQ_D], 2, s7, 0, "dq_d") < 0 ||
+        num_get(v[4], &a[JC_DDQ_D], 2, s7, 0, "ddq_d") < 0 ||
+        f64_get(v[5], &a[JC_GAIN], 2, s7, 0, "gain") < 0 ||
+        f64_get(v[6], &a[JC_CONSTANTS], 2, sc, 0, "constants") < 0 ||
+        f64_get(v[9], &a[JC_A_MAX], 2, s7, 0, "a_max") < 0 ||
+        f64_get(v[10], &a[JC_J_MAX], 2, s7, 0, "j_max") < 0 ||
+        f64_get(v[11], &a[JC_OUT], 2, s7, 1, "out") < 0) {
         Py_DECREF(self);
         return NULL;
     }

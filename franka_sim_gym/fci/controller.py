@@ -80,7 +80,7 @@ class FciController(ControllerRequests):
         self.states = self.writer.states
         w = self.writer
         #: the commanded joint reference: the published q_d / dq_d / ddq_d themselves
-        self.reference = JointReference(w.q_d, w.dq_d, w.ddq_d, w.reference_columns)
+        self.reference = JointReference(w.reference_columns)
         #: the commanded torque (without gravity): the published tau_J_d itself
         self.tau_J_d = w.tau_J_d
         physics.set_stiffness(np.arange(n), np.asarray(self.config.joint_stiffness))

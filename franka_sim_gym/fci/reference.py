@@ -33,20 +33,13 @@ class JointReference:
     from extrapolated samples: docs/fci-behaviour.md "Frozen, not continued").
     """
 
-    def __init__(
-        self,
-        q: np.ndarray,
-        dq: np.ndarray,
-        ddq: np.ndarray,
-        columns: tuple[np.ndarray, tuple[int, int, int]],
-    ) -> None:
-        self.q, self.dq, self.ddq = q, dq, ddq
-        # The published state's columns holding q, dq and ddq (StateWriter.reference_columns)
-        # and where each starts in them: the ring copies them at once.
+    def __init__(self, columns: tuple[np.ndarray, tuple[int, int, int]]) -> None:
+        # The published state's columns holding q_d, dq_d and ddq_d
+        # (StateWriter.reference_columns) and where each starts in them: q, dq and ddq are
+        # their views, and the ring copies them at once.
         self._columns, self._starts = columns
-        for start, view in zip(self._starts, (q, dq, ddq), strict=True):
-            if not np.shares_memory(self._columns[:, start : start + 7], view):
-                raise ValueError("columns: expected the state's columns holding q, dq and ddq")
+        self.q, self.dq, self.ddq = (self._columns[:, k : k + 7] for k in self._starts)
+        q = self.q
         self.ddq_frozen = np.zeros_like(q)
         n = q.shape[0]
         #: the message id the last command that actually arrived echoed

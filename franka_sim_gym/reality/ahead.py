@@ -66,16 +66,8 @@ class Ahead:
     def take(self, count: int) -> np.ndarray:
         """(count, n, width): every robot's samples of this cycle and the ``count - 1``
         next, a copy; afterwards the stream is ``count`` cycles on (as many advances)."""
-        if self._cycle + count <= self._next:  # no robot runs out before the last
-            at = self._cycle % BLOCK
-            if at + count <= BLOCK:  # (the ring does not wrap round within them)
-                out = self._ring[at : at + count].copy()
-            else:
-                out = self._ring.take(np.arange(at, at + count) % BLOCK, axis=0)
-            self._cycle += count - 1
-            self.advance()  # the refills due at the last advance, if any
-            return out
-        # Some robot runs out within them: in spans up to each refill (or the ring's wrap).
+        # In spans up to each refill (a robot running out) or the ring's wrap: one span
+        # when neither falls within them, the common case.
         out = np.empty((count, *self._ring.shape[1:]))
         k = 0
         while k < count:
